@@ -1,0 +1,3 @@
+from mechanism.cli import main
+
+raise SystemExit(main())
