@@ -1,0 +1,68 @@
+"""Compiled MuJoCo callbacks (C, loaded with ctypes) for the hot paths.
+
+MuJoCo calls physics callbacks (``mjcb_passive``, ``mjcb_act_dyn``, ...) at every step.
+A Python callable there costs a GIL round trip per call, far more than a small model's
+whole step; a C function installed through ``ctypes`` costs almost nothing and also runs
+inside ``mujoco.rollout`` threads. Each ``<name>.c`` in this folder is compiled once per
+source/MuJoCo version into a user cache and reused. Callers must keep a pure-Python
+fallback for machines without a C compiler (``load`` returns None there).
+
+MuJoCo callbacks are process-global: a callback must leave models it does not recognise
+untouched (check a marker in the model before doing anything).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("MECHANISM_CACHE") or os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(root) / "mechanism" / "native"
+
+
+def _compiler() -> str | None:
+    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if name and shutil.which(name):
+            return name
+    return None
+
+
+@functools.lru_cache(maxsize=None)
+def load(name: str) -> ctypes.CDLL | None:
+    """The compiled library for ``mechanism/native/<name>.c``, or None if it cannot be built."""
+    import mujoco
+
+    source = _HERE / f"{name}.c"
+    include = Path(mujoco.__file__).parent / "include"
+    text = source.read_bytes()
+    key = hashlib.sha256(text + mujoco.__version__.encode() + str(include).encode() + sys.platform.encode()).hexdigest()[:16]
+    target = cache_dir() / f"lib{name}-{key}.so"
+    if not target.exists():
+        compiler = _compiler()
+        if compiler is None:
+            warnings.warn(f"no C compiler found: using the slower Python version of '{name}'")
+            return None
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
+        os.close(fd)
+        cmd = [compiler, "-O2", "-shared", "-fPIC", f"-I{include}", str(source), "-o", tmp, "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            os.unlink(tmp)
+            first = (proc.stderr.strip().splitlines() or ["unknown error"])[0]
+            warnings.warn(f"compiling native '{name}' failed ({first}): using the slower Python version")
+            return None
+        os.replace(tmp, target)
+    return ctypes.CDLL(str(target))
