@@ -320,6 +320,7 @@ class _Writer:
         mass = CARRIER_MASS_FRACTION * max(follower_mass, 1e-3)
         carrier.explicitinertial = True
         carrier.mass = _r(mass)
+        carrier.ipos = [0.0, 0.0, 0.0]
         carrier.inertia = _r(np.diag(mass_properties.sphere(mass, mass / 1000.0)))
         self._joints(carrier, joint, pose, False)
         self._weld(label, name, self.body_names[closure.follower_body],
