@@ -90,6 +90,7 @@ class _Writer:
         self.built = Built(spec=self.spec)
         self.spec.modelname = model_name
         self.spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+        self.spec.compiler.balanceinertia = True  # only float-level A + B < C is left after the repairs here
         self.spec.compiler.meshdir = meshdir
         self.spec.option.timestep = TIMESTEP_S
         self.spec.option.integrator = INTEGRATOR
