@@ -26,8 +26,9 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run)
 
 
-def summary_lines(report) -> list[str]:
-    """The printed summary of a conversion (one place for its wording; callers may append lines)."""
+def summary_lines(report, extra=()) -> list[str]:
+    """The printed summary of a conversion, the one place for its wording. ``extra`` lines (e.g.
+    quantities the simulator computes from the model) go after the totals, before the warnings."""
     joints = ", ".join(f"{count} {kind}" for kind, count in report.joints_by_type.items() if count) or "none"
     lines = [
         f"wrote {report.mjcf_path} ({report.export_format}, {report.n_parts} parts, {report.n_meshes} meshes in {report.mesh_dir})",
@@ -37,6 +38,7 @@ def summary_lines(report) -> list[str]:
         f"couplings: {report.n_couplings}",
         f"degrees of freedom: {report.degrees_of_freedom}",
         f"total mass: {report.total_mass_kg:.6g} kg (export: {report.export_mass_kg:.6g} kg)",
+        *extra,
         f"warnings: {len(report.warnings)}",
     ]
     lines += [f"warning: {warning}" for warning in report.warnings]
