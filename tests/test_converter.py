@@ -188,7 +188,7 @@ def test_belt_coupling_holds_the_ratio_and_reflects_the_motor_inertia(tmp_path):
     assert model.equality("coupling:motor_belt").type == mujoco.mjtEq.mjEQ_JOINT
     data = mujoco.MjData(model)
     torque = 0.01  # N*m on the motor shaft
-    motor, arm = model.joint("motor").dofadr[0], model.joint("arm_shaft").dofadr[0]
+    motor = model.joint("motor").dofadr[0]
     for _ in range(1000):
         data.qfrc_applied[motor] = torque
         mujoco.mj_step(model, data)
