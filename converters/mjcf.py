@@ -20,7 +20,7 @@ from converters import inertia as mass_properties
 from converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint
 from converters.errors import ExportError
 from converters.geometry import Mesh
-from converters.names import Namer, sanitize
+from converters.names import Namer
 from converters.pose import Pose
 from converters.tree import Plan
 
@@ -112,6 +112,7 @@ class _Writer:
         self.geom_namer = Namer(reserved=self.part_names.values())
         self.site_namer = Namer(reserved=self.part_names.values())
         self.mjcf_joint_namer = Namer()
+        self.equality_namer = Namer()
         self.spec_bodies: dict[int, object] = {}
         self.body_names: dict[int, str] = {}
         self.body_poses: dict[int, Pose] = {}
@@ -276,7 +277,7 @@ class _Writer:
     # -- loops and couplings -----------------------------------------------------------------
     def _closure(self, closure) -> None:
         joint = closure.joint
-        label = f"loop:{self.joint_names.get(id(joint), sanitize(joint.name))}"
+        label = self.equality_namer(self.joint_names.get(id(joint), joint.name), prefix="loop:")
         base_name, follower_name = self.body_names[closure.base_body], self.body_names[closure.follower_body]
         follower_pose = self.body_poses[closure.follower_body]
         anchor = joint.follower_frame.position
@@ -330,7 +331,7 @@ class _Writer:
     def _couplings(self) -> None:
         for coupling in self.assembly.couplings:
             names = [self._coupled_joint(coupling, which) for which in ("input", "output")]
-            self.spec.add_equality(name=f"coupling:{sanitize(coupling.name)}", type=mujoco.mjtEq.mjEQ_JOINT,
+            self.spec.add_equality(name=self.equality_namer(coupling.name, prefix="coupling:"), type=mujoco.mjtEq.mjEQ_JOINT,
                                    name1=names[0], name2=names[1], objtype=mujoco.mjtObj.mjOBJ_JOINT,
                                    data=_r([coupling.offset, coupling.ratio] + [0.0] * 10))
             self.built.n_couplings += 1
