@@ -79,6 +79,7 @@ class StepperParams:
     rotor_inertia_kg_m2: float
     damping_Nm_s_rad: float  # c, viscous, thesis eq. 21
     load_inertia_kg_m2: float = 0.0  # reflected to the motor shaft
+    load_torque_Nm: float = 0.0  # Tl of eq. 19 as a Coulomb friction load (joint frictionloss)
     decay_margin: float = 0.05  # current overshoot (x rated) above which the chopper decays fast
 
     def __post_init__(self):
@@ -92,7 +93,7 @@ class StepperParams:
                      "chopper_hz", "rotor_inertia_kg_m2"):
             if not getattr(self, name) > 0:
                 raise UserError(f"stepper parameter {name} must be positive, got {getattr(self, name)}")
-        for name in ("detent_torque_Nm", "damping_Nm_s_rad", "load_inertia_kg_m2", "decay_margin"):
+        for name in ("detent_torque_Nm", "damping_Nm_s_rad", "load_inertia_kg_m2", "load_torque_Nm", "decay_margin"):
             if not getattr(self, name) >= 0:
                 raise UserError(f"stepper parameter {name} must not be negative, got {getattr(self, name)}")
 
@@ -328,7 +329,8 @@ def default_timestep(params: StepperParams, kind: str) -> float:
 def build_model(params: StepperParams, kind: str = "circuit", mode: str | DriveMode = "full",
                 timestep: float | None = None):
     """A bare motor: one rotor (inertia rotor + load) on a hinge ``rotor`` with the viscous
-    damping c, the actuator ``stepper`` and a torque sensor."""
+    damping c and the load torque as Coulomb friction, the actuator ``stepper`` and a
+    torque sensor."""
     import mujoco
 
     if kind not in KIND_CODES:
@@ -342,7 +344,10 @@ def build_model(params: StepperParams, kind: str = "circuit", mode: str | DriveM
     body.mass = 0.01
     body.inertia = [params.inertia_kg_m2] * 3
     body.explicitinertial = True
-    body.add_joint(name="rotor", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1], damping=params.damping_Nm_s_rad)
+    joint = body.add_joint(name="rotor", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1],
+                           damping=params.damping_Nm_s_rad, frictionloss=params.load_torque_Nm)
+    # MuJoCo's default friction time constant (20 ms) is far slower than this rotor's dynamics
+    joint.solref_friction = [4 * spec.option.timestep, 1.0]
     add_stepper(spec, "rotor", params, kind, mode)
     spec.add_sensor(name="torque", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC, objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
                     objname="stepper")

@@ -235,3 +235,17 @@ def test_callbacks_leave_other_actuators_to_their_owner(params):
         stepper._native().stepper_set_next(None, None)
         if saved[0] is not None or saved[1] is not None:
             stepper.install("native")
+
+
+def test_load_torque_sets_the_quasi_static_lag(params):
+    """A Coulomb load Tl (eq. 19) on a slow microstepped move: the rotor trails until the
+    spring torque (T_hold/sqrt 2 for sine/cosine currents) balances it."""
+    load = 0.4 * params.holding_torque_Nm
+    loaded = params.replace(load_torque_Nm=load)
+    run = stepper.simulate(step_profiles.move(2, 20), "physical", "micro16", loaded, settle_s=0.02)
+    middle = (run.time_s > 0.03) & (run.time_s < 0.07)
+    lag_deg = float(np.mean(run.command_deg[middle] - run.rotor_deg[middle]))
+    expected = math.degrees(math.asin(load * math.sqrt(2) / params.holding_torque_Nm) / params.pole_pairs)
+    assert lag_deg == pytest.approx(expected, rel=0.1)
+    # at rest the friction holds the rotor anywhere inside that band
+    assert abs(run.summary["final_error_deg"]) <= expected

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 ORDER = 60
@@ -72,6 +73,10 @@ def register(subparsers) -> None:
                         help="slew rate [full steps/s] for thread-cut and target files (default: the thesis's 1000)")
     parser.add_argument("--ramp-steps", type=float, default=None, metavar="STEPS",
                         help="thread-cut-ramped: full steps of the ramp to rest before the reversal (default 25)")
+    parser.add_argument("--load-torque", type=float, default=0.0, metavar="NM",
+                        help="load torque Tl [N m] on the motor shaft, as Coulomb friction (default 0)")
+    parser.add_argument("--load-inertia", type=float, default=0.0, metavar="KG_M2",
+                        help="load inertia [kg m^2] reflected to the motor shaft (default 0: the bare rotor, 5e-8)")
     parser.add_argument("--settle", type=float, default=0.1, metavar="S",
                         help="seconds simulated after the sequence ends, before the lost-step check (default 0.1)")
     parser.add_argument("--sample-period", type=float, default=1e-4, metavar="S",
@@ -95,7 +100,11 @@ def run(args) -> int:
         value = getattr(args, name)
         if not (value >= 0 if name == "settle" else value > 0) or value != value or value > 60:
             raise UserError(f"--{name.replace('_', '-')} out of range: {value:g} s")
-    params = stepper.pm25s048()
+    for name in ("load_torque", "load_inertia"):
+        value = getattr(args, name)
+        if not (value >= 0 and math.isfinite(value)):
+            raise UserError(f"--{name.replace('_', '-')} must be a non-negative number, got {value:g}")
+    params = stepper.pm25s048(load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
 
     if args.sweep:
         kinds = list(stepper.KINDS) if args.model == "both" else [args.model]
