@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,8 +59,7 @@ def solver(prefer: str = "native") -> Solver:
         from mechanism import native
 
         library = native.load("testbench")
-        if library is None:
-            warnings.warn("the virtual test bench runs its Python integrator (no C compiler): 20-40x slower")
+        if library is None:  # native.load has said why
             _SOLVER = Solver("python", _simulate_python)
         else:
             function = library.tb_simulate

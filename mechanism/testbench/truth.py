@@ -52,7 +52,8 @@ def draw_baseline(seed: int, randomize: bool = True) -> dict:
 
     Motor constants vary by a datasheet-like +-3 % (identification holds them at the
     datasheet values); inertia, viscous and Coulomb friction, which identification fits,
-    vary by -25..+30 %. ``randomize=False`` gives the thesis's values exactly.
+    vary by -25..+30 %. ``randomize=False`` gives the thesis's values exactly (plus a nominal
+    0.6 mH inductance, which the thesis neglects).
     """
     ref = thesis()
     motor, ident = ref["main_motor"], ref["identified_parameters"]
