@@ -81,10 +81,13 @@ class FrictionLaw:
             return np.exp(-(x**self.tustin_exponent))
         return 1.0 / (1.0 + x * x)
 
-    def kinetic_level(self, velocity, angle=0.0) -> np.ndarray:
-        """Magnitude of the sliding friction (without the viscous part)."""
-        shape = self.stribeck_shape(velocity)
-        return (self.coulomb + (self.static_level - self.coulomb) * shape) * self.position_scale(angle)
+    def sliding_level(self, velocity) -> np.ndarray:
+        """Magnitude of the sliding friction at the nominal position (no viscous part)."""
+        return self.coulomb + (self.static_level - self.coulomb) * self.stribeck_shape(velocity)
+
+    def kinetic_level(self, velocity, angle) -> np.ndarray:
+        """Magnitude of the sliding friction at ``angle`` of the position joint."""
+        return self.sliding_level(velocity) * self.position_scale(angle)
 
     def static_at(self, angle=0.0):
         return self.static_level * self.position_scale(angle)
