@@ -22,6 +22,35 @@ from mechanism.machine import Machine, MachineConfig
 MAX_DURATION_S = 3600.0
 
 
+CHUNK_STEPS = 4000  # rollout calls of ~2 s simulated: a progress bar without per-step Python
+
+
+def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool):
+    """``mujoco.rollout`` over the whole control sequence, continued chunk by chunk from
+    the last state so that a progress bar can follow long runs."""
+    from tqdm import tqdm
+
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.zeros(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    nstep = len(control)
+    states = np.empty((nstep, len(state)))
+    sensors = np.empty((nstep, model.nsensordata))
+    warmstart = data.qacc_warmstart.copy()
+    with tqdm(total=nstep * model.opt.timestep, unit="s", disable=not progress or None,
+              desc="simulating", bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated") as bar:
+        for start in range(0, nstep, CHUNK_STEPS):
+            stop = min(nstep, start + CHUNK_STEPS)
+            chunk_state, chunk_sensors = mujoco.rollout.rollout(
+                model, data, state[None, :], control[None, start:stop], nstep=stop - start,
+                initial_warmstart=warmstart[None, :])
+            states[start:stop], sensors[start:stop] = chunk_state[0], chunk_sensors[0]
+            state = states[stop - 1]
+            warmstart = data.qacc_warmstart.copy()
+            bar.update((stop - start) * model.opt.timestep)
+    return states, sensors
+
+
 @dataclass
 class SimulationResult:
     time_s: np.ndarray
@@ -65,6 +94,7 @@ def simulate(
     model_path: str | os.PathLike | None = None,
     start_angle_rad: float = 0.0,
     sample_rate_hz: float = 1000.0,
+    progress: bool = False,
 ) -> SimulationResult:
     """Run the machine from rest at ``start_angle_rad`` for ``duration_s`` seconds."""
     if not 0 < duration_s <= MAX_DURATION_S:
@@ -84,11 +114,7 @@ def simulate(
     control[0, :, model.actuator("motor").id] = voltage(step_times)
 
     data = machine.reset(start_angle_rad)
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    initial = np.zeros(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, initial, spec)
-    state, sensordata = mujoco.rollout.rollout(model, data, initial[None, :], control, nstep=nstep)
-    state, sensordata = state[0], sensordata[0]
+    state, sensordata = _rollout_in_chunks(model, data, control[0], progress)
 
     # Unpack qpos/qvel from the full physics state: [time, qpos, qvel, act, ...].
     qpos = state[:, 1 : 1 + model.nq]
