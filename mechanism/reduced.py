@@ -54,7 +54,12 @@ def periodic_interp(table: np.ndarray, angle) -> np.ndarray:
 
 @dataclass
 class LinkageTables:
-    """Arm-side quantities over one revolution, sampled at ``angle_rad`` (0 = needle TDC)."""
+    """Arm-side quantities over one revolution, sampled at ``angle_rad`` (0 = needle TDC).
+
+    ``inertia_kgm2`` is the TOTAL effective inertia J(θ) (motor through the belt included);
+    ``inertia_variation_kgm2`` is what a constant-inertia (lumped) model leaves out and
+    ``reflected_inertia_kgm2`` the constant part.
+    """
 
     angle_rad: np.ndarray
     inertia_kgm2: np.ndarray  # J(θ): effective inertia at the arm, everything included
@@ -69,6 +74,8 @@ class LinkageTables:
     def mean_inertia_kgm2(self) -> float:
         """The constant part (what a lumped model's J stands for, arm side)."""
         return float(self.inertia_kgm2.mean())
+
+    reflected_inertia_kgm2 = mean_inertia_kgm2
 
     @property
     def inertia_variation_kgm2(self) -> np.ndarray:
