@@ -135,12 +135,9 @@ def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
     result = cli("convert", export, "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     expected = (5e4 + 64 * 2e3) * 1e-9  # g*mm^2 -> kg*m^2
-    line = next(l for l in result.stdout.splitlines() if l.startswith("reflected inertia at "))
-    assert line.startswith("reflected inertia at arm_shaft:") or line.startswith("reflected inertia at motor:")
-    value = float(line.split(":")[1].split()[0])
-    ratio_line = next((l for l in result.stdout.splitlines() if "referred to motor" in l), None)
-    if line.startswith("reflected inertia at arm_shaft:"):
-        assert value == pytest.approx(expected, rel=1e-3)  # printed with 4 significant digits
-        assert float(ratio_line.split()[1]) == pytest.approx(expected / 64, rel=1e-3)
+    line = next(l for l in result.stdout.splitlines() if l.startswith("reflected inertia at arm_shaft:"))
+    ratio_line = next(l for l in result.stdout.splitlines() if "referred to motor (ratio 8:1)" in l)
+    assert float(line.split(":")[1].split()[0]) == pytest.approx(expected, rel=1e-3)  # 4 significant digits
+    assert float(ratio_line.split()[1]) == pytest.approx(expected / 64, rel=1e-3)
     moving = next(l for l in result.stdout.splitlines() if l.startswith("moving mass:"))
     assert float(moving.split()[2]) == pytest.approx(0.4, rel=1e-9)  # 100 g + 300 g, the base is fixed
