@@ -653,10 +653,10 @@ def build_hook(p: Params, lay: Layout, lower_shaft_z: float) -> tuple[mf.Manifol
     z_tip = -h["point_below_rim"]
     # the beak: its inner edge spirals out from the point (radius R_p) to the wall, so
     # that only the point itself comes close to the needle
-    inner = [(R_p + (R_i - R_p) * (a / -20.0) ** 1.5, a) for a in np.linspace(0.0, -20.0, 11)]
+    inner = [(R_p + (R_i - R_p) * math.sqrt(a / -20.0), a) for a in np.linspace(0.0, -20.0, 11)]
     outer = [(R_i + 0.2, a) for a in np.linspace(-20.0, -6.0, 8)]
     outline = np.array([(r * math.cos(math.radians(a)), r * math.sin(math.radians(a))) for r, a in inner + outer])
-    beak = slab(mf.CrossSection([outline]), z_tip - 0.5, z_tip + 0.5)
+    beak = slab(mf.CrossSection([outline]), z_tip - 0.4, z_tip + 0.4)
     return (cup - throat) + beak, {"hook_point": (R_p, 0.0, z_tip)}
 
 
