@@ -618,6 +618,8 @@ def build_needle(p: Params) -> tuple[mf.Manifold, dict]:
     flat on the +y side (the back of the machine, where the hook point passes)."""
     n = {k: p("needle", k) for k in p.sections["needle"] if k not in ("system",)}
     length, r_b, r_s = n["length"], n["blade_diameter"] / 2, n["shank_diameter"] / 2
+    if abs(n["size"] / 100 - n["blade_diameter"]) > 1e-9:
+        raise ParamError("needle.blade_diameter must be needle.size / 100 mm (NM size)")
     z_shank = length - n["shank_length"]
     z_blade_top = z_shank - n["shoulder_length"]
     if not 0 < n["point_length"] < n["eye_bottom_above_tip"] < z_blade_top - 3:
