@@ -22,11 +22,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import shutil
 import struct
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +35,8 @@ from scipy.optimize import brentq, minimize_scalar
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import firstgen  # noqa: E402
+
+from mechanism.outputs import atomic_dir  # noqa: E402  (the project's own atomic folder replace)
 
 DEFAULT_PARAMS = HERE / "sewing_machine.params.json"
 DEFAULT_OUT = HERE / "export"
@@ -818,23 +817,9 @@ def write_export(p: Params, out_dir: Path) -> dict:
     export, files, couplings, parts, joints, lay, masses = build_export(p)
     files[f"{EXPORT_NAME}.xml"] = firstgen.render(export).encode("ascii")
     files[f"{EXPORT_NAME}.couplings.json"] = (json.dumps(couplings, indent=2) + "\n").encode("ascii")
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
+    with atomic_dir(out_dir) as tmp:
         for name, data in sorted(files.items()):
             (tmp / name).write_bytes(data)
-        if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
-            os.rmdir(old)
-            os.replace(out_dir, old)
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return {"layout": lay, "masses": masses, "parts": parts, "files": sorted(files)}
 
 
