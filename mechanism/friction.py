@@ -194,6 +194,8 @@ def python_friction(model: mujoco.MjModel, data: mujoco.MjData) -> None:
         match = np.flatnonzero((rows == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF) & (ids == dof))
         if match.size:
             data.efc_frictionloss[match[0]] = level
+            if data.nisland > 0:  # the island solver works on its own sorted copy
+                data.iefc_frictionloss[data.map_efc2iefc[match[0]]] = level
         v = data.qvel[dof]
         shape = 0.0
         if law and vs > 0:

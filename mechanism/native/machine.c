@@ -52,6 +52,8 @@ static void apply_friction(const mjModel* m, mjData* d, const mjtNum* p, int n) 
     for (int r = 0; r < d->nefc; r++) {
       if (d->efc_type[r] == mjCNSTR_FRICTION_DOF && d->efc_id[r] == dof) {
         d->efc_frictionloss[r] = level;
+        // the island solver works on its own sorted copy of the constraint rows
+        if (d->nisland > 0) d->iefc_frictionloss[d->map_efc2iefc[r]] = level;
         break;
       }
     }
