@@ -92,21 +92,23 @@ def parse_pairs(text: str | Sequence[str], model: mujoco.MjModel) -> list[Pair]:
 
 
 def all_pairs(model: mujoco.MjModel) -> list[Pair]:
-    """Every pair of parts that can move relative to each other and is not joined directly
-    (parts sharing a joint or a loop constraint touch by design at the joint)."""
+    """Every pair of parts that can move relative to each other, except parts joined to
+    each other by a joint or loop constraint between two moving bodies (their bearing
+    surfaces touch by design). A joint to the fixed frame does not exclude pairs: the
+    frame holds many parts and the model does not say which one carries the bearing."""
     names = [name for name in parts.part_names(model) if _has_shape(model, name)]
     weld = model.body_weldid
     joined = set()
     for body in range(1, model.nbody):
         joined.add(frozenset((int(weld[body]), int(weld[model.body_parentid[body]]))))
     for eq in range(model.neq):
-        if model.eq_type[eq] in (mujoco.mjtEq.mjEQ_CONNECT, mujoco.mjtEq.mjEQ_WELD) and model.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_BODY:
+        if int(model.eq_type[eq]) in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) and model.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_BODY:
             joined.add(frozenset((int(weld[model.eq_obj1id[eq]]), int(weld[model.eq_obj2id[eq]]))))
     pairs = []
     for a, b in itertools.combinations(names, 2):
         wa = int(weld[model.geom_bodyid[parts.shape_geoms(model, a)[0]]])
         wb = int(weld[model.geom_bodyid[parts.shape_geoms(model, b)[0]]])
-        if wa == wb or frozenset((wa, wb)) in joined:
+        if wa == wb or (wa != 0 and wb != 0 and frozenset((wa, wb)) in joined):
             continue
         pairs.append(Pair(a, b))
     if not pairs:
