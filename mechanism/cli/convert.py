@@ -1,0 +1,51 @@
+"""``mechanism convert``: a CAD assembly export becomes an MJCF model with its meshes."""
+
+from __future__ import annotations
+
+ORDER = 10
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "convert",
+        help="convert a CAD assembly export (Simscape Multibody XML) to an MJCF model",
+        description=(
+            "Convert a CAD assembly export to MuJoCo. Reads first-generation PhysicalModelingXMLFile "
+            "(SimMechanics Link from Creo/Pro-E, SolidWorks, Inventor) and second-generation "
+            "SimscapeMultibodyImportXML exports with their STL/STEP geometry, plus the optional couplings "
+            "side-car EXPORT_STEM.couplings.json (belts, gears). Writes OUTDIR/NAME.xml and OUTDIR/meshes/ "
+            "(binary STL in metres) and prints a summary. Units are converted to SI (m, kg, kg*m^2)."
+        ),
+    )
+    parser.add_argument("export", metavar="EXPORT.xml", help="the CAD export (its geometry files lie next to it)")
+    parser.add_argument("-o", "--out", dest="outdir", metavar="OUTDIR", required=True,
+                        help="output folder for NAME.xml (created if missing; other files in it are kept)")
+    parser.add_argument("--name", metavar="NAME", help="model and file name (default: the export's file name stem)")
+    parser.add_argument("--mesh-dir", metavar="DIR",
+                        help="folder for the meshes (default: OUTDIR/meshes); the MJCF refers to it by relative path")
+    parser.set_defaults(handler=run)
+
+
+def summary_lines(report) -> list[str]:
+    """The printed summary of a conversion (one place for its wording; callers may append lines)."""
+    joints = ", ".join(f"{count} {kind}" for kind, count in report.joints_by_type.items() if count) or "none"
+    lines = [
+        f"wrote {report.mjcf_path} ({report.export_format}, {report.n_parts} parts, {report.n_meshes} meshes in {report.mesh_dir})",
+        f"bodies: {report.n_bodies}",
+        f"joints: {report.n_joints} ({joints})",
+        f"loop closures: {report.n_loop_closures}",
+        f"couplings: {report.n_couplings}",
+        f"degrees of freedom: {report.degrees_of_freedom}",
+        f"total mass: {report.total_mass_kg:.6g} kg (export: {report.export_mass_kg:.6g} kg)",
+        f"warnings: {len(report.warnings)}",
+    ]
+    lines += [f"warning: {warning}" for warning in report.warnings]
+    return lines
+
+
+def run(args) -> int:
+    from converters import convert
+
+    report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir)
+    print("\n".join(summary_lines(report)))
+    return 0
