@@ -139,7 +139,9 @@ class Machine:
     """A compiled, ready-to-simulate machine. ``machine.model`` / ``machine.data`` are plain
     MuJoCo objects; everything added is visible in ``mujoco.mj_saveLastXML``."""
 
-    def __init__(self, model_path: str | os.PathLike | None = None, config: MachineConfig | None = None):
+    def __init__(self, model_path: str | os.PathLike | None = None, config: MachineConfig | None = None, extend=None):
+        """``extend(spec)``, if given, adds to the spec before it is compiled (probe sites
+        and sensors, mechanism.probes); it must not add joints or actuators."""
         self.config = config or MachineConfig()
         spec = load_spec(model_path)
         self.model_path = model_path

@@ -68,13 +68,15 @@ def find_frame(model: mujoco.MjModel, name: str) -> Frame:
 
 
 def part_names(model: mujoco.MjModel) -> list[str]:
-    """Names of the parts that have a shape (geoms named ``<part>`` or ``<part>_<n>``)."""
+    """Names of the parts that have a shape: geoms ``<part>``, ``<part>_visual`` (the
+    converter's visual copy) or ``<part>_<n>`` (more geoms of one part)."""
     geoms = [name for name in _names(model, mujoco.mjtObj.mjOBJ_GEOM, model.ngeom) if name]
     sites = set(_names(model, mujoco.mjtObj.mjOBJ_SITE, model.nsite))
+    known = set(geoms)
     parts = set()
     for name in geoms:
-        match = re.fullmatch(r"(.+)_(\d+)", name)
-        if match and match.group(1) in geoms and name not in sites:
+        match = re.fullmatch(r"(.+)_(\d+|visual)", name)
+        if match and (match.group(1) in known or match.group(1) in sites) and name not in sites:
             parts.add(match.group(1))
         else:
             parts.add(name)
@@ -82,9 +84,10 @@ def part_names(model: mujoco.MjModel) -> list[str]:
 
 
 def part_geoms(model: mujoco.MjModel, part: str) -> list[int]:
-    """All geoms of a part: ``<part>`` and ``<part>_<n>`` unless ``<part>_<n>`` is a part itself."""
+    """All geoms of a part: ``<part>``, ``<part>_visual`` and ``<part>_<n>`` (unless that
+    name is a part of its own, i.e. has its own site)."""
     sites = set(_names(model, mujoco.mjtObj.mjOBJ_SITE, model.nsite))
-    pattern = re.compile(rf"{re.escape(part)}(_\d+)?")
+    pattern = re.compile(rf"{re.escape(part)}_(\d+|visual)")
     found = []
     for index, name in enumerate(_names(model, mujoco.mjtObj.mjOBJ_GEOM, model.ngeom)):
         if name == part or (pattern.fullmatch(name) and name not in sites):
@@ -92,6 +95,12 @@ def part_geoms(model: mujoco.MjModel, part: str) -> list[int]:
     if not found:
         raise UserError(f"no part named {part!r} with a shape in the model; close matches: {close_matches(part, part_names(model))}")
     return found
+
+
+def visual_geoms(model: mujoco.MjModel, part: str) -> list[int]:
+    """The geoms that show the part (group 1), or all its geoms when none is in group 1."""
+    geoms = part_geoms(model, part)
+    return [g for g in geoms if model.geom_group[g] == VISUAL_GROUP] or geoms
 
 
 def shape_geoms(model: mujoco.MjModel, part: str) -> list[int]:

@@ -104,7 +104,7 @@ class ProbeResult:
 
     columns: dict[str, np.ndarray]
     comments: list[str] = field(default_factory=list)
-    x_name: str = "time_s"
+    x_name: str = "time_s"  # the column to plot against (an angle column is plotted in degrees)
 
     def write_csv(self, path: str | os.PathLike) -> None:
         from mechanism.tables import write_table
@@ -270,52 +270,109 @@ def probe_cycle(
         "world frame, z up; loads: rigid inverse dynamics without friction; force/torque = load on the child side of the joint",
         f"{driver}_drive_torque_Nm: torque the driver must supply to hold the constant speed",
     ]
-    return ProbeResult(columns, comments, "time_s")
+    return ProbeResult(columns, comments, f"{driver}_angle_rad")
 
 
 def probe_simulation(
-    spec: mujoco.MjSpec,
     probes: Sequence[Probe],
     voltage: float,
-    duration: float,
+    duration_s: float,
+    model_path: str | os.PathLike | None = None,
+    progress: bool = False,
 ) -> ProbeResult:
-    """Probe values along a dynamic simulation of the machine under a constant motor
-    voltage (the simulation's own motor and friction models). Adds the probes to ``spec``."""
-    attached = add_probes(spec, probes)
-    time, angle, rows = _simulate_and_read(spec, attached, voltage, duration)
-    table = np.asarray(rows).reshape(len(time), -1)
-    columns = {"time_s": np.asarray(time), "arm_shaft_angle_rad": np.asarray(angle)}
+    """Probe values along a dynamic simulation of the machine (motor, friction and loads of
+    :class:`mechanism.machine.Machine`) from rest at arm angle 0 under a constant voltage.
+
+    The probes are added to the machine's spec before it is compiled; each 1 kHz sample
+    of the simulation is replayed (``mj_setState`` + ``mj_forward``) to evaluate them."""
+    from mechanism.machine import Machine
+    from mechanism.simulation import simulate
+
+    attached: list[AttachedProbe] = []
+    machine = Machine(model_path, extend=lambda spec: attached.extend(add_probes(spec, probes)))
+    result = simulate(voltage, duration_s, machine=machine, progress=progress)
+    model, data = machine.model, machine.data
+    motor = model.actuator("motor").id
+    rows = []
+    for state, applied in zip(result.state, result.voltage_V):
+        mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        data.ctrl[motor] = applied
+        mujoco.mj_forward(model, data)
+        rows.append(read_probes(model, data, attached))
+    table = np.asarray(rows).reshape(len(result.time_s), -1)
+    columns = {"time_s": result.time_s, "arm_shaft_angle_rad": result.arm_angle_rad}
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
-    comments = [f"dynamic simulation: {voltage:g} V for {duration:g} s", "world frame, z up; force/torque = load on the child side of the joint"]
+    comments = [
+        f"dynamic simulation: {voltage:g} V for {duration_s:g} s from rest at arm angle 0",
+        "world frame, z up; force/torque = load on the child side of the joint, with friction and loads",
+    ]
     return ProbeResult(columns, comments, "time_s")
 
 
-def _simulate_and_read(spec, attached, voltage, duration):
-    """The one place that calls the dynamics (:mod:`mechanism.simulation`)."""
-    try:
-        from mechanism import simulation
-    except ImportError:
-        raise UserError("dynamic simulation (--voltage/--duration) is not available in this build; use --cycle") from None
-    model = _compile(spec)
-    result = simulation.simulate(model, voltage=voltage, duration=duration, callback=lambda m, d: read_probes(m, d, attached))
-    return result.time, result.arm_angle, result.callback_values
+def parse_probes(parts_args: Sequence[str], quantities: Sequence[str], points: Sequence[str] = ()) -> list[Probe]:
+    """Probes from CLI-style groups: each ``parts_args`` entry is a comma list of names;
+    ``quantities`` and ``points`` have one entry for all groups or one per group (a
+    quantity entry may be a comma list; a point is ``X,Y,Z`` in mm)."""
+    groups = [[name.strip() for name in item.split(",") if name.strip()] for item in parts_args]
+    if not groups or not all(groups):
+        raise UserError("give at least one --part NAME")
+    if len(quantities) not in (1, len(groups)):
+        raise UserError(f"--quantity given {len(quantities)} times for {len(groups)} --part groups: give it once or once per --part")
+    if len(points) not in (0, 1, len(groups)):
+        raise UserError(f"--point given {len(points)} times for {len(groups)} --part groups: give it once or once per --part")
+    probes = []
+    for i, names in enumerate(groups):
+        wanted = [q.strip() for q in quantities[0 if len(quantities) == 1 else i].split(",") if q.strip()]
+        point = None
+        if points:
+            text = points[0 if len(points) == 1 else i]
+            try:
+                point = tuple(float(v) for v in text.split(","))
+            except ValueError:
+                raise UserError(f"--point {text!r}: expected X,Y,Z in mm") from None
+        for name in names:
+            for quantity in wanted:
+                probes.append(Probe(name, quantity, point))
+    return list(dict.fromkeys(probes))
+
+
+def run_probes(
+    probes: Sequence[Probe],
+    model_path: str | os.PathLike | None = None,
+    voltage: float | None = None,
+    duration_s: float | None = None,
+    speed_rpm: float = DEFAULT_SPEED_RPM,
+    revolutions: float = 1.0,
+    resolution_deg: float = DEFAULT_RESOLUTION_DEG,
+    driver: str = "arm_shaft",
+    progress: bool = False,
+) -> ProbeResult:
+    """Probes over a dynamic simulation (``voltage`` and ``duration_s`` given) or else a
+    kinematic cycle of the model at ``model_path`` (default: the shipped machine)."""
+    from mechanism.models import load_spec
+
+    if (voltage is None) != (duration_s is None):
+        raise UserError("a dynamic run needs both a voltage and a duration")
+    if voltage is not None:
+        return probe_simulation(probes, voltage, duration_s, model_path, progress)
+    return probe_cycle(load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver)
 
 
 def plot_probes(result: ProbeResult, probes: Sequence[Probe], path: str | os.PathLike) -> None:
     from mechanism.plotting import plt, save_figure
 
     probes = list(dict.fromkeys(probes))
-    cycle = any(name.endswith("_angle_rad") for name in result.columns) and "kinematic cycle" in " ".join(result.comments)
-    if cycle:
-        angle_name = next(name for name in result.columns if name.endswith("_angle_rad"))
-        x, xlabel = np.degrees(result.columns[angle_name]), angle_name.replace("_rad", " [deg]")
+    x = result.columns[result.x_name]
+    if result.x_name.endswith("_rad"):
+        x, xlabel = np.degrees(x), result.x_name[: -len("_rad")] + " [deg]"
     else:
-        x, xlabel = result.columns["time_s"], "time [s]"
+        x, xlabel = x, "time [s]"
     fig, axes = plt.subplots(len(probes), 1, figsize=(8, 2.4 * len(probes)), sharex=True, squeeze=False)
     for ax, probe in zip(axes[:, 0], probes):
         for name in probe.columns:
             ax.plot(x, result.columns[name], label=name)
-        ax.set_ylabel(f"{probe.quantity}")
+        unit = KINEMATIC[probe.quantity][2] if probe.quantity in KINEMATIC else LOADS[probe.quantity][3]
+        ax.set_ylabel(f"{probe.quantity} [{unit.replace('_', '/')}]")
         ax.legend(fontsize=7, loc="best")
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(xlabel)

@@ -72,8 +72,9 @@ def mesh_triangles(model: mujoco.MjModel, geom: int) -> tuple[np.ndarray, np.nda
     return model.mesh_vert[v0 : v0 + nv].astype(float), model.mesh_face[f0 : f0 + nf].astype(np.int64)
 
 
-def _triangle_mesh(model: mujoco.MjModel, geom: int):
-    """A closed triangle mesh of the geom in its own frame (primitives finely tessellated)."""
+def geom_mesh(model: mujoco.MjModel, geom: int, sections: int = PRIMITIVE_SECTIONS) -> tuple[np.ndarray, np.ndarray]:
+    """A closed triangle mesh of the geom in its own frame: a mesh geom's own triangles,
+    primitives tessellated with ``sections`` around their axis."""
     import trimesh
 
     kind, size = model.geom_type[geom], model.geom_size[geom]
@@ -81,17 +82,24 @@ def _triangle_mesh(model: mujoco.MjModel, geom: int):
     if kind == T.mjGEOM_MESH:
         return mesh_triangles(model, geom)
     if kind == T.mjGEOM_SPHERE:
-        mesh = trimesh.creation.icosphere(subdivisions=5, radius=size[0])
+        mesh = trimesh.creation.icosphere(subdivisions=_subdivisions(sections), radius=size[0])
     elif kind == T.mjGEOM_CAPSULE:
-        mesh = trimesh.creation.capsule(height=2 * size[1], radius=size[0], count=[PRIMITIVE_SECTIONS, PRIMITIVE_SECTIONS // 2])
+        mesh = trimesh.creation.capsule(height=2 * size[1], radius=size[0], count=[sections, max(4, sections // 2)])
     elif kind == T.mjGEOM_CYLINDER:
-        mesh = trimesh.creation.cylinder(radius=size[0], height=2 * size[1], sections=PRIMITIVE_SECTIONS)
+        mesh = trimesh.creation.cylinder(radius=size[0], height=2 * size[1], sections=sections)
     elif kind == T.mjGEOM_BOX:
         mesh = trimesh.creation.box(extents=2 * size)
-    else:  # ellipsoid
-        mesh = trimesh.creation.icosphere(subdivisions=5, radius=1.0)
+    elif kind == T.mjGEOM_ELLIPSOID:
+        mesh = trimesh.creation.icosphere(subdivisions=_subdivisions(sections), radius=1.0)
         mesh.apply_scale(size)
+    else:
+        _fcl_geometry(model, geom)  # raises the unsupported-type error
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _subdivisions(sections: int) -> int:
+    """Icosphere subdivisions giving about ``sections`` edges around a great circle."""
+    return int(np.clip(np.round(np.log2(max(sections, 5) / 5)), 1, 5))
 
 
 class PartShape:
@@ -152,7 +160,7 @@ class PartShape:
         if self._solids is None:
             self._solids = []
             for geom in self.geoms:
-                vertices, faces = _triangle_mesh(self.model, geom)
+                vertices, faces = geom_mesh(self.model, geom)
                 solid = manifold3d.Manifold(manifold3d.Mesh64(vert_properties=vertices, tri_verts=faces.astype(np.uint32)))
                 if solid.status() != manifold3d.Error.NoError:
                     name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, geom)

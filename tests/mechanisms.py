@@ -30,9 +30,10 @@ def _cylinder_y(radius, length, sections=SECTIONS):
 
 
 def _add_part(body, spec, name, mesh, pos=(0, 0, 0), rgba=(0.7, 0.7, 0.75, 1), mass=0.01):
-    """Geoms and a site named after the part, as the converter writes them."""
-    body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh, pos=list(pos), group=1, contype=0, conaffinity=0, rgba=list(rgba), mass=mass)
-    body.add_geom(name=f"{name}_2", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh, pos=list(pos), group=3, contype=0, conaffinity=0, mass=0)
+    """Geoms and a site named after the part, as the converter writes them: the collision
+    geom ``<part>`` (group 3, marked for exact distance), the visual ``<part>_visual``."""
+    body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh, pos=list(pos), group=3, contype=0, conaffinity=0, mass=mass)
+    body.add_geom(name=f"{name}_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh, pos=list(pos), group=1, contype=0, conaffinity=0, rgba=list(rgba), mass=0)
     body.add_site(name=name, pos=list(pos))
 
 

@@ -70,7 +70,7 @@ def test_needle_through_plate_hole_is_a_clearance_not_a_hull_collision(needle_mo
     mujoco.mj_kinematics(needle_model, data)
     tip = data.site("needle_tip").xpos[2]
     assert tip < M.PLATE_TOP
-    hull = mujoco.mj_geomDistance(needle_model, data, needle_model.geom("needle_2").id, needle_model.geom("needle_plate_2").id, 1.0, None)
+    hull = mujoco.mj_geomDistance(needle_model, data, needle_model.geom("needle").id, needle_model.geom("needle_plate").id, 1.0, None)
     assert hull < 0
 
 
