@@ -33,7 +33,7 @@ import numpy as np
 from converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint, NamedFrame, Part, Primitive
 from converters.errors import ExportError
 from converters.pose import Pose, orthonormal
-from converters.safety import MAX_DEPTH, resolve_inside
+from converters.safety import MAX_DEPTH, numbers, resolve_inside
 from converters.units import inertia_factor, length_factor, mass_factor, volume_factor
 
 ROOT_TAG = "PhysicalModelingXMLFile"
@@ -51,17 +51,7 @@ def _text(element, tag: str, default: str | None = None) -> str | None:
 
 
 def _floats(text: str | None, count: int, where: str) -> np.ndarray:
-    if text is None:
-        raise ExportError(f"{where}: missing")
-    try:
-        values = np.array([float(piece) for piece in text.replace(";", ",").split(",") if piece.strip()])
-    except ValueError:
-        raise ExportError(f"{where}: '{text[:60]}' is not a list of numbers") from None
-    if values.size != count:
-        raise ExportError(f"{where}: expected {count} numbers, found {values.size}")
-    if not np.all(np.isfinite(values)):
-        raise ExportError(f"{where}: contains NaN/inf")
-    return values
+    return numbers(text, count, where)
 
 
 def _number(text: str | None, where: str) -> float:

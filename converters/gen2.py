@@ -32,7 +32,7 @@ import numpy as np
 from converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint, Part, Primitive
 from converters.errors import ExportError
 from converters.pose import Pose, orthonormal
-from converters.safety import MAX_DEPTH, resolve_inside
+from converters.safety import MAX_DEPTH, numbers, resolve_inside
 from converters.units import length_factor, mass_factor
 
 ROOT_TAG = "SimscapeMultibodyImportXML"
@@ -71,16 +71,7 @@ def _child(element, name: str):
 
 
 def _numbers(element, count: int, where: str) -> np.ndarray:
-    text = (element.text or "") if element is not None else ""
-    try:
-        values = np.array([float(piece) for piece in text.split()])
-    except ValueError:
-        raise ExportError(f"{where}: '{text.strip()[:60]}' is not a list of numbers") from None
-    if values.size != count:
-        raise ExportError(f"{where}: expected {count} numbers, found {values.size}")
-    if not np.all(np.isfinite(values)):
-        raise ExportError(f"{where}: contains NaN/inf")
-    return values
+    return numbers(element.text if element is not None else None, count, where)
 
 
 def _decimals(element) -> int:

@@ -24,6 +24,8 @@ from converters.safety import MAX_GEOMETRY_BYTES
 STEP_LINEAR_DEFLECTION_MM = 0.05  # tessellation chord error: 0.05 mm is below CAD tolerances of machined parts
 STEP_ANGULAR_DEFLECTION_RAD = 0.5
 CONVEX_VOLUME_RATIO = 0.99
+PLAUSIBLE_DENSITY = (20.0, 30000.0)  # kg/m^3: foam to tungsten; outside it a mesh unit is wrong
+ALTERNATIVE_UNITS = {"mm": 1e-3, "m": 1.0, "in": 0.0254, "cm": 1e-2}
 STL_HEADER = b"mechanism converter: binary STL, metres".ljust(80, b" ")
 
 FORMATS = {".stl": "stl", ".step": "step", ".stp": "step", ".obj": "obj", ".ply": "ply"}
@@ -115,7 +117,8 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
 
     Problems become warnings on ``assembly``: one summary for missing files, one per unusable file.
     """
-    cache: dict[tuple, Mesh | GeometryError | None] = {}
+    raw: dict[Path, tuple | GeometryError | None] = {}
+    scaled: dict[tuple, Mesh] = {}
     by_digest: dict[str, Mesh] = {}
     namer = Namer()
     missing: list[str] = []
@@ -123,20 +126,23 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
     for part in assembly.real_parts:
         if part.geometry is None:
             continue
-        key = (part.geometry, part.geometry_scale)
-        if key not in cache:
-            cache[key] = _mesh_for(part, namer, by_digest)
-        result = cache[key]
-        if result is None:
+        if part.geometry not in raw:
+            raw[part.geometry] = _read(part.geometry)
+        loaded = raw[part.geometry]
+        meshes[part.key] = None
+        if loaded is None:
             missing.append(part.geometry_name)
-            meshes[part.key] = None
-        elif isinstance(result, GeometryError):
-            assembly.warn(f"geometry file {part.geometry_name} of part {part.name} {result}: the part gets an "
+            continue
+        if isinstance(loaded, GeometryError):
+            assembly.warn(f"geometry file {part.geometry_name} of part {part.name} {loaded}: the part gets an "
                           f"equivalent-inertia box instead")
-            meshes[part.key] = None
-        else:
-            meshes[part.key] = result
-            _check_placement(assembly, part, result)
+            continue
+        vertices, faces, has_units = loaded
+        scale = 1.0 if has_units else _choose_scale(assembly, part, vertices, faces)
+        if (part.geometry, scale) not in scaled:
+            scaled[(part.geometry, scale)] = _mesh(part, vertices * scale, faces, namer, by_digest)
+        meshes[part.key] = scaled[(part.geometry, scale)]
+        _check_placement(assembly, part, meshes[part.key])
     if missing:
         unique = list(dict.fromkeys(missing))
         shown = ", ".join(unique[:8]) + (f" and {len(unique) - 8} more" if len(unique) > 8 else "")
@@ -145,21 +151,56 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
     return meshes
 
 
-def _mesh_for(part: Part, namer: Namer, by_digest: dict) -> Mesh | GeometryError | None:
-    if not part.geometry.exists():
+def _read(path: Path) -> tuple | GeometryError | None:
+    """(vertices, faces, carries_units) of a geometry file in its own units, None if it does not exist."""
+    if not path.exists():
         return None
     try:
-        vertices, faces = _clean(*_load(part.geometry, part.geometry_scale))
+        vertices, faces = _clean(*_load(path, 1.0))
     except GeometryError as exc:
         return exc
+    return vertices, faces, FORMATS.get(path.suffix.lower()) == "step"
+
+
+def _holds_com(part: Part, vertices: np.ndarray, scale: float) -> bool:
+    com = part.frame.inverse().apply(part.com)
+    low, high = vertices.min(axis=0) * scale, vertices.max(axis=0) * scale
+    margin = 0.1 * float(np.linalg.norm(high - low)) + 1e-9
+    return not (np.any(com < low - margin) or np.any(com > high + margin))
+
+
+def _density_plausible(part: Part, vertices: np.ndarray, faces: np.ndarray, scale: float) -> bool:
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices * scale, faces, process=True)
+    if not mesh.is_watertight or abs(mesh.volume) <= 0:
+        return True
+    return bool(PLAUSIBLE_DENSITY[0] <= part.mass / abs(mesh.volume) <= PLAUSIBLE_DENSITY[1])
+
+
+def _choose_scale(assembly: Assembly, part: Part, vertices, faces) -> float:
+    """STL carries no unit: take the export's, unless the part's centre of mass only falls inside
+    the mesh in another common unit (then the density decides between candidates)."""
+    if part.mass <= 0 or _holds_com(part, vertices, part.geometry_scale):
+        return part.geometry_scale
+    fits = [(unit, scale) for unit, scale in ALTERNATIVE_UNITS.items()
+            if scale != part.geometry_scale and _holds_com(part, vertices, scale)]
+    fits.sort(key=lambda fit: not _density_plausible(part, vertices, faces, fit[1]))
+    if not fits:
+        return part.geometry_scale
+    unit, scale = fits[0]
+    assembly.warn(f"geometry file {part.geometry_name} of part {part.name} only fits the part's mass properties "
+                  f"in {unit}: read in {unit} instead of the export's length unit")
+    return scale
+
+
+def _mesh(part: Part, vertices, faces, namer: Namer, by_digest: dict) -> Mesh:
     data = stl_bytes(vertices, faces)
     digest = hashlib.sha256(data).hexdigest()
-    if digest in by_digest:
-        return by_digest[digest]
-    mesh = Mesh(name=namer(Path(part.geometry_name.replace("\\", "/")).stem), vertices=vertices, faces=faces,
-                data=data, convex=is_convex(vertices, faces))
-    by_digest[digest] = mesh
-    return mesh
+    if digest not in by_digest:
+        by_digest[digest] = Mesh(name=namer(Path(part.geometry_name.replace("\\", "/")).stem), vertices=vertices,
+                                 faces=faces, data=data, convex=is_convex(vertices, faces))
+    return by_digest[digest]
 
 
 def _check_placement(assembly: Assembly, part: Part, mesh: Mesh) -> None:

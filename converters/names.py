@@ -20,8 +20,9 @@ class Namer:
     def __init__(self, reserved=()):
         self._used: set[str] = set(reserved)
 
-    def __call__(self, name: str) -> str:
-        base = sanitize(name)
+    def __call__(self, name: str, prefix: str = "") -> str:
+        """A unique ``prefix + sanitize(name)`` (the prefix, e.g. ``loop:``, is kept as written)."""
+        base = prefix + sanitize(name)
         candidate, counter = base, 1
         while candidate in self._used:
             counter += 1

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import defusedxml
 import defusedxml.ElementTree as SafeET
 from xml.etree.ElementTree import ParseError
+
+import numpy as np
 
 from converters.errors import ExportError
 
@@ -73,3 +76,21 @@ def resolve_inside(folder: Path, name: str, what: str) -> Path:
     if folder not in resolved.parents:
         raise ExportError(f"{what}: file name '{name}' points outside the export folder {folder}")
     return resolved
+
+
+_SEPARATORS = re.compile(r"[,;\s]+")
+
+
+def numbers(text: str | None, count: int, where: str) -> np.ndarray:
+    """Exactly ``count`` finite numbers from untrusted text (comma, semicolon or space separated)."""
+    if text is None:
+        raise ExportError(f"{where}: missing")
+    try:
+        values = np.array([float(piece) for piece in _SEPARATORS.split(text.strip()) if piece])
+    except ValueError:
+        raise ExportError(f"{where}: '{text.strip()[:60]}' is not a list of numbers") from None
+    if values.size != count:
+        raise ExportError(f"{where}: expected {count} numbers, found {values.size}")
+    if not np.all(np.isfinite(values)):
+        raise ExportError(f"{where}: contains NaN/inf")
+    return values

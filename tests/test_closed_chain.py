@@ -50,6 +50,7 @@ def test_fourbar_in_a_tilted_plane_follows_freudenstein_over_a_full_crank_turn(t
         gaps.append(np.linalg.norm(gap - (gap @ fourbar.plane[:, 2]) * fourbar.plane[:, 2]))
         crank_angles.append(crank)
     assert np.ptp(np.unwrap(crank_angles)) > 2 * math.pi, "the crank made a full turn"
+    print(f"four-bar: worst rocker error {math.degrees(max(errors)):.5f} deg, loop gap {max(gaps):.2e} mm")
     assert math.degrees(max(errors)) < 0.5
     assert max(gaps) < 0.001 * fourbar.coupler, "the closing pin stays closed to 0.1% of the coupler length"
 
@@ -116,3 +117,50 @@ def test_prismatic_loop_closure_uses_a_carrier_and_slides_freely(tmp_path):
     expected = 0.5 * 9.81 * math.sin(math.radians(30)) * t**2
     assert travelled @ rail == pytest.approx(expected, rel=0.01)
     assert np.linalg.norm(travelled - (travelled @ rail) * rail) < 1e-5, "no motion across the rails"
+
+
+def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
+    """Second-generation slider-crank in millimetres: crank r about world z, rod l, slider on a
+    prismatic joint along world x (its joint frame's z axis turned onto x). The revolute
+    rod--slider closes the loop; x_slider = r cos(q) + sqrt(l^2 - r^2 sin^2(q))."""
+    from exports import gen2_export, gen2_joint, gen2_part, gen2_transform
+
+    r, l, q0 = 30.0, 100.0, math.radians(40)
+    a = np.array([r * math.cos(q0), r * math.sin(q0), 0.0])
+    b = np.array([r * math.cos(q0) + math.sqrt(l * l - (r * math.sin(q0)) ** 2), 0.0, 0.0])
+    slider_pose = (rotation((0, 0, 1), math.radians(30)), b + np.array([0, 0, 5.0]))  # an arbitrary part frame
+
+    def in_slider(point, frame_rotation=np.eye(3)):
+        rot, origin = slider_pose
+        return gen2_transform(rot.T @ frame_rotation, rot.T @ (np.asarray(point) - origin))
+
+    along_x = rotation((0, 1, 0), math.pi / 2)  # maps z onto x
+    parts = "".join([gen2_part("ground", "P0", 1000, (0, 0, -10), (1e6, 1e6, 1e6, 0, 0, 0)),
+                     gen2_part("crank", "P1", 40, a / 2, (1e3, 4e3, 4e3, 0, 0, 0)),
+                     gen2_part("rod", "P2", 60, (a + b) / 2, (1e3, 5e4, 5e4, 0, 0, 0)),
+                     gen2_part("slider", "P3", 80, (0, 0, 0), (2e4, 2e4, 2e4, 0, 0, 0))])
+    instances = ('<Instance entityUid="P0" grounded="true" name="ground" uid="I0">' + gen2_transform() + "</Instance>"
+                 '<Instance entityUid="P1" name="crank" uid="I1">' + gen2_transform() + "</Instance>"
+                 '<Instance entityUid="P2" name="rod" uid="I2">' + gen2_transform() + "</Instance>"
+                 f'<Instance entityUid="P3" name="slider" uid="I3">{gen2_transform(*slider_pose)}</Instance>')
+    joints = (gen2_joint("Revolute", "crank", ["I0"], gen2_transform(), ["I1"], gen2_transform())
+              + gen2_joint("Revolute", "crank_pin", ["I1"], gen2_transform(None, a), ["I2"], gen2_transform(None, a))
+              + gen2_joint("Prismatic", "guide", ["I0"], gen2_transform(along_x, b), ["I3"], in_slider(b, along_x))
+              + gen2_joint("Revolute", "wrist_pin", ["I2"], gen2_transform(None, b), ["I3"], in_slider(b)))
+    (tmp_path / "slider_crank.xml").write_text(gen2_export(instances, joints, parts, length="millimeter", mass="gram"))
+    report = convert(tmp_path / "slider_crank.xml", tmp_path / "out")
+    assert report.joints_by_type == {"hinge": 2, "slide": 1, "ball": 0, "free": 0}
+    assert report.n_loop_closures == 1 and report.degrees_of_freedom == 1
+    model, data, drive = _drive(report.mjcf_path, "crank")
+    steps = int(0.5 / model.opt.timestep)
+    worst = 0.0
+    for step in range(steps):
+        model.eq_data[drive, 0] = 2 * math.pi * step / steps
+        mujoco.mj_step(model, data)
+        mujoco.mj_kinematics(model, data)  # positions of the new qpos (mj_step leaves those of the old one)
+        q = q0 + data.qpos[model.joint("crank").qposadr[0]]
+        expected = r * math.cos(q) + math.sqrt(l * l - (r * math.sin(q)) ** 2)
+        x = 1000 * data.site("slider").xpos[0]
+        worst = max(worst, abs(x - expected))
+    print(f"slider-crank: worst stroke error {worst:.5f} mm")
+    assert worst < 0.001 * 2 * r, f"slider off its analytic stroke by {worst:.4f} mm"

@@ -125,3 +125,19 @@ def test_legs_cli_warns_that_meshes_are_missing(shared, tmp_path, cli):
     result = cli("convert", source / "LEGS_MECHANISM.xml", "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     assert any(line.startswith("warning: ") and "geometry file(s) are missing" in line for line in result.stdout.splitlines())
+
+
+def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
+    # Two shafts on a 8:1 belt: the arm feels I_arm + 64 I_motor (a hand calculation).
+    from test_converter import _belt, _two_shafts
+
+    export = _two_shafts(tmp_path, _belt(), motor_inertia=2e3, arm_inertia=5e4)
+    result = cli("convert", export, "-o", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    expected = (5e4 + 64 * 2e3) * 1e-9  # g*mm^2 -> kg*m^2
+    line = next(l for l in result.stdout.splitlines() if l.startswith("reflected inertia at arm_shaft:"))
+    ratio_line = next(l for l in result.stdout.splitlines() if "referred to motor (ratio 8:1)" in l)
+    assert float(line.split(":")[1].split()[0]) == pytest.approx(expected, rel=1e-3)  # 4 significant digits
+    assert float(ratio_line.split()[1]) == pytest.approx(expected / 64, rel=1e-3)
+    moving = next(l for l in result.stdout.splitlines() if l.startswith("moving mass:"))
+    assert float(moving.split()[2]) == pytest.approx(0.4, rel=1e-9)  # 100 g + 300 g, the base is fixed

@@ -188,7 +188,7 @@ def test_belt_coupling_holds_the_ratio_and_reflects_the_motor_inertia(tmp_path):
     assert model.equality("coupling:motor_belt").type == mujoco.mjtEq.mjEQ_JOINT
     data = mujoco.MjData(model)
     torque = 0.01  # N*m on the motor shaft
-    motor, arm = model.joint("motor").dofadr[0], model.joint("arm_shaft").dofadr[0]
+    motor = model.joint("motor").dofadr[0]
     for _ in range(1000):
         data.qfrc_applied[motor] = torque
         mujoco.mj_step(model, data)
@@ -351,3 +351,58 @@ def test_gen2_inertia_order_and_units(tmp_path):
     assert slider.com == pytest.approx(np.array([0, 0.1, 0]) + tilt @ np.array([0, 0.005, 0.005]))
     cover = next(p for p in assembly.parts.values() if p.name == "Cover")
     assert cover.com == pytest.approx([0.1, 0.01, 0.02])  # (10, 0, 0) mm turned 90 degrees about z
+
+
+def test_gen2_compound_joints_get_suffixed_names_and_6dof_to_ground_is_free(tmp_path):
+    parts = "".join(gen2_part(n, f"P-{n}", 1.0, (0, 0, 0), (0.01, 0.01, 0.01, 0, 0, 0)) for n in ("base", "a", "b", "c", "d"))
+    grounded = ' grounded="true"'
+    instances = "".join(
+        f'<Instance entityUid="P-{n}"{grounded if n == "base" else ""} name="{n} &lt;1&gt;" uid="I-{n}">'
+        f"{gen2_transform(None, (i * 0.1, 0, 0))}</Instance>" for i, n in enumerate(("base", "a", "b", "c", "d")))
+    joints = (gen2_joint("Planar", "table", ["I-base"], gen2_transform(None, (0.1, 0, 0)), ["I-a"], gen2_transform())
+              + gen2_joint("Universal", "cardan", ["I-a"], gen2_transform(None, (0.1, 0, 0)), ["I-b"], gen2_transform())
+              + gen2_joint("SixDOF", "floating", ["I-base"], gen2_transform(None, (0.3, 0, 0)), ["I-c"], gen2_transform())
+              + gen2_joint("Bushing", "mount", ["I-c"], gen2_transform(None, (0.1, 0, 0)), ["I-d"], gen2_transform()))
+    (tmp_path / "compound.xml").write_text(gen2_export(instances, joints, parts))
+    report = convert(tmp_path / "compound.xml", tmp_path / "out")
+    assert any("mount" in w and "stiffness" in w for w in report.warnings)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    names = [model.joint(i).name for i in range(model.njnt)]
+    assert names[:5] == ["table_slide1", "table_slide2", "table_hinge", "cardan_hinge1", "cardan_hinge2"]
+    assert "floating" in names and model.joint("floating").type[0] == mujoco.mjtJoint.mjJNT_FREE
+    assert [n for n in names if n.startswith("mount")] == ["mount_slide1", "mount_slide2", "mount_slide3",
+                                                          "mount_hinge1", "mount_hinge2", "mount_hinge3"]
+    assert report.degrees_of_freedom == 3 + 2 + 6 + 6
+
+
+def test_gen2_stl_written_in_millimetres_is_detected_by_its_mass_properties(tmp_path):
+    box_stl(tmp_path / "block.stl", (100, 0, 0), (140, 20, 10))  # mm, well away from the part origin
+    parts = gen2_part("base", "P-base", 1.0, (0, 0, 0), (0.01, 0.01, 0.01, 0, 0, 0)) + gen2_part(
+        "block", "P-block", 0.063, (0.12, 0.01, 0.005), (1e-6, 1e-6, 1e-6, 0, 0, 0), geometry="block.stl")
+    instances = ('<Instance entityUid="P-base" grounded="true" name="base" uid="I-base">' + gen2_transform() + "</Instance>"
+                 '<Instance entityUid="P-block" name="block" uid="I-block">' + gen2_transform() + "</Instance>")
+    joints = gen2_joint("Revolute", "hinge", ["I-base"], gen2_transform(), ["I-block"], gen2_transform())
+    (tmp_path / "units.xml").write_text(gen2_export(instances, joints, parts))
+    report = convert(tmp_path / "units.xml", tmp_path / "out")
+    assert any("block.stl" in w and "read in mm" in w for w in report.warnings)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    mesh = model.geom("block").dataid[0]
+    vertices = model.mesh_vert[model.mesh_vertadr[mesh]: model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+    world = data.geom("block").xpos + vertices @ data.geom("block").xmat.reshape(3, 3).T
+    assert world.min(axis=0) == pytest.approx([0.1, 0, 0], abs=1e-7)
+    assert world.max(axis=0) == pytest.approx([0.14, 0.02, 0.01], abs=1e-7)
+
+
+def test_units_of_first_generation_exports():
+    from converters.units import inertia_factor, length_factor, mass_factor, volume_factor
+
+    assert length_factor('"in"', "t") == 0.0254 and length_factor("millimeter", "t") == 1e-3
+    assert mass_factor("lbm", "t") == pytest.approx(0.45359237) and mass_factor("pound", "t") == mass_factor("lbm", "t")
+    assert inertia_factor("g*mm^2", "t") == pytest.approx(1e-9)
+    assert inertia_factor("lbm*in^2", "t") == pytest.approx(0.45359237 * 0.0254**2)
+    assert inertia_factor("slug*ft^2", "t") == pytest.approx(14.593902937 * 0.3048**2)
+    assert volume_factor("mm^3", "t") == pytest.approx(1e-9)
+    with pytest.raises(ExportError, match="unknown inertia unit"):
+        inertia_factor("kg*m", "t")

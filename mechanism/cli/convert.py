@@ -26,8 +26,9 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run)
 
 
-def summary_lines(report) -> list[str]:
-    """The printed summary of a conversion (one place for its wording; callers may append lines)."""
+def summary_lines(report, extra=()) -> list[str]:
+    """The printed summary of a conversion, the one place for its wording. ``extra`` lines (e.g.
+    quantities the simulator computes from the model) go after the totals, before the warnings."""
     joints = ", ".join(f"{count} {kind}" for kind, count in report.joints_by_type.items() if count) or "none"
     lines = [
         f"wrote {report.mjcf_path} ({report.export_format}, {report.n_parts} parts, {report.n_meshes} meshes in {report.mesh_dir})",
@@ -37,9 +38,43 @@ def summary_lines(report) -> list[str]:
         f"couplings: {report.n_couplings}",
         f"degrees of freedom: {report.degrees_of_freedom}",
         f"total mass: {report.total_mass_kg:.6g} kg (export: {report.export_mass_kg:.6g} kg)",
+        *extra,
         f"warnings: {len(report.warnings)}",
     ]
     lines += [f"warning: {warning}" for warning in report.warnings]
+    return lines
+
+
+def drive_lines(report) -> list[str]:
+    """Moving mass and, for a one-degree-of-freedom machine, the effective inertia reflected to
+    its driving joint over one revolution (motor through the belts included)."""
+    import mujoco
+    import numpy as np
+
+    from mechanism.kinematics import PoseError
+    from mechanism.models import load_model
+    from mechanism.reduced import compute_tables
+
+    model = load_model(report.mjcf_path)
+    moving = float(sum(model.body_mass[b] for b in range(1, model.nbody) if model.body_weldid[b] != 0))
+    lines = [f"moving mass: {moving:.6g} kg"]
+    if report.degrees_of_freedom != 1:
+        return lines
+    hinges = [model.joint(j).name for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    driver = "arm_shaft" if "arm_shaft" in hinges else (hinges[0] if hinges else None)
+    if driver is None:
+        return lines
+    try:
+        tables = compute_tables(model, n=180, driver=driver)
+    except PoseError as exc:
+        return lines + [f"reflected inertia: not computed ({exc})"]
+    inertia = tables.inertia_kgm2
+    lines.append(f"reflected inertia at {driver}: {inertia.mean():.4g} kg*m^2 mean over a revolution "
+                 f"({inertia.min():.4g} to {inertia.max():.4g})")
+    for joint, ratio in tables.ratios.items():
+        if joint != driver and np.ptp(ratio) < 1e-9 and abs(ratio[0]) > 1.5:
+            # a geared-up joint (e.g. the motor through its belt): also quote the inertia on its side
+            lines.append(f"  = {inertia.mean() / ratio[0] ** 2:.4g} kg*m^2 referred to {joint} (ratio {abs(ratio[0]):g}:1)")
     return lines
 
 
@@ -47,5 +82,5 @@ def run(args) -> int:
     from converters import convert
 
     report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir)
-    print("\n".join(summary_lines(report)))
+    print("\n".join(summary_lines(report, extra=drive_lines(report))))
     return 0
