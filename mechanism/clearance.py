@@ -40,13 +40,13 @@ from scipy.optimize import minimize_scalar
 from mechanism import parts
 from mechanism.cycle import DEFAULT_RESOLUTION_DEG, cycle_angles
 from mechanism.errors import UserError, close_matches
-from mechanism.kinematics import joint_dof, solve_pose, velocity_ratios
+from mechanism.kinematics import joint_dof, solve_pose
 from mechanism.shapes import PartShape, overlap_volume, penetration
 
 ANGLE_TOLERANCE_RAD = 1e-5  # refinement of a minimum (0.0006 deg)
 BOUNDARY_TOLERANCE_RAD = np.radians(1e-4)  # ends of an interference range
 MINIMA_REFINED = 3  # at most this many local minima refined per pair (those that may hold the smallest)
-SPEED_MARGIN = 1.25  # the speed bound is taken at the samples: allow it to grow 25% between them
+SPEED_MARGIN = 1.25  # travel is measured between samples (chords): allow 25% more along the way
 HULL_DISTMAX_M = 1.0
 HULL_TOLERANCE_M = 1e-6  # MuJoCo's GJK tolerance: keeps the hull distance a lower bound
 
@@ -216,17 +216,17 @@ class ClearanceSweep:
         """Sample the cycle, then refine minima and interferences for every pair.
 
         The exact distance is computed only at samples that can matter: a sample is
-        skipped when a lower bound of the distance anywhere within ±1 sample (convex-hull
-        distance minus the largest relative speed of the two parts times one step) is
-        above the smallest exact distance found, so far-apart stretches of the cycle cost
-        a hull query each. ``full_curve`` computes every sample (for plots).
+        skipped when a lower bound of the distance anywhere within ±1 sample (the convex
+        hulls' distance minus how far the two parts' points travel in one step) is above
+        the smallest exact distance found, so far-apart stretches of the cycle cost one
+        hull query each. ``full_curve`` computes every sample (for plots).
         """
         n = len(self.angles)
         step = self.period / n
-        poses, lower, speed = self._sample(step)
+        poses, lower, travel = self._sample()
         results = []
         for k, pair in enumerate(self.pairs):
-            dip = SPEED_MARGIN * step * np.maximum.reduce([speed[k], np.roll(speed[k], 1), np.roll(speed[k], -1)])
+            dip = SPEED_MARGIN * np.maximum(travel[k], np.roll(travel[k], 1))  # over the step before or after
             reach = lower[k] - dip  # no exact distance within ±1 sample can be smaller
             exact = np.full(n, np.nan)
             smallest = np.inf
@@ -240,30 +240,27 @@ class ClearanceSweep:
         self._start = poses[0].copy()  # the next run (a variant) starts near this branch
         return results
 
-    def _sample(self, step: float):
-        """Poses over the grid, and per pair a convex-hull lower bound of the distance and
-        a bound of the relative speed [m/rad] of the two parts' points."""
+    def _sample(self):
+        """Poses over the grid; per pair a convex-hull lower bound of the distance at each
+        sample and how far any point of the two parts travels from one sample to the next
+        [m] (geom displacement plus rotation times the geom's bounding radius)."""
         n, model, data = len(self.angles), self.model, self.data
         poses = np.empty((n, model.nq))
         lower = np.empty((len(self.pairs), n))
-        speed = np.empty((len(self.pairs), n))
+        geoms = sorted({g for shape in self.shapes.values() for g in shape.geoms})
+        position = np.empty((n, len(geoms), 3))
+        rotation = np.empty((n, len(geoms), 3, 3))
         data.qpos[:] = self._start
-        ratios = None
-        jacp, jacr = np.empty((3, model.nv)), np.empty((3, model.nv))
+        velocity = np.zeros(model.nv)
         fromto = np.empty(6)
         for i, angle in enumerate(self.angles):
-            if ratios is not None:  # first-order predictor: one Newton step is then enough
-                mujoco.mj_integratePos(model, data.qpos, ratios, step)
+            if i >= 2:  # linear predictor from the last two poses: one Newton step is then enough
+                mujoco.mj_differentiatePos(model, velocity, 1.0, poses[i - 2], poses[i - 1])
+                mujoco.mj_integratePos(model, data.qpos, velocity, 1.0)
             solve_pose(model, data, {self.driver: float(angle)})
-            ratios = velocity_ratios(model, data, self.driver)
             poses[i] = data.qpos
-            part_speed = {}
-            for name, shape in self.shapes.items():
-                fastest = 0.0
-                for geom in shape.geoms:
-                    mujoco.mj_jacGeom(model, data, jacp, jacr, geom)
-                    fastest = max(fastest, np.linalg.norm(jacp @ ratios) + np.linalg.norm(jacr @ ratios) * model.geom_rbound[geom])
-                part_speed[name] = fastest
+            position[i] = data.geom_xpos[geoms]
+            rotation[i] = data.geom_xmat[geoms].reshape(-1, 3, 3)
             for k, pair in enumerate(self.pairs):
                 hull = min(
                     mujoco.mj_geomDistance(model, data, ga, gb, HULL_DISTMAX_M, fromto)
@@ -271,8 +268,15 @@ class ClearanceSweep:
                     for gb in self.shapes[pair.b].geoms
                 )
                 lower[k, i] = max(hull - HULL_TOLERANCE_M, 0.0)
-                speed[k, i] = part_speed[pair.a] + part_speed[pair.b]
-        return poses, lower, speed
+        # travel of each geom from sample i to i + 1 (periodic)
+        shift = np.linalg.norm(np.roll(position, -1, axis=0) - position, axis=2)
+        relative = np.einsum("ngji,ngjk->ngik", rotation, np.roll(rotation, -1, axis=0))
+        turn = np.arccos(np.clip((np.trace(relative, axis1=2, axis2=3) - 1) / 2, -1.0, 1.0))
+        reach = shift + turn * model.geom_rbound[geoms]
+        index = {g: j for j, g in enumerate(geoms)}
+        part_travel = {name: reach[:, [index[g] for g in shape.geoms]].max(axis=1) for name, shape in self.shapes.items()}
+        travel = np.array([part_travel[pair.a] + part_travel[pair.b] for pair in self.pairs])
+        return poses, lower, travel
 
     def _set_pose(self, qpos: np.ndarray) -> None:
         self.data.qpos[:] = qpos

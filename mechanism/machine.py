@@ -162,6 +162,8 @@ class Machine:
                             objtype=mujoco.mjtObj.mjOBJ_SITE, objname=NEEDLE_SITE)
         spec.add_sensor(name="motor_torque", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname="motor")
+        if extend is not None:
+            extend(spec)
         try:
             self.model = spec.compile()
         except Exception as exc:

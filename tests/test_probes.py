@@ -104,3 +104,25 @@ def test_bad_probe_names_and_quantities():
         Probe("needle_tip", "jerk")
     with pytest.raises(UserError, match="X,Y,Z"):
         Probe("needle_tip", "position", point_mm=(1, 2))
+
+
+def test_dynamic_probes_obey_newtons_law_on_the_needle_bar():
+    """Probes along a dynamic simulation (motor, friction): bushing + rod + weight = m a."""
+    from pathlib import Path
+
+    from mechanism.probes import probe_simulation
+
+    toy = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
+    probes = [
+        Probe("needle_bar_bushing", "force"),  # tree slide joint
+        Probe("a", "force"),  # the two loop connects (loads on their body1, the crank link)
+        Probe("b", "force"),
+        Probe("needle_bar", "acceleration", point_mm=(0, 0, -30)),  # its centre of mass
+    ]
+    columns = probe_simulation(probes, voltage=12.0, duration_s=0.3, model_path=toy).columns
+    mass = 0.08
+    assert np.abs(columns["needle_bar_at_0_0_-30_az_m_s2"]).max() > 5.0  # it really moves
+    for axis, gravity in (("x", 0.0), ("z", -9.81)):
+        total = columns[f"needle_bar_bushing_F{axis}_N"] - columns[f"a_F{axis}_N"] - columns[f"b_F{axis}_N"] + mass * gravity
+        inertial = mass * columns[f"needle_bar_at_0_0_-30_a{axis}_m_s2"]
+        assert np.abs(total - inertial).max() < 0.01 * np.abs(mass * columns["needle_bar_at_0_0_-30_az_m_s2"]).max() + 1e-6
