@@ -138,10 +138,3 @@ def set_state(
         data.flg_rnepost = 0
         mujoco.mj_sensorAcc(model, data)
     return float(solution[0])
-
-
-def solve_and_hold(model: mujoco.MjModel, data: mujoco.MjData, angle: float, driver: str = "arm_shaft") -> float:
-    """Static case: assemble at ``angle`` and return the torque that holds the machine there."""
-    solve_pose(model, data, {driver: float(angle)})
-    zeros = np.zeros(model.nv)
-    return set_state(model, data, data.qpos.copy(), zeros, zeros, driver)

@@ -97,12 +97,6 @@ def part_geoms(model: mujoco.MjModel, part: str) -> list[int]:
     return found
 
 
-def visual_geoms(model: mujoco.MjModel, part: str) -> list[int]:
-    """The geoms that show the part (group 1), or all its geoms when none is in group 1."""
-    geoms = part_geoms(model, part)
-    return [g for g in geoms if model.geom_group[g] == VISUAL_GROUP] or geoms
-
-
 def shape_geoms(model: mujoco.MjModel, part: str) -> list[int]:
     """The geoms that are the part's real shape for distance checks.
 

@@ -23,8 +23,8 @@ or a body. A force/torque probe names a joint: a tree joint gets MuJoCo ``force`
 ``torque`` sensors on a site of the child body at the joint anchor (``cfrc_int``: the
 whole load through that joint, including what its drive transmits); a loop-closing joint
 (``loop:<joint>`` connect constraints) has no MuJoCo sensor, so its load is the sum of
-its constraint forces on the equality's ``body1`` and their moment about the anchor
-(the site is still added and marks the point). A force/torque probe on a part instead
+its constraint forces on the equality's ``body1`` (the converter's follower) and their
+moment about the anchor (the site is still added and marks the point). A force/torque probe on a part instead
 of a joint reports the load its body receives from its parent body. ``point_mm``
 moves the moment reference (in the joint's body frame, or the part frame).
 """

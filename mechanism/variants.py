@@ -66,10 +66,6 @@ class Parameter:
     name: str
     target: str
 
-    @property
-    def kind(self) -> str:
-        return _parse_target(self.target)[0]
-
     def check(self, model: mujoco.MjModel) -> None:
         """Raise UserError if the target does not exist in ``model``."""
         apply_parameter(model, model, self, 0.0, check_only=True)
