@@ -365,7 +365,7 @@ class ClearanceSweep:
         k = max(range(len(inside)), key=lambda k: self._volume(pair, inside[k], starts[k]))
         angle, start = inside[k], starts[k]
         deepest = self._depth(pair, angle, start)
-        if not whole_cycle:
+        if not whole_cycle and np.isfinite(deepest.depth):  # NaN: a mesh is not closed, no depth
             found = minimize_scalar(
                 lambda x: -self._depth(pair, x, start).depth,
                 bounds=(max(angle - step, lo), min(angle + step, hi)),

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import warnings
+
 import fcl
 import mujoco
 import numpy as np
@@ -154,7 +156,8 @@ class PartShape:
         return best
 
     def solid(self, data: mujoco.MjData):
-        """The part as a posed manifold3d solid (union of its geoms)."""
+        """The part as a posed manifold3d solid (union of its geoms), or None when one of
+        its meshes is not a closed solid (then overlaps have no volume or depth)."""
         import manifold3d
 
         if self._solids is None:
@@ -164,8 +167,13 @@ class PartShape:
                 solid = manifold3d.Manifold(manifold3d.Mesh64(vert_properties=vertices, tri_verts=faces.astype(np.uint32)))
                 if solid.status() != manifold3d.Error.NoError:
                     name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, geom)
-                    raise UserError(f"part {self.name!r}: the mesh of geom {name!r} is not a closed solid ({solid.status().name}); penetration depth needs closed meshes")
+                    warnings.warn(f"part {self.name!r}: the mesh of geom {name!r} is not a closed solid "
+                                  f"({solid.status().name}); its interferences get no depth")
+                    self._solids = False
+                    break
                 self._solids.append(solid)
+        if self._solids is False:
+            return None
         posed = []
         for geom, solid in zip(self.geoms, self._solids):
             transform = np.hstack([data.geom_xmat[geom].reshape(3, 3), data.geom_xpos[geom].reshape(3, 1)])
@@ -182,13 +190,22 @@ class Penetration:
 
 
 def overlap_volume(a: PartShape, b: PartShape, data: mujoco.MjData) -> float:
-    """Volume [m³] of the overlap of two posed parts (0 when they are apart or only touch)."""
-    return max((a.solid(data) ^ b.solid(data)).volume(), 0.0)
+    """Volume [m³] of the overlap of two posed parts (0 when they are apart or only touch;
+    NaN when a mesh is not closed)."""
+    solid_a, solid_b = a.solid(data), b.solid(data)
+    if solid_a is None or solid_b is None:
+        return float("nan")
+    return max((solid_a ^ solid_b).volume(), 0.0)
 
 
 def penetration(a: PartShape, b: PartShape, data: mujoco.MjData) -> Penetration:
-    """The overlap of two posed parts: largest depth of either surface inside the other."""
-    overlap = a.solid(data) ^ b.solid(data)
+    """The overlap of two posed parts: largest depth of either surface inside the other
+    (NaN depth and volume when a mesh is not a closed solid)."""
+    solid_a, solid_b = a.solid(data), b.solid(data)
+    if solid_a is None or solid_b is None:
+        _, pa, pb = a.distance(b)
+        return Penetration(float("nan"), pa, pb, float("nan"))
+    overlap = solid_a ^ solid_b
     volume = overlap.volume()
     if overlap.is_empty() or volume <= 0.0:
         _, pa, pb = a.distance(b)
