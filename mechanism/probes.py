@@ -183,7 +183,9 @@ def _load_joint(model, name: str):
 def _add_site(spec, model, body: int, pos, name: str) -> None:
     if spec.site(name) is not None:
         return
-    spec.bodies[body].add_site(name=name, pos=[float(v) for v in pos], size=[0.001, 0, 0], group=5, rgba=[1, 0.2, 0.1, 1])
+    body_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    element = spec.body(body_name) if body_name else spec.bodies[body]
+    element.add_site(name=name, pos=[float(v) for v in pos], size=[0.001, 0, 0], group=5, rgba=[1, 0.2, 0.1, 1])
 
 
 def _add_sensor(spec, sensor_type, site: str) -> None:
@@ -252,9 +254,9 @@ def probe_cycle(
     attached = add_probes(spec, probes)
     model = _compile(spec)
     data = mujoco.MjData(model)
-    parts_check = parts.joint_names(model)
-    if driver not in parts_check:
-        raise UserError(f"no driver joint named {driver!r}; close matches: {close_matches(driver, parts_check)}")
+    joints = parts.joint_names(model)
+    if driver not in joints:
+        raise UserError(f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}")
     omega = speed_rpm * 2 * np.pi / 60
     states = kinematic_cycle(model, cycle_angles(revolutions, resolution_deg), omega, driver, data)
     rows, torque = [], []
