@@ -28,6 +28,7 @@ def register(subparsers) -> None:
     parser.add_argument("--frames", type=int, default=120, metavar="N", help="animation frames (default 120)")
     parser.add_argument("--probe", action="append", default=[], metavar="NAME", help="mark a part frame or named frame (repeatable)")
     parser.add_argument("--pairs", metavar="A:B[,C:D...]", help="show the clearance minimum of these part pairs")
+    parser.add_argument("--driver", default="arm_shaft", metavar="JOINT", help="the joint turned through the cycle or the recording (default arm_shaft)")
     parser.add_argument("--html", metavar="OUT.html", help="write the self-contained animation")
     parser.add_argument("--serve", action="store_true", help="start a live meshcat server on localhost and wait (Ctrl-C ends)")
     parser.set_defaults(handler=run)
@@ -44,7 +45,7 @@ def run(args) -> int:
     if args.duration is not None and args.voltage is None:
         raise UserError("--duration belongs to a simulated motion (--voltage)")
     summary = view(args.html, args.model, args.voltage, args.duration, args.recording, args.frames,
-                   args.probe, args.pairs, serve=args.serve)
+                   args.probe, args.pairs, serve=args.serve, driver=args.driver)
     for note in summary["notes"]:
         print(note)
     if args.html:
