@@ -16,7 +16,8 @@ Its target says what it changes (the same grammar in JSON and as a CSV column na
                                   it within their body, along the part frame's axis (a needle set
                                   higher in its bar).
 
-Presets for the sewing machine (:data:`PRESETS`) name the usual ones. The edits are made on
+Several targets joined by ``+`` change together by the same value. Presets for the sewing
+machine (:data:`PRESETS`) name the usual ones. The edits are made on
 the compiled model's fields (``body_pos``, ``eq_data``, ``geom_pos``, ``site_pos``), which are
 exactly what the corresponding ``MjSpec`` attributes compile to. Recompiling a spec would not
 do: the compiler re-derives every ``connect``/``weld`` anchor on the second body from the
@@ -51,9 +52,12 @@ MAX_VARIANTS = 1_000_000
 EDITED_FIELDS = ("body_pos", "eq_data", "geom_pos", "site_pos")
 
 PRESETS = {
+    # the hook advanced on its worm gear, in degrees of hook rotation
     "hook_timing_deg": "coupling:hook_worm_gear:hook_deg",
-    "crank_radius_mm": "joint:crank_pin:radial_mm",
-    "needle_bar_height_mm": "part:needle:z_mm",
+    # the crank pin further from the arm shaft: the link and the take-up lever both ride on it
+    "crank_radius_mm": "joint:crank_pin:radial_mm+joint:take_up_crank_pin:radial_mm",
+    # the needle bar (with its clamp and needle) set higher in its connecting stud
+    "needle_bar_height_mm": "part:needle_bar:z_mm+part:needle_clamp:z_mm+part:needle:z_mm",
 }
 
 _TARGET = re.compile(r"(coupling|joint|body|part):([^:]+):([A-Za-z0-9_.-]+?)_(deg|mm)")
@@ -82,9 +86,11 @@ def _parse_target(target: str) -> tuple[str, str, str, str]:
 
 
 def parameter(name: str, target: str | None = None) -> Parameter:
-    """A parameter from a target string or a preset name."""
+    """A parameter from a target string (several joined by ``+`` change together) or a
+    preset name."""
     target = target or PRESETS.get(name, name)
-    _parse_target(target)
+    for single in target.split("+"):
+        _parse_target(single)
     return Parameter(name, target)
 
 
@@ -107,21 +113,26 @@ def _rotate(quat, vector) -> np.ndarray:
 
 def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Parameter, value: float, check_only: bool = False) -> None:
     """Add ``value`` (deg or mm) of ``param`` to ``model``, starting from ``nominal``'s fields."""
-    kind, name, detail, unit = _parse_target(param.target)
+    for target in param.target.split("+"):
+        _apply_target(model, nominal, param.name, target, value, check_only)
+
+
+def _apply_target(model, nominal, label: str, target: str, value: float, check_only: bool) -> None:
+    kind, name, detail, unit = _parse_target(target)
     if kind == "coupling":
         eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
         couplings = [n[9:] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or "" for i in range(model.neq)) if n.startswith("coupling:")]
         if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
-            raise UserError(f"parameter {param.name}: no coupling named {name!r}; close matches: {close_matches(name, couplings)}")
+            raise UserError(f"parameter {label}: no coupling named {name!r}; close matches: {close_matches(name, couplings)}")
         joints = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj1id[eq]), mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj2id[eq])]
         if detail not in joints:
-            raise UserError(f"parameter {param.name}: coupling {name!r} joins {joints[0]} and {joints[1]}, not {detail!r}")
+            raise UserError(f"parameter {label}: coupling {name!r} joins {joints[0]} and {joints[1]}, not {detail!r}")
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, detail)
         slide = model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE
         if unit != ("mm" if slide else "deg"):
-            raise UserError(f"parameter {param.name}: joint {detail!r} is a {'slide' if slide else 'hinge'}: use _{'mm' if slide else 'deg'}")
+            raise UserError(f"parameter {label}: joint {detail!r} is a {'slide' if slide else 'hinge'}: use _{'mm' if slide else 'deg'}")
         if np.any(nominal.eq_data[eq, 2:5]):
-            raise UserError(f"parameter {param.name}: coupling {name!r} is not linear; its offset cannot be shifted")
+            raise UserError(f"parameter {label}: coupling {name!r} is not linear; its offset cannot be shifted")
         if check_only:
             return
         delta = value / 1000.0 if slide else np.radians(value)
@@ -129,7 +140,7 @@ def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Param
         model.eq_data[eq, 0] = nominal.eq_data[eq, 0] + (delta if detail == joints[0] else -nominal.eq_data[eq, 1] * delta)
         return
     if unit != "mm":
-        raise UserError(f"parameter {param.name}: {kind} offsets are lengths: use _mm")
+        raise UserError(f"parameter {label}: {kind} offsets are lengths: use _mm")
     meters = value / 1000.0
     if kind == "part":
         geoms = parts.part_geoms(model, name)
@@ -137,17 +148,16 @@ def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Param
         direction = _rotate(frame.quat, _axis(detail, "xyz"))
         if check_only:
             return
-        body = frame.body
         for g in geoms:
             model.geom_pos[g] = nominal.geom_pos[g] + meters * direction
-        for s in _part_sites(model, name, body):
+        for s in _part_sites(nominal, name, frame.body):
             model.site_pos[s] = nominal.site_pos[s] + meters * direction
         return
     if kind == "body":
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         if body <= 0:
             names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) or "" for i in range(1, model.nbody)]
-            raise UserError(f"parameter {param.name}: no body named {name!r}; close matches: {close_matches(name, names)}")
+            raise UserError(f"parameter {label}: no body named {name!r}; close matches: {close_matches(name, names)}")
         direction = _body_direction(model, body, detail)
         if not check_only:
             model.body_pos[body] = nominal.body_pos[body] + meters * direction
@@ -163,9 +173,9 @@ def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Param
     loops = parts.loop_equalities(model, name)
     if not loops:
         candidates = parts.joint_names(model) + parts.loop_joint_names(model)
-        raise UserError(f"parameter {param.name}: no joint named {name!r}; close matches: {close_matches(name, candidates)}")
+        raise UserError(f"parameter {label}: no joint named {name!r}; close matches: {close_matches(name, candidates)}")
     if detail == "radial":
-        raise UserError(f"parameter {param.name}: radial offsets need a tree joint; {name!r} closes a loop: use x, y or z of its base body")
+        raise UserError(f"parameter {label}: radial offsets need a tree joint; {name!r} closes a loop: use x, y or z of its base body")
     direction = _axis(detail, "xyz")
     if check_only:
         return
@@ -194,7 +204,8 @@ def _body_direction(model, body: int, axis: str, joint: int | None = None) -> np
 
 def _part_sites(model, part: str, body: int) -> list[int]:
     """The part's own site and the user-named frames on it: sites of the same body that
-    lie within the part's bounding box (in the body frame)."""
+    lie within the part's bounding box (in the body frame). Call with the nominal model so
+    that membership does not depend on edits already made."""
     geoms = parts.part_geoms(model, part)
     own = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, part)
     boxes = [(model.geom_pos[g] - model.geom_rbound[g], model.geom_pos[g] + model.geom_rbound[g]) for g in geoms]
@@ -205,7 +216,7 @@ def _part_sites(model, part: str, body: int) -> list[int]:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or ""
         if name in parts.part_names(model) or name.startswith("probe:"):
             continue
-        if any(np.all(model.site_pos[s] >= lo - 1e-9) and np.all(model.site_pos[s] <= hi + 1e-9) for lo, hi in boxes):
+        if any(np.all(model.site_pos[s] >= lo - 1e-6) and np.all(model.site_pos[s] <= hi + 1e-6) for lo, hi in boxes):
             found.append(s)
     return found
 

@@ -7,7 +7,8 @@ bundle: it opens in any browser with no server and no network. ``--serve`` sends
 same commands to a live meshcat server on localhost instead.
 
 What is shown: every visual geom (the converter's class ``visual``, group 1; all geoms of
-hand-written models) with its MJCF colour (``geom_rgba``, or its material's), grouped per
+hand-written models) with its MJCF colour (``geom_rgba``, or its material's; parts fixed
+to the world, such as the casting, translucent so the mechanism shows), grouped per
 body so that one animated transform per body moves everything on it; probe markers (small
 spheres on their parts, moving with them); for clearance pairs, markers at the two
 closest points of each part and a line between them drawn where they are at the minimum.
@@ -35,6 +36,7 @@ from mechanism.errors import UserError
 DEFAULT_FRAMES = 120
 VIEW_SECTIONS = 32  # tessellation of primitive geoms in the viewer
 TARGET_SIZE = 1.5  # the model is scaled to about this size [viewer units] to suit meshcat's default camera
+FRAME_OPACITY = 0.3  # parts fixed to the world are drawn translucent
 MARKER_COLORS = (0xE6194B, 0x3CB44B, 0x4363D8, 0xF58231, 0x911EB4, 0x42D4F4)
 
 
@@ -195,6 +197,8 @@ def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None
         body = int(model.geom_bodyid[geom])
         vertices, faces = geom_mesh(model, geom, VIEW_SECTIONS)
         color, opacity = _color(model, geom)
+        if model.body_weldid[body] == 0:  # the fixed frame (casting, plates): see the mechanism through it
+            opacity = min(opacity, FRAME_OPACITY)
         material = g.MeshLambertMaterial(color=color, opacity=opacity, transparent=opacity < 1)
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or f"geom{geom}"
         node = scene[_body_path(model, body)][name]

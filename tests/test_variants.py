@@ -61,6 +61,13 @@ def test_part_offset_moves_the_part_and_its_named_frames(nominal):
     np.testing.assert_allclose(data1.site("needle_bar").xpos, data0.site("needle_bar").xpos, atol=1e-12)
 
 
+def test_joined_targets_move_together(nominal):
+    """needle-bar height: the bar and the needle (with its named frames) move as one."""
+    model = _edited(nominal, "part:needle_bar:z_mm+part:needle:z_mm", -0.3)
+    for name in ("needle_tip", "needle", "needle_bar"):
+        assert model.site(name).pos[2] - nominal.site(name).pos[2] == pytest.approx(-0.0003, abs=1e-12)
+
+
 def test_unknown_targets_list_close_matches(nominal):
     with pytest.raises(UserError, match="close matches: hook_drive"):
         parameter("p", "coupling:hook_drv:hook_deg").check(nominal)
