@@ -8,8 +8,8 @@ the needle-vs-hook clearance over one arm revolution at 0.5 deg:
 - the cost of one variant relative to one simulated arm revolution: the same model
   stepped with ``mj_step`` through one turn at about 600 rpm.
 
-Model: the shipped sewing machine when it has ``needle`` and ``hook`` parts, else the
-analytic needle/hook mechanism of the tests. ``python -m bench bench_clearance``
+Model: the shipped sewing machine (or ``MECHANISM_BENCH_MODEL``) when it has ``needle`` and
+``hook`` parts, else the analytic needle/hook mechanism of the tests. ``python -m bench bench_clearance``
 (``MECHANISM_BENCH_VARIANTS=N`` changes the batch size).
 """
 
@@ -29,10 +29,11 @@ def _model():
     from mechanism.models import DEFAULT_MODEL, load_model
     from mechanism.parts import part_names
 
-    if DEFAULT_MODEL.exists():
-        model = load_model(DEFAULT_MODEL)
+    path = Path(os.environ.get("MECHANISM_BENCH_MODEL", DEFAULT_MODEL))
+    if path.exists():
+        model = load_model(path)
         if {"needle", "hook"} <= set(part_names(model)):
-            return model, "shipped sewing machine", _sewing_timing(model)
+            return model, f"sewing machine {path.name}", _sewing_timing(model)
     sys.path.insert(0, str(REPO / "tests"))
     import mechanisms
 
@@ -40,9 +41,9 @@ def _model():
 
 
 def _sewing_timing(model) -> str:
-    from mechanism.variants import PRESETS, parameter
+    from mechanism.variants import PRESETS
 
-    return parameter("hook_timing_deg", PRESETS["hook_timing_deg"]).target
+    return PRESETS["hook_timing_deg"]
 
 
 def _variants(count: int, timing_target: str, scratch: Path):
@@ -52,10 +53,12 @@ def _variants(count: int, timing_target: str, scratch: Path):
 
     doc = {
         "format": "mechanism-variants/1",
-        "parameters": {"hook_timing_deg": timing_target, "needle_height_mm": "part:needle:z_mm"},
+        "parameters": {"hook_timing_deg": timing_target, "needle_height_mm": "part:needle:z_mm",
+                       "crank_radius_mm": "joint:crank_pin:radial_mm"},
         "samples": {"count": count - 1, "seed": 1, "tolerances": {
             "hook_timing_deg": {"dist": "normal", "std": 1.0},
             "needle_height_mm": {"dist": "uniform", "low": -0.1, "high": 0.1},
+            "crank_radius_mm": {"dist": "normal", "std": 0.02},
         }},
     }
     path = scratch / "variants.json"
