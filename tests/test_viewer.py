@@ -94,3 +94,11 @@ def test_cycle_and_colours(model_file):
     np.testing.assert_allclose(motion.qpos[:, model.joint("arm_shaft").qposadr[0]], np.linspace(0, 2 * np.pi, 5), atol=1e-9)
     model.geom_rgba[0] = [1.0, 0.5, 0.0, 0.25]
     assert _color(model, 0) == (0xFF8000, 0.25)
+
+
+def test_serve_starts_a_local_meshcat_server(model_file):
+    import urllib.request
+
+    summary = view(None, model_file, frames=4, serve=True)
+    assert summary["url"].startswith("http://127.0.0.1:")
+    assert b"meshcat" in urllib.request.urlopen(summary["url"], timeout=10).read().lower()
