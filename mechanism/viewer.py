@@ -106,6 +106,18 @@ def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_F
 # -- the scene -------------------------------------------------------------------------------
 
 
+def _meshcat():
+    """meshcat, imported without the deprecation warning its server module raises on pyzmq >= 17."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import meshcat
+        import meshcat.servers.zmqserver  # noqa: F401
+    return meshcat
+
+
+
 class _Recorder:
     """Stands in for meshcat's ZMQ window: keeps every command, packed as the server would."""
 
@@ -161,7 +173,7 @@ class Overlays:
 def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None = None, visualizer=None):
     """Send the scene and its animation to a meshcat ``visualizer`` (a recorder by default);
     returns the visualizer."""
-    import meshcat
+    meshcat = _meshcat()
     import meshcat.geometry as g
     from meshcat.animation import Animation
 
@@ -371,9 +383,7 @@ def view(
             handle.write(static_html(vis, title, len(motion.qpos), overlays.notes))
         summary["html"] = str(html)
     if serve:
-        import meshcat
-
-        live = meshcat.Visualizer()
+        live = _meshcat().Visualizer()
         build_scene(model, motion, overlays, live)
         summary["url"] = live.url()
     return summary
