@@ -468,14 +468,14 @@ def build_parts(p: Params, lay: Layout) -> tuple[list[Part], list[Joint]]:
     big = revolve([(shaft_r, 0), (shaft_r + 5, 0), (shaft_r + 5, (pulley_w - 3) / 2), (pd / 2 - 4, (pulley_w - 3) / 2),
                    (pd / 2 - 4, 0), (pd / 2, 0), (pd / 2, pulley_w), (pd / 2 - 4, pulley_w),
                    (pd / 2 - 4, (pulley_w + 3) / 2), (shaft_r + 5, (pulley_w + 3) / 2), (shaft_r + 5, pulley_w),
-                   (shaft_r, pulley_w)], 64)
+                   (shaft_r, pulley_w)], SEGMENTS)
     add(Part("arm_pulley", "nylon", big, pose(ALONG_X, (arm_pulley_x, y_s, z_s))))
     tp_x = p("arm_shaft", "timing_pulley_x")
     tp_r = p.positive("arm_shaft", "timing_pulley_pitch_diameter") / 2
     add(Part("arm_timing_pulley", "aluminium", flanged_pulley(tp_r, shaft_r, 0.0, 8.0), pose(ALONG_X, (tp_x, y_s, z_s))))
     hw_x, hw_d, hw_w = p("arm_shaft", "handwheel_x"), p.positive("arm_shaft", "handwheel_diameter"), p.positive("arm_shaft", "handwheel_width")
     wheel = revolve([(shaft_r, 0), (shaft_r + 4, 0), (shaft_r + 4, hw_w - 3), (hw_d / 2 - 5, hw_w - 3), (hw_d / 2 - 5, 0),
-                     (hw_d / 2, 0), (hw_d / 2, hw_w), (shaft_r, hw_w)], 64)
+                     (hw_d / 2, 0), (hw_d / 2, hw_w), (shaft_r, hw_w)], SEGMENTS)
     add(Part("handwheel", "abs", wheel, pose(ALONG_X, (hw_x, y_s, z_s))))
     if hw_x + hw_w < shaft_end:
         raise ParamError("arm_shaft.handwheel_end_x lies beyond the handwheel")
