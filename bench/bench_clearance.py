@@ -72,6 +72,17 @@ def _subset(variants, count):
     return VariantSet(variants.parameters, variants.names[:count], variants.values[:count], variants.source)
 
 
+def _timed(model, variants, pairs, workers):
+    """A batch and the CPU seconds it used in this process and its workers."""
+    from mechanism.variants import run_variants
+
+    before = os.times()
+    batch = run_variants(model, variants, pairs, workers=workers, progress=False)
+    after = os.times()
+    cpu = sum(getattr(after, f) - getattr(before, f) for f in ("user", "system", "children_user", "children_system"))
+    return batch, cpu
+
+
 def _revolution_seconds(model) -> tuple[float, int]:
     """Wall time of mj_step through one arm revolution at ~600 rpm (Python loop, as a user would)."""
     import mujoco
@@ -109,10 +120,10 @@ def main() -> None:
         variants = _variants(count, timing, Path(scratch))
         subset = _subset(variants, min(len(variants), 60))
         run_variants(model, _subset(variants, 4), pairs, workers=1, progress=False)  # warm-up: imports, first calls
-        one = run_variants(model, subset, pairs, workers=1, progress=False)
-        two = run_variants(model, subset, pairs, workers=2, progress=False)
+        (one, cpu_one), (two, cpu_two) = (_timed(model, subset, pairs, workers) for workers in (1, 2))
         print(f"{len(subset)} variants: 1 worker {one.seconds:.2f} s, 2 workers {two.seconds:.2f} s, "
-              f"speed-up {one.seconds / two.seconds:.2f}x (target >= 1.7x on 2 idle cores)")
+              f"speed-up {one.seconds / two.seconds:.2f}x (target >= 1.7x on 2 idle cores); CPU time "
+              f"{cpu_one:.2f} s vs {cpu_two:.2f} s (equal CPU = no parallel overhead: a lower speed-up means busy cores)")
         batch = run_variants(model, variants, pairs, workers=2, progress=True)
         print(f"{len(variants)} variants with 2 workers: {batch.seconds:.1f} s, {len(variants) / batch.seconds:.1f} variants/s, "
               f"{batch.failed} fail (interfere)")

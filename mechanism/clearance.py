@@ -214,7 +214,9 @@ class ClearanceSweep:
         for shape in self.shapes.values():
             shape.update(self.data)
 
-    def _distance(self, pair: Pair, angle: float, start: np.ndarray):
+    def distance_at(self, pair: Pair, angle: float, start: np.ndarray):
+        """Exact distance [m] and closest points (world, m) of ``pair`` with the driver at
+        ``angle``, assembled starting from the pose ``start`` (keep it near: same branch)."""
         self._pose(angle, start)
         return self.shapes[pair.a].distance(self.shapes[pair.b])
 
@@ -334,19 +336,19 @@ class ClearanceSweep:
         start = poses[i]
         center = self.angles[i]
         found = minimize_scalar(
-            lambda angle: self._distance(pair, angle, start)[0],
+            lambda angle: self.distance_at(pair, angle, start)[0],
             bounds=(center - step, center + step),
             method="bounded",
             options={"xatol": ANGLE_TOLERANCE_RAD},
         )
-        candidates = [(float(found.x), *self._distance(pair, float(found.x), start)), (center, *self._distance(pair, center, start))]
+        candidates = [(float(found.x), *self.distance_at(pair, float(found.x), start)), (center, *self.distance_at(pair, center, start))]
         return min(candidates, key=lambda item: item[1])
 
     def _boundary(self, pair: Pair, free_angle: float, hit_angle: float, start: np.ndarray) -> float:
         """Bisection for the angle where the parts start to overlap."""
         while abs(hit_angle - free_angle) > BOUNDARY_TOLERANCE_RAD:
             middle = 0.5 * (free_angle + hit_angle)
-            if self._distance(pair, middle, start)[0] <= 0.0:
+            if self.distance_at(pair, middle, start)[0] <= 0.0:
                 hit_angle = middle
             else:
                 free_angle = middle

@@ -54,7 +54,7 @@ def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(m
     result = sweep.run(full_curve=True)[0]
     angle = np.radians(needle.hook_passage_angle_deg)
     start = pose_sweep(model, np.linspace(0.0, angle, 100))[-1]  # walk there: same assembly branch
-    distance, _, _ = sweep._distance(Pair("needle", "hook"), angle, start)
+    distance, _, _ = sweep.distance_at(Pair("needle", "hook"), angle, start)
     assert distance * 1e3 == pytest.approx(needle.hook_point_clearance_mm, abs=0.01)
     # household practice: 0-0.1 mm between hook point and needle (Janome 1600P service manual)
     assert 0.0 <= needle.hook_point_clearance_mm <= 0.1 + 1e-3
