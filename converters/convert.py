@@ -99,22 +99,44 @@ def _locked_warning(locked: list[str]) -> list[str]:
 
 def mobility(model) -> tuple[int, list[str]]:
     """Degrees of freedom the equality constraints leave at the assembly pose (``nv - rank(J_eq)``)
-    and the joints they lock completely."""
+    and the joints they lock completely.
+
+    A joint that is only instantaneously immobile at a dead centre (a slider-crank's slider at
+    top dead centre) is not locked: the check also looks at poses a small step away along
+    the allowed motions, and a joint counts as locked only if it cannot move at any of them."""
     import mujoco
     import numpy as np
 
     model = copy.copy(model)
     model.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
     data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-    jacobian = data.efc_J[: data.nefc * model.nv].reshape(data.nefc, model.nv)[rows]
-    if jacobian.size == 0 or model.nv == 0:
-        return int(model.nv), []
-    _, singular, vt = np.linalg.svd(jacobian)
-    rank = int(np.sum(singular > 1e-9 * max(singular.max(), 1e-300)))
-    free_motions = vt[rank:].T  # columns span the motions the constraints allow
-    movable = np.linalg.norm(free_motions, axis=1) > 1e-6 if free_motions.size else np.zeros(model.nv, bool)
+
+    def allowed_motions(qpos):
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        jacobian = data.efc_J[: data.nefc * model.nv].reshape(data.nefc, model.nv)[rows]
+        if jacobian.size == 0:
+            return 0, np.eye(model.nv)
+        _, singular, vt = np.linalg.svd(jacobian)
+        rank = int(np.sum(singular > 1e-9 * max(singular.max(), 1e-300)))
+        return rank, vt[rank:].T  # columns span the motions the constraints allow
+
+    if model.nv == 0:
+        return 0, []
+    rank, free_motions = allowed_motions(model.qpos0)
+    movable = np.zeros(model.nv, bool)
+    probes = [None] + [np.random.default_rng(k).normal(size=free_motions.shape[1]) for k in range(3)]
+    for direction in probes:
+        qpos = model.qpos0.copy()
+        if direction is not None:
+            if not free_motions.size:
+                break
+            step = free_motions @ direction
+            mujoco.mj_integratePos(model, qpos, 0.02 * step / max(np.abs(step).max(), 1e-300), 1.0)
+        _, motions = allowed_motions(qpos)
+        if motions.size:
+            movable |= np.linalg.norm(motions, axis=1) > 1e-6
     locked = []
     for joint in range(model.njnt):
         start = model.jnt_dofadr[joint]

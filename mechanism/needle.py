@@ -369,7 +369,7 @@ def plot(motion: NeedleMotion, path: str | os.PathLike) -> None:
                         f"{motion.needle_rise_at_passage_mm:.2f} mm from BDC, {motion.hook_point_clearance_mm:.2f} mm clear"
                         if motion.hook_point_clearance_mm is not None else
                         f"hook point passes: {motion.hook_passage_angle_deg:.1f}°"))
-    top.legend(loc="lower right", fontsize=8)
+    top.legend(loc="upper center", fontsize=8)
     top.set_title(f"Needle motion over one arm revolution (stroke {motion.stroke_mm:.2f} mm"
                   + (f", {motion.speed_rpm:g} rpm)" if per_speed else ")"))
     axes[-1].set_xlabel("arm angle [deg] (0 = needle top dead centre)")

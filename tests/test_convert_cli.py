@@ -1,6 +1,7 @@
 """``mechanism convert`` as a user runs it: the summary, and one clear error line for bad input."""
 
 import json
+from pathlib import Path
 import shutil
 
 import numpy as np
@@ -141,3 +142,13 @@ def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
     assert float(ratio_line.split()[1]) == pytest.approx(expected / 64, rel=1e-3)
     moving = next(l for l in result.stdout.splitlines() if l.startswith("moving mass:"))
     assert float(moving.split()[2]) == pytest.approx(0.4, rel=1e-9)  # 100 g + 300 g, the base is fixed
+
+
+def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
+    # The shipped sewing machine is exported at needle top dead centre, where the needle bar
+    # is instantaneously immobile; it still moves, so no lock warning.
+    export = Path(__file__).resolve().parent.parent / "assets" / "cad" / "export" / "sewing_machine.xml"
+    result = cli("convert", export, "-o", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    assert "cannot move" not in result.stdout
+    assert "degrees of freedom: 1" in result.stdout

@@ -22,11 +22,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import shutil
 import struct
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +35,8 @@ from scipy.optimize import brentq, minimize_scalar
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import firstgen  # noqa: E402
+
+from mechanism.outputs import atomic_dir  # noqa: E402  (the project's own atomic folder replace)
 
 DEFAULT_PARAMS = HERE / "sewing_machine.params.json"
 DEFAULT_OUT = HERE / "export"
@@ -618,6 +617,8 @@ def build_needle(p: Params) -> tuple[mf.Manifold, dict]:
     flat on the +y side (the back of the machine, where the hook point passes)."""
     n = {k: p("needle", k) for k in p.sections["needle"] if k not in ("system",)}
     length, r_b, r_s = n["length"], n["blade_diameter"] / 2, n["shank_diameter"] / 2
+    if abs(n["size"] / 100 - n["blade_diameter"]) > 1e-9:
+        raise ParamError("needle.blade_diameter must be needle.size / 100 mm (NM size)")
     z_shank = length - n["shank_length"]
     z_blade_top = z_shank - n["shoulder_length"]
     if not 0 < n["point_length"] < n["eye_bottom_above_tip"] < z_blade_top - 3:
@@ -653,10 +654,10 @@ def build_hook(p: Params, lay: Layout, lower_shaft_z: float) -> tuple[mf.Manifol
     z_tip = -h["point_below_rim"]
     # the beak: its inner edge spirals out from the point (radius R_p) to the wall, so
     # that only the point itself comes close to the needle
-    inner = [(R_p + (R_i - R_p) * (a / -20.0) ** 1.5, a) for a in np.linspace(0.0, -20.0, 11)]
+    inner = [(R_p + (R_i - R_p) * math.sqrt(a / -20.0), a) for a in np.linspace(0.0, -20.0, 11)]
     outer = [(R_i + 0.2, a) for a in np.linspace(-20.0, -6.0, 8)]
     outline = np.array([(r * math.cos(math.radians(a)), r * math.sin(math.radians(a))) for r, a in inner + outer])
-    beak = slab(mf.CrossSection([outline]), z_tip - 0.5, z_tip + 0.5)
+    beak = slab(mf.CrossSection([outline]), z_tip - 0.4, z_tip + 0.4)
     return (cup - throat) + beak, {"hook_point": (R_p, 0.0, z_tip)}
 
 
@@ -816,23 +817,9 @@ def write_export(p: Params, out_dir: Path) -> dict:
     export, files, couplings, parts, joints, lay, masses = build_export(p)
     files[f"{EXPORT_NAME}.xml"] = firstgen.render(export).encode("ascii")
     files[f"{EXPORT_NAME}.couplings.json"] = (json.dumps(couplings, indent=2) + "\n").encode("ascii")
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
+    with atomic_dir(out_dir) as tmp:
         for name, data in sorted(files.items()):
             (tmp / name).write_bytes(data)
-        if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
-            os.rmdir(old)
-            os.replace(out_dir, old)
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return {"layout": lay, "masses": masses, "parts": parts, "files": sorted(files)}
 
 

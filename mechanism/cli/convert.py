@@ -71,10 +71,11 @@ def drive_lines(report) -> list[str]:
     inertia = tables.inertia_kgm2
     lines.append(f"reflected inertia at {driver}: {inertia.mean():.4g} kg*m^2 mean over a revolution "
                  f"({inertia.min():.4g} to {inertia.max():.4g})")
-    for joint, ratio in tables.ratios.items():
-        if joint != driver and np.ptp(ratio) < 1e-9 and abs(ratio[0]) > 1.5:
-            # a geared-up joint (e.g. the motor through its belt): also quote the inertia on its side
-            lines.append(f"  = {inertia.mean() / ratio[0] ** 2:.4g} kg*m^2 referred to {joint} (ratio {abs(ratio[0]):g}:1)")
+    geared = {joint: abs(ratio[0]) for joint, ratio in tables.ratios.items()
+              if joint != driver and np.ptp(ratio) < 1e-9 and abs(ratio[0]) > 2}
+    if geared:  # the fastest geared joint, normally the motor behind its belt
+        joint = max(geared, key=geared.get)
+        lines.append(f"  = {inertia.mean() / geared[joint] ** 2:.4g} kg*m^2 referred to {joint} (ratio {geared[joint]:g}:1)")
     return lines
 
 
