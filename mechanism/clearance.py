@@ -185,13 +185,7 @@ class ClearanceSweep:
         driver: str = "arm_shaft",
         revolutions: float = 1.0,
         resolution_deg: float = DEFAULT_RESOLUTION_DEG,
-        refine_depth: bool = True,
     ):
-        """``refine_depth=False`` measures an interference's depth where its overlap volume
-        peaks instead of searching the angle for the deepest point (5x cheaper; the depth
-        may come out lower when a point slides along a face: 0.016 instead of 0.020 mm for
-        the shipped hook touching the needle blade). Batches of variants use it."""
-        self.refine_depth = refine_depth
         if not (0 < resolution_deg <= 30):
             raise UserError(f"resolution {resolution_deg} deg: expected a value in (0, 30]")
         if not (0 < revolutions <= 100):
@@ -385,7 +379,7 @@ class ClearanceSweep:
             if -found.fun > volumes[k]:
                 angle = float(found.x)
         deepest = self._depth(pair, angle, start)
-        if self.refine_depth and not whole_cycle and np.isfinite(deepest.depth):
+        if not whole_cycle and np.isfinite(deepest.depth):
             # the deepest angle can differ a little from the largest volume (a point sliding along a face)
             found = minimize_scalar(
                 lambda x: -self._depth(pair, x, start).depth,

@@ -452,7 +452,6 @@ class BatchConfig:
     revolutions: float = 1.0
     resolution_deg: float = 0.5
     required_mm: float = 0.0
-    refine_depth: bool = False  # see ClearanceSweep: depth where the overlap volume peaks
 
 
 class VariantChecker:
@@ -462,8 +461,7 @@ class VariantChecker:
         self.config = config
         self.nominal = config.model
         self.model = _copy_model(config.model)
-        self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg,
-                                    refine_depth=config.refine_depth)
+        self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg)
 
     def __call__(self, values: Sequence[float]) -> dict:
         for name in EDITED_FIELDS:

@@ -61,10 +61,6 @@ def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(m
     assert result.grid_distance_mm.max() > 5.0  # the hook is far away for most of the cycle
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the shipped hook's beak (1 mm thick, its point 1.0 mm above the needle eye) reaches below the 2.5 mm scarf "
-    "and touches the needle blade by 0.02 mm at arm angle 205.6-206.4 deg; generator parameter "
-    "hook.point_above_eye = 1.5 mm (Sunstar's upper end) gives 0.096 mm at 205.3 deg"))
 def test_shipped_machine_passes_at_nominal_dimensions(model):
     from mechanism.clearance import check_clearance, parse_pairs
 
@@ -84,6 +80,6 @@ def test_mistimed_hook_collides_with_the_needle(model):
     variants = VariantSet([parameter("hook_timing_deg")], ["nominal", "early hook"], np.array([[0.0], [MISTIMED_HOOK_DEG]]))
     batch = run_variants(model, variants, [Pair("needle", "hook")], progress=False)
     early = batch.rows[1]
-    assert early["pass"] == 0 and early["needle_vs_hook_min_mm"] < -0.03
+    assert early["pass"] == 0 and early["needle_vs_hook_min_mm"] < -0.01
     # 40 deg early on the hook = 20 deg early on the arm: the point reaches the needle near bottom dead centre
     assert 175.0 < early["needle_vs_hook_angle_deg"] < 195.0
