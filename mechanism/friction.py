@@ -32,9 +32,11 @@ import numpy as np
 from mechanism.errors import UserError
 
 STRIBECK_LAWS = {"none": 0, "tustin": 1, "hess-soom": 2}
-# Friction-loss constraint stiffness: with MuJoCo's default impedance (0.9) a joint held
-# by friction creeps at ~0.7 rad/s under 80 % of its break-away torque; at 0.9999 the
-# creep is below 1e-3 rad/s, i.e. it really sticks.
+# Friction-loss constraint stiffness. MuJoCo's friction constraint is soft: a joint held by
+# friction creeps at a speed ~ R f / b (regularisation R, reference damping b = 2/timeconst).
+# With the defaults (impedance 0.9, 20 ms) the shipped machine creeps at ~0.7 rad/s under
+# 80 % of its break-away torque; impedance 0.9999 (MuJoCo's maximum) and a time constant of
+# two time steps (the stiffest MuJoCo accepts) bring that to ~2e-4 rad/s: it really sticks.
 STICTION_SOLIMP = (0.9999, 0.99999, 0.001, 0.5, 2.0)
 SMOOTH_SIGN_VELOCITY = 0.05  # rad/s: the kinetic add-back fades out below this speed
 NUMERIC_NAME = "mechanism_friction"
@@ -132,6 +134,7 @@ class FrictionSet:
         """Native parts (damping, frictionloss, stiction impedance) plus a placeholder for
         the callback's parameters; :meth:`bind` fills the addresses after compiling."""
         joints = {j.name: j for j in spec.joints}
+        timeconst = 2 * spec.option.timestep
         for name, law in self.laws.items():
             if name not in joints:
                 from mechanism.errors import close_matches
@@ -141,6 +144,7 @@ class FrictionSet:
             joint.damping = [law.viscous, 0.0, 0.0]
             joint.frictionloss = law.static_level
             joint.solimp_friction = list(STICTION_SOLIMP)
+            joint.solref_friction = [timeconst, 1.0]
         if self._needs_callback():
             spec.add_numeric(name=NUMERIC_NAME, data=np.zeros(2 + FIELDS * len(self.laws)))
 

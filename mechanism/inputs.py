@@ -3,8 +3,16 @@
 The thesis drove the motor from 24 V through a BTS 133 low-side switch with PWM; the
 conversion was not linear (Table 2's error column: -6.7 % at 20 % duty, +4.1 % at 50 %).
 :func:`pwm_voltage` maps a duty cycle to the motor terminal voltage by interpolating
-Table 2's measured motor voltages; below 20 % duty it extends the 20-30 % segment's
-straight line (the trend of the error there), clipped at 0 V.
+measured points:
+
+- Table 2's motor voltages from 20 to 100 % duty;
+- below 20 %, two points inferred from the thesis's start observations (5.2.1-5.2.2): the
+  machine started at 12 % duty in its lowest-friction position and at 14 % in its highest,
+  whose break-away torques were measured with a current drive (0.2384 and 0.2771 N m at the
+  arm). At stall the motor voltage that gives a torque T at the arm is T R / (n Kt), so
+  12 % -> 1.93 V and 14 % -> 2.24 V: far below the theoretical 24 V x duty (2.9-3.4 V), as
+  a switch whose turn-on and turn-off times eat a large share of very short pulses would be.
+- 0 V at 0 % duty.
 """
 
 from __future__ import annotations
@@ -36,15 +44,26 @@ def table2_duty_voltage() -> tuple[np.ndarray, np.ndarray]:
     return rows[:, columns.index("duty_percent")], rows[:, columns.index("motor_voltage_V")]
 
 
+def start_duty_voltage() -> tuple[np.ndarray, np.ndarray]:
+    """(duty %, motor V) at which the thesis's machine started, from its break-away torques."""
+    ref = thesis()
+    static, motor = ref["static_friction"], ref["main_motor"]
+    ratio = ref["mechanism"]["motor_to_arm_ratio"]
+    torques = np.array([static["lowest_breakaway_arm_Nm"], static["highest_breakaway_arm_Nm"]])
+    duties = np.array([static["start_duty_cycle_percent"]["lowest_friction_position"],
+                       static["start_duty_cycle_percent"]["highest_friction_position"]], dtype=float)
+    return duties, torques * motor["resistance_ohm"] / (ratio * motor["torque_constant_Nm_per_A"])
+
+
 def pwm_voltage(duty_percent: float) -> float:
     """Motor terminal voltage [V] for a PWM duty cycle [%] through the thesis's power switch."""
     if not 0 <= duty_percent <= 100:
         raise UserError(f"duty cycle must be between 0 and 100 %, got {duty_percent:g}")
-    duty, volts = table2_duty_voltage()
-    if duty_percent >= duty[0]:
-        return float(np.interp(duty_percent, duty, volts))
-    slope = (volts[1] - volts[0]) / (duty[1] - duty[0])
-    return float(max(0.0, volts[0] + slope * (duty_percent - duty[0])))
+    table_duty, table_volts = table2_duty_voltage()
+    start_duty, start_volts = start_duty_voltage()
+    duty = np.concatenate([[0.0], start_duty, table_duty])
+    volts = np.concatenate([[0.0], start_volts, table_volts])
+    return float(np.interp(duty_percent, duty, volts))
 
 
 @dataclass(frozen=True)

@@ -5,9 +5,9 @@ couplings only. :class:`Machine` adds, through ``MjSpec``:
 
 - the main motor as a native ``<dcmotor>`` on the ``motor`` joint (mechanism.motor);
 - friction per joint (mechanism.friction), thesis values by default: viscous on the motor
-  (cold 2.2e-5 / warm 1.0e-5 N m s/rad), Coulomb 0.18 N m on the arm shaft, static
-  friction 33 % above kinetic with a Tustin decay, and a position-dependent level over
-  the arm revolution;
+  (cold 2.2e-5 / warm 1.0e-5 N m s/rad), Coulomb 0.18 N m on the arm shaft, static friction
+  with a Tustin decay, and position-dependent levels over the arm revolution calibrated on the
+  thesis's break-away torques and speed ripple (mechanism.calibration);
 - loads (mechanism.loads): fabric layers on the needle, belt tension, feeding;
 - sensors for the outputs (needle point height, motor torque).
 """
@@ -33,31 +33,31 @@ ARM, MOTOR, LOWER = "arm_shaft", "motor", "lower_shaft"
 NEEDLE_SITE = "needle_tip"
 NEEDLE_PLATE = "needle_plate"
 
-# Position-dependent friction over the arm revolution: level * (1 + a cos(θ - φ)).
-# The thesis measured break-away 16 % higher just after needle bottom dead centre (upward,
-# 0.2771 N m) than on the way down (0.2384 N m); part of that is gravity on the needle bar,
-# which the CAD model carries by itself. The rest is friction (cams, feed, hook drive):
-# POSITION_FRICTION_AMPLITUDE is calibrated so that friction + CAD gravity reproduce the
-# measured spread on the shipped machine (see tests/test_dynamics.py).
-POSITION_FRICTION_AMPLITUDE = 0.05
-POSITION_FRICTION_PHASE_RAD = np.deg2rad(200.0)  # maximum just after BDC (180 deg)
+# Position-dependent friction on the arm shaft, calibrated on the shipped model against the
+# thesis by ``python -m mechanism.calibration`` (see its docstring; rerun it after changing the
+# machine's moving parts). Running level: Fc (1 + a cos(θ - φ)), fitted to the speed ripple of
+# figs. 11-14; break-away level: Fs (1 + a_s cos(θ - φ)), so that with the CAD gravity it
+# spans the measured 0.2384 (needle going down) to 0.2771 N m (just after bottom dead centre).
+RUNNING_POSITION_AMPLITUDE = 0.174
+POSITION_PHASE_RAD = float(np.deg2rad(177.7))
+STATIC_FRICTION_ARM_NM = 0.2564
+STATIC_POSITION_AMPLITUDE = 0.0719
 STRIBECK_VELOCITY_ARM_RAD_S = 0.5  # Tustin decay speed; the thesis gives none, typical of lubricated bearings
 
 
 def thesis_friction(warm: bool = False) -> dict[str, FrictionLaw]:
     """Friction laws per joint from the thesis's identified values."""
     ident = thesis()["identified_parameters"]
-    static = thesis()["static_friction"]
-    coulomb = ident["kinetic_friction_arm_Nm"]
     return {
         MOTOR: FrictionLaw(viscous=ident["viscous_warm_Nm_s_per_rad" if warm else "viscous_cold_Nm_s_per_rad"]),
         ARM: FrictionLaw(
-            coulomb=coulomb,
-            static=coulomb * (1 + static["static_over_kinetic_percent"] / 100),
+            coulomb=ident["kinetic_friction_arm_Nm"],
+            static=STATIC_FRICTION_ARM_NM,
             stribeck="tustin",
             stribeck_velocity=STRIBECK_VELOCITY_ARM_RAD_S,
-            position_amplitude=POSITION_FRICTION_AMPLITUDE,
-            position_phase_rad=float(POSITION_FRICTION_PHASE_RAD),
+            position_amplitude=RUNNING_POSITION_AMPLITUDE,
+            static_position_amplitude=STATIC_POSITION_AMPLITUDE,
+            position_phase_rad=POSITION_PHASE_RAD,
         ),
     }
 
@@ -145,7 +145,7 @@ class Machine:
         self.config = config or MachineConfig()
         spec = load_spec(model_path)
         self.model_path = model_path
-        spec.option.timestep = self.config.timestep_s
+        spec.option.timestep = self.config.timestep_s  # before friction: its stiffness follows it
         joints = {j.name for j in spec.joints}
         for required in (MOTOR, ARM):
             if required not in joints:

@@ -94,7 +94,11 @@ def test_python_fallback_matches_the_compiled_callback():
 def test_pwm_duty_follows_table_2_and_rejects_out_of_range():
     assert pwm_voltage(50) == pytest.approx(12.49)
     assert pwm_voltage(25) == pytest.approx((4.48 + 7.0) / 2)
-    assert 0 < pwm_voltage(12) < pwm_voltage(14) < 4.48
+    # The thesis started the machine at 12-14 % duty, where the current-drive break-away
+    # torques 0.2384 / 0.2771 N m need T R / (8 Kt) at the motor terminals.
+    assert pwm_voltage(12) == pytest.approx(0.2384 * R / (N * KT))
+    assert pwm_voltage(14) == pytest.approx(0.2771 * R / (N * KT))
+    assert 0 < pwm_voltage(5) < pwm_voltage(12)
     with pytest.raises(UserError):
         pwm_voltage(120)
 
