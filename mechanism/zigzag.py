@@ -143,20 +143,14 @@ class NeedleProfile:
         return exit_angle, entry_angle
 
 
-# ----------------------------------------------------------------------------- PLUG-IN POINT
-def shipped_needle_profile() -> NeedleProfile:
-    """The shipped sewing machine's needle height over arm angle.
+def shipped_needle_profile(model_path=None) -> NeedleProfile:
+    """The needle height over arm angle of a converted sewing machine (default: the shipped
+    one), from its kinematics (``mechanism.needle``)."""
+    from mechanism.needle import needle_motion
 
-    PLUG-IN POINT for the lead: once ``mechanism.needle`` gives ``needle_z_mm`` against
-    arm angle for the shipped model, build the profile here, e.g.
-    ``return NeedleProfile.from_table(angle_rad, z_mm, "shipped sewing machine")``.
-    Everything else in this module (and ``mechanism zigzag --needle machine``) uses it.
-    """
-    raise UserError(
-        "the shipped machine's needle table is not plugged in yet (mechanism.zigzag.shipped_needle_profile); "
-        "use --needle slider-crank or --needle-csv FILE"
-    )
-# -------------------------------------------------------------------------------------------
+    motion = needle_motion(model_path, samples=720)
+    return NeedleProfile.from_table(np.deg2rad(motion.arm_angle_deg), motion.needle_z_mm,
+                                    "shipped sewing machine" if model_path is None else str(model_path))
 
 
 def arm_period_s(stitches_per_minute: float) -> float:

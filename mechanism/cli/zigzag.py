@@ -16,7 +16,8 @@ the needle is not yet within --tolerance-mm of its target when it re-enters. Exi
 
 needle height over arm angle (0 = needle TDC, z from the needle-plate top):
   --needle slider-crank   analytic crank --crank-mm / rod --rod-mm, TDC --tdc-height-mm above the plate
-  --needle machine        the shipped sewing machine's needle table (once plugged in)
+  --needle machine        the sewing machine's needle table from its kinematics (default; the
+                          shipped machine, or --machine-model MJCF)
   --needle-csv FILE       a table with arm_angle_deg (or arm_angle_rad) and needle_z_mm
 
 linkage (assumed): full width 7 mm = 40 full steps (0.175 mm per 7.5 deg step), needle bar and
@@ -61,8 +62,10 @@ def register(subparsers) -> None:
                         help="linear ramps at both ends of the move [full steps] (default 0: abrupt)")
     parser.add_argument("--model", default="circuit", choices=["circuit", "physical"], help="motor model (default circuit)")
     parser.add_argument("--mode", default="full", metavar="full|half|microN", help="drive mode (default full)")
-    parser.add_argument("--needle", default="slider-crank", choices=["slider-crank", "machine"],
-                        help="needle height source (default slider-crank; see below)")
+    parser.add_argument("--needle", default="machine", choices=["machine", "slider-crank"],
+                        help="needle height source (default machine; see below)")
+    parser.add_argument("--machine-model", metavar="MJCF",
+                        help="sewing-machine MJCF for --needle machine (default: the shipped sewing machine)")
     parser.add_argument("--needle-csv", metavar="FILE", help="needle height table (overrides --needle)")
     parser.add_argument("--crank-mm", type=float, default=16.5, metavar="MM", help="slider-crank: crank radius [mm] (default 16.5)")
     parser.add_argument("--rod-mm", type=float, default=50.0, metavar="MM", help="slider-crank: rod length [mm] (default 50)")
@@ -97,7 +100,7 @@ def run(args) -> int:
     if args.needle_csv:
         needle = zigzag.NeedleProfile.from_csv(args.needle_csv)
     elif args.needle == "machine":
-        needle = zigzag.shipped_needle_profile()
+        needle = zigzag.shipped_needle_profile(args.machine_model)
     else:
         needle = zigzag.NeedleProfile.slider_crank(args.crank_mm, args.rod_mm, args.tdc_height_mm)
     options = dict(width_mm=args.width_mm, rate=args.rate, kind=args.model, mode=args.mode,
