@@ -1,0 +1,311 @@
+"""Diagnosis: locate where a fitted baseline misses the recording, name the missing
+physics from the candidate library, choose by validation, and show the fit improve.
+
+- **locate** (:func:`locate`): the baseline's velocity residual in time (drift, transients
+  after voltage steps, starts and stops), over the arm angle and over the motor angle
+  (phase averages), against speed, in frequency (resonance peaks), and how its
+  once-per-revolution part scales with speed (a torque's velocity ripple falls with speed,
+  a sensor error's grows with it). These numbers seed the non-convex candidates (the belt's
+  resonance frequency) and go into the report; they do not decide.
+- **name and choose** (:func:`diagnose`): greedy forward selection. Every remaining
+  candidate is added to the current model and *all* parameters are refitted on the fit
+  segments; the candidate with the lowest validation rmse (a small per-parameter
+  penalty, and among near-ties the one with fewer parameters) is accepted only if it cuts
+  the validation rmse by at least :data:`MIN_RELATIVE_GAIN`. The validation segments are
+  interleaved with the fit segments (1 s each, in pairs), so both see every voltage level,
+  every transient and the whole warm-up; an extra parameter that only fits noise or
+  one part of the recording does not lower the validation error. Stop when no candidate
+  passes, or after :data:`MAX_EFFECTS`.
+- **show**: :meth:`Diagnosis.to_json` (the contract) and :mod:`mechanism.diagnosis_report`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.signal import find_peaks, welch
+
+from mechanism.effects import EFFECTS, Effect, Located
+from mechanism.identification import (FitResult, ModelStructure, Problem, baseline_model, fit,
+                                      initial_baseline_values, require_identifiable)
+from mechanism.recording import Recording
+
+MIN_RELATIVE_GAIN = 0.12  # an effect must cut the validation rmse by at least 12 %
+TIE_BAND = 0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
+PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
+MAX_EFFECTS = 3
+REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
+
+
+# ----------------------------------------------------------------------------- locate
+
+@dataclass
+class Localisation:
+    """Where the residual lives (numbers for the report, the evidence and the starts)."""
+
+    rmse: float
+    time_s: np.ndarray
+    residual: np.ndarray  # over the whole recording (scored samples)
+    speed: np.ndarray  # measured arm speed
+    arm_bins: np.ndarray  # bin centres [rad]
+    arm_profile: np.ndarray  # mean residual per arm-angle bin
+    motor_profile: np.ndarray  # mean residual per motor-angle bin (8x arm angle)
+    speed_bins: np.ndarray
+    speed_rms: np.ndarray
+    order_amplitudes: dict  # arm order -> (speed band centres, amplitude per band)
+    speed_exponent_order1: float  # d log(amplitude) / d log(speed) of the once-per-rev part
+    frequency_hz: np.ndarray
+    psd: np.ndarray
+    resonance_hz: tuple
+    transient_rms: float  # within 0.3 s after voltage steps
+    steady_rms: float
+    low_speed_rms: float  # below 10 % of the top speed, moving or starting
+    drift_per_min: float  # trend of the plateau-mean residual [rad/s per minute]
+
+    def located(self) -> Located:
+        return Located(resonance_hz=self.resonance_hz, residual_rms=self.rmse)
+
+    def to_json(self) -> dict:
+        return {
+            "rmse": self.rmse,
+            "transient_rms_rad_s": self.transient_rms,
+            "steady_rms_rad_s": self.steady_rms,
+            "low_speed_rms_rad_s": self.low_speed_rms,
+            "drift_rad_s_per_min": self.drift_per_min,
+            "arm_angle_profile_pp_rad_s": float(np.ptp(self.arm_profile)),
+            "motor_angle_profile_pp_rad_s": float(np.ptp(self.motor_profile)),
+            "order1_speed_exponent": self.speed_exponent_order1,
+            "resonance_peaks_Hz": list(self.resonance_hz),
+        }
+
+
+def _bin_mean(x, y, edges):
+    idx = np.clip(np.digitize(x, edges) - 1, 0, len(edges) - 2)
+    count = np.bincount(idx, minlength=len(edges) - 1)
+    total = np.bincount(idx, weights=y, minlength=len(edges) - 1)
+    return np.where(count > 0, total / np.maximum(count, 1), np.nan), count
+
+
+def locate(problem: Problem, fitted: FitResult) -> Localisation:
+    rec = problem.recording
+    s = problem.signals
+    pred = problem.full_prediction(fitted.structure, fitted.values)
+    r = s.velocity_rad_s - pred
+    t, w = rec.time_s, s.velocity_rad_s
+    speed = np.abs(w)
+    top = max(np.percentile(speed, 99), 1e-6)
+    moving = speed > 0.1 * top
+    phase = s.arm_phase
+    edges = np.linspace(0, 2 * np.pi, 73)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    arm_profile, _ = _bin_mean(phase[moving], r[moving], edges)
+    motor_profile, _ = _bin_mean(np.mod(s.ratio * s.arm_angle_rad[moving], 2 * np.pi), r[moving], edges)
+    speed_edges = np.linspace(0, top * 1.001, 16)
+    sq, _ = _bin_mean(speed, r * r, speed_edges)
+    speed_rms = np.sqrt(sq)
+    # harmonic content per speed band: project the residual on cos/sin(k theta)
+    bands = np.quantile(speed[moving], [0, 0.25, 0.5, 0.75, 1.0]) if moving.any() else np.array([0, 1])
+    orders = {}
+    for k in (1, 2, 3, 8):
+        centres_b, amps = [], []
+        for lo, hi in zip(bands[:-1], bands[1:]):
+            sel = moving & (speed >= lo) & (speed <= hi)
+            if sel.sum() < 500:
+                continue
+            c = np.cos(k * s.arm_angle_rad[sel])
+            sn = np.sin(k * s.arm_angle_rad[sel])
+            rr = r[sel] - r[sel].mean()
+            amps.append(2 * math.hypot(np.mean(rr * c), np.mean(rr * sn)))
+            centres_b.append(float(np.median(speed[sel])))
+        orders[k] = (np.array(centres_b), np.array(amps))
+    sp, amp = orders[1]
+    exponent = float(np.polyfit(np.log(sp), np.log(np.maximum(amp, 1e-9)), 1)[0]) if len(sp) >= 2 else math.nan
+    fs = 1.0 / problem.dt
+    f, psd = welch(r, fs=fs, nperseg=min(len(r), 4096))
+    resonance = _resonance_peaks(f, psd)
+    steps = np.flatnonzero(np.abs(np.diff(rec.voltage_V)) > 0.5) + 1
+    after = np.zeros(len(r), bool)
+    for k in steps:
+        after[k:k + int(0.3 * fs)] = True
+    transient_rms = float(np.sqrt(np.mean(r[after] ** 2))) if after.any() else 0.0
+    steady_rms = float(np.sqrt(np.mean(r[~after] ** 2))) if (~after).any() else 0.0
+    low = (speed < 0.1 * top) & ((speed > 0.01) | (np.abs(rec.voltage_V) > 0.1))
+    low_rms = float(np.sqrt(np.mean(r[low] ** 2))) if low.any() else 0.0
+    drift = _plateau_drift(t, rec.voltage_V, r, after)
+    return Localisation(float(np.sqrt(np.mean(r * r))), t, r, speed, centres, arm_profile, motor_profile,
+                        0.5 * (speed_edges[1:] + speed_edges[:-1]), speed_rms, orders, exponent, f, psd,
+                        resonance, transient_rms, steady_rms, low_rms, drift)
+
+
+def _resonance_peaks(f: np.ndarray, psd: np.ndarray, count: int = 3) -> tuple:
+    band = (f > 2.0) & (f < 0.9 * f[-1])
+    if band.sum() < 5:
+        return ()
+    logp = np.log(psd[band] + 1e-30)
+    # prominence over a smooth background: peaks that stand out in the log spectrum
+    peaks, props = find_peaks(logp, prominence=1.0)
+    order = np.argsort(-props["prominences"])[:count]
+    return tuple(float(f[band][peaks[i]]) for i in order)
+
+
+def _plateau_drift(t, u, r, transient) -> float:
+    """Slope of the mean residual against time over plateaus at repeated voltage levels."""
+    level = np.round(u / 0.5) * 0.5
+    sel = ~transient & (np.abs(u) > 0.5)
+    if sel.sum() < 1000:
+        return 0.0
+    # remove each level's mean so that only the trend within levels remains
+    keys, inv = np.unique(level[sel], return_inverse=True)
+    means = np.bincount(inv, weights=r[sel]) / np.bincount(inv)
+    rr = r[sel] - means[inv]
+    tt = t[sel] - t[sel].mean()
+    return float(np.sum(tt * rr) / np.sum(tt * tt) * 60.0)
+
+
+# ----------------------------------------------------------------------------- name and choose
+
+@dataclass
+class Finding:
+    effect: Effect
+    fit: FitResult
+    rmse_before: float
+    evidence: str
+    candidates: dict  # name -> validation rmse of every candidate tried in this round
+
+    def to_json(self) -> dict:
+        own = {p.name for p in self.effect.parameters}
+        return {
+            "name": self.effect.name,
+            "evidence": self.evidence,
+            "params": {k: v for k, v in self.fit.values.items() if k in own},
+            "uncertainty_1sigma": {k: v for k, v in self.fit.uncertainties.items() if k in own},
+            "rmse": self.fit.rmse_val,
+            "meaning": self.effect.meaning,
+            "candidates_rmse": self.candidates,
+        }
+
+
+@dataclass
+class Diagnosis:
+    recording: Recording
+    baseline_name: str
+    baseline: FitResult
+    findings: list[Finding]
+    localisation: Localisation
+    problem: Problem = field(repr=False)
+    rounds: list = field(default_factory=list)  # per round: {candidate: rmse_val}
+
+    @property
+    def final(self) -> FitResult:
+        return self.findings[-1].fit if self.findings else self.baseline
+
+    @property
+    def effect_names(self) -> list[str]:
+        return [f.effect.name for f in self.findings]
+
+    def to_json(self) -> dict:
+        base = self.baseline
+        return {
+            "recording": self.recording.source,
+            "identifiable": True,
+            "baseline": {
+                "name": self.baseline_name,
+                "params": base.values,
+                "uncertainty_1sigma": base.uncertainties,
+                "rmse": base.rmse_val,
+                "rmse_fit": base.rmse_fit,
+                "located": self.localisation.to_json(),
+            },
+            "effects": [f.to_json() for f in self.findings],
+            "final": {"params": self.final.values, "uncertainty_1sigma": self.final.uncertainties,
+                      "rmse": self.final.rmse_val, "effects": self.effect_names},
+            "selection": {
+                "rule": (f"greedy forward selection: refit every candidate added to the current model on the fit "
+                         f"segments; rank by validation rmse x (1 + {PARAMETER_PENALTY} per added parameter), "
+                         f"near-ties within {TIE_BAND:.0%} go to fewer parameters; accept only if the validation rmse "
+                         f"falls by at least {MIN_RELATIVE_GAIN:.0%}; at most {MAX_EFFECTS} effects"),
+                "rounds": self.rounds,
+            },
+            "rmse_definition": "RMS of measured minus simulated arm velocity [rad/s] on the validation segments (interleaved 1 s segments, half of the recording); both by the same Savitzky-Golay differentiator (21 ms, degree 4) of an angle; each segment restarts from the measured velocity after a 0.25 s burn-in",
+        }
+
+
+def not_identifiable_json(rec_source: str, reason: str) -> dict:
+    return {"recording": rec_source, "identifiable": False, "reason": f"not identifiable: {reason}",
+            "baseline": None, "effects": [], "final": None}
+
+
+def _evidence(effect: Effect, result: FitResult, before: float, problem: Problem) -> str:
+    text = effect.sentence.format(**effect.summary(result.values, problem.signals))
+    gain = 100 * (1 - result.rmse_val / before) if before > 0 else 0.0
+    return (f"{text[0].upper()}{text[1:]}; adding it cuts the validation velocity error from {before:.3g} to "
+            f"{result.rmse_val:.3g} rad/s ({gain:.0f}% lower).")
+
+
+def _starts(effect: Effect, current: FitResult, problem: Problem, located: Located) -> list[dict]:
+    return [{**current.values, **start} for start in effect.starts(problem.signals, located)]
+
+
+def _rank(results: dict[str, FitResult], current: FitResult) -> str:
+    def score(name):
+        added = len(results[name].structure.parameters) - len(current.structure.parameters)
+        return results[name].rmse_val * (1 + PARAMETER_PENALTY * added)
+
+    best = min(results, key=score)
+    near = [n for n in results if results[n].rmse_val <= results[best].rmse_val * (1 + TIE_BAND)]
+    fewest = min(len(results[n].structure.parameters) for n in near)
+    near = [n for n in near if len(results[n].structure.parameters) == fewest]
+    return min(near, key=score)
+
+
+def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequence[str] | None = None,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
+    """Fit the baseline, locate its residual, and add candidate effects while the validation
+    error falls clearly (see the module docstring for the rule)."""
+    require_identifiable(recording)
+    problem = Problem(recording)
+    model = baseline_model(baseline)
+    structure = ModelStructure(model)
+    tick = (lambda what: progress(what)) if progress else (lambda what: None)
+    tick("baseline")
+    start = initial_baseline_values(problem, model)
+    base = fit(problem, structure, [start, {p.name: p.nominal for p in model.parameters}])
+    where = locate(problem, base)
+    located = where.located()
+    library = [EFFECTS[name] for name in (candidates or EFFECTS)]
+    if baseline == "multibody":
+        library = [e for e in library if e.name != "linkage_dynamics"] + [e for e in library if e.name == "linkage_dynamics"]
+    current = base
+    findings: list[Finding] = []
+    rounds = []
+    for _ in range(MAX_EFFECTS):
+        remaining = [e for e in library if e.name not in current.structure.names]
+        if not remaining:
+            break
+        # screen: only the new effect's parameters move (cheap), then refit the best few
+        # with every parameter free, so that the baseline can settle around the effect
+        screened = {}
+        for effect in remaining:
+            tick(effect.name)
+            screened[effect.name] = fit(problem, current.structure.with_effect(effect),
+                                        _starts(effect, current, problem, located),
+                                        free=[p.name for p in effect.parameters], max_nfev=15)
+        results = dict(screened)
+        for name in sorted(screened, key=lambda n: screened[n].rmse_val)[:REFINE_TOP]:
+            tick(f"refit {name}")
+            refined = fit(problem, screened[name].structure, [screened[name].values], max_nfev=30)
+            if refined.rmse_fit <= screened[name].rmse_fit:
+                results[name] = refined
+        rounds.append({name: r.rmse_val for name, r in results.items()})
+        best = _rank(results, current)
+        chosen = results[best]
+        if chosen.rmse_val > (1 - MIN_RELATIVE_GAIN) * current.rmse_val:
+            break
+        effect = EFFECTS[best]
+        findings.append(Finding(effect, chosen, current.rmse_val, _evidence(effect, chosen, current.rmse_val, problem),
+                                {name: r.rmse_val for name, r in results.items()}))
+        current = chosen
+    return Diagnosis(recording, baseline, base, findings, where, problem, rounds)

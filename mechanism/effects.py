@@ -1,0 +1,339 @@
+"""The candidate library: small physical models of what the lumped baseline leaves out.
+
+Each candidate :class:`Effect` has a name (the JSON contract), a physical meaning, typed
+parameters with bounds and nominal values, and says how it enters the model: as a torque
+on the machine (it adds to the per-sample :class:`~mechanism.lumped.Drive` coefficients),
+as a change of the applied voltage, as an elastic belt, or as an error of the angle sensor
+(:meth:`Effect.measure`). The diagnosis loop is generic over this list.
+
+Position-dependent terms use the measured arm angle (0 = needle top dead centre, the
+encoder index; bottom dead centre at pi); the motor angle is 8x the arm angle plus an
+unknown offset, which the cos/sin pairs absorb.
+
+Signatures a mechanism engineer would look for (they are *not* used as a decision tree;
+the validation fit decides):
+
+- ``torque_ripple``: torque periodic in the motor angle (8, 16, 96 per arm revolution);
+  its velocity ripple falls with speed because the inertia filters it.
+- ``linkage_dynamics``: gravity of the needle bar (once per revolution, speed independent)
+  plus the varying inertia of the slider-crank (twice per revolution, its torque
+  1/2 J'(theta) w^2 grows with the square of the speed).
+- ``position_friction``: the Coulomb level varies once per revolution (a free phase),
+  independent of speed.
+- ``stribeck``: friction above the Coulomb level at low speed: starts and stops.
+- ``thermal_drift``: friction falls with time as the bearings warm up.
+- ``needle_penetration``: a resisting load in a window of arm angle around needle-down.
+- ``belt_compliance``: motor and arm joined by an elastic belt: a resonance, ringing after
+  voltage steps.
+- ``voltage_nonlinearity``: the applied voltage is a nonlinear function of the logged one.
+- ``encoder_eccentricity``: the sensor reports theta + e cos(theta - psi): a velocity error
+  once per revolution proportional to speed, with no effect on the machine.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from mechanism.lumped import Drive, Signals
+from mechanism.parameters import Parameter
+
+PI = math.pi
+
+
+@dataclass(frozen=True)
+class Located:
+    """What the locate step found in the baseline residual, for starting guesses."""
+
+    resonance_hz: tuple[float, ...] = ()
+    residual_rms: float = 0.0
+
+
+class Effect:
+    """A candidate missing effect. Subclasses set the class attributes and ``apply`` or
+    ``measure``; ``starts`` gives initial guesses (several for non-convex parameters)."""
+
+    name: str = ""
+    meaning: str = ""
+    enters: str = ""  # "torque", "friction", "voltage", "belt", "measurement"
+    parameters: tuple[Parameter, ...] = ()
+    sentence: str = ""
+
+    def apply(self, v: dict[str, float], s: Signals, drive: Drive) -> None:
+        """Add this effect to the drive coefficients (torque, friction, voltage, belt)."""
+
+    def measure(self, v: dict[str, float], s: Signals, angle: np.ndarray) -> np.ndarray:
+        """The angle the sensor reports for the true ``angle`` (measurement effects)."""
+        return angle
+
+    def starts(self, s: Signals, located: Located) -> list[dict[str, float]]:
+        return [{p.name: p.nominal for p in self.parameters}]
+
+    def summary(self, v: dict[str, float], s: Signals | None = None) -> dict[str, float]:
+        """Derived engineering quantities for the evidence sentence."""
+        return {}
+
+    @property
+    def is_measurement(self) -> bool:
+        return self.enters == "measurement"
+
+    def __repr__(self) -> str:
+        return f"<effect {self.name}>"
+
+
+def _amplitude(v: dict, cos_key: str, sin_key: str) -> tuple[float, float]:
+    a, b = v[cos_key], v[sin_key]
+    return math.hypot(a, b), math.atan2(b, a)
+
+
+def _harmonic_pair(prefix: str, unit: str, bound: float, what: str, scale: float) -> tuple[Parameter, Parameter]:
+    return (
+        Parameter(f"{prefix}_cos_{unit}", 0.0, -bound, bound, f"{what}, cosine part", scale=scale),
+        Parameter(f"{prefix}_sin_{unit}", 0.0, -bound, bound, f"{what}, sine part", scale=scale),
+    )
+
+
+class TorqueRipple(Effect):
+    name = "torque_ripple"
+    meaning = "motor-angle-periodic torque: cogging of the 12-pole motor and shaft distortion (once and twice per motor revolution)"
+    enters = "torque"
+    MOTOR_ORDERS = (1, 2, 12)
+    parameters = tuple(
+        p for k in MOTOR_ORDERS
+        for p in _harmonic_pair(f"ripple_motor_order{k}", "Nm", 0.05, f"motor-side torque {k}x per motor revolution", 0.005)
+    )
+    sentence = ("the residual repeats with the motor angle ({orders} per arm revolution) and its velocity amplitude falls "
+                "with speed as a torque does: a motor torque ripple of {amp_Nm:.2g} Nm (motor side) explains it")
+
+    def apply(self, v, s, drive):
+        torque = np.zeros(len(s))
+        for k in self.MOTOR_ORDERS:
+            order = k * s.ratio
+            torque += v[f"ripple_motor_order{k}_cos_Nm"] * s.harmonic(order, "cos")
+            torque += v[f"ripple_motor_order{k}_sin_Nm"] * s.harmonic(order, "sin")
+        drive.tau_motor_Nm += s.ratio * torque
+
+    def summary(self, v, s=None):
+        amps = {k: _amplitude(v, f"ripple_motor_order{k}_cos_Nm", f"ripple_motor_order{k}_sin_Nm")[0] for k in self.MOTOR_ORDERS}
+        main = max(amps, key=amps.get)
+        orders = ", ".join(f"{int(k * 8)}" for k in self.MOTOR_ORDERS if amps[k] > 0.2 * amps[main])
+        return {"amp_Nm": amps[main], "orders": orders}
+
+
+class LinkageDynamics(Effect):
+    name = "linkage_dynamics"
+    meaning = ("position-dependent inertia and gravity of the needle-bar linkage: gravity once per arm revolution, "
+               "the slider-crank inertia twice per revolution with its 1/2 J'(theta) w^2 torque")
+    enters = "torque"
+    parameters = (
+        *_harmonic_pair("gravity_order1", "Nm", 0.5, "needle-bar gravity torque on the arm shaft", 0.02),
+        *_harmonic_pair("inertia_order2", "kgm2", 6e-4, "arm-side inertia variation of the linkage", 2e-5),
+    )
+    sentence = ("the residual is periodic in the arm angle with a twice-per-revolution part that grows with speed, "
+                "the signature of a varying inertia: needle-bar gravity {gravity_Nm:.2g} Nm and an inertia variation of "
+                "{inertia_kgm2:.2g} kg m^2 (arm side) explain it")
+
+    def __init__(self, shape: Callable | None = None):
+        self.shape = shape
+
+    def apply(self, v, s, drive):
+        jc, js = v["inertia_order2_cos_kgm2"], v["inertia_order2_sin_kgm2"]
+        c2, s2 = s.harmonic(2, "cos"), s.harmonic(2, "sin")
+        drive.inertia_kgm2 += jc * c2 + js * s2
+        drive.quadratic_Nm_s2 += -jc * s2 + js * c2  # 1/2 dJ/dtheta
+        drive.tau_arm_Nm += v["gravity_order1_cos_Nm"] * s.harmonic(1, "cos") + v["gravity_order1_sin_Nm"] * s.harmonic(1, "sin")
+
+    def summary(self, v, s=None):
+        return {"gravity_Nm": _amplitude(v, "gravity_order1_cos_Nm", "gravity_order1_sin_Nm")[0],
+                "inertia_kgm2": _amplitude(v, "inertia_order2_cos_kgm2", "inertia_order2_sin_kgm2")[0]}
+
+
+class PositionFriction(Effect):
+    name = "position_friction"
+    meaning = "the Coulomb friction level varies over the arm revolution (bearing load changing with the crank position)"
+    enters = "friction"
+    parameters = _harmonic_pair("coulomb_order1", "Nm", 0.5, "once-per-revolution variation of the Coulomb level", 0.02)
+    sentence = ("the residual is periodic once per arm revolution and its torque does not change with speed: "
+                "the Coulomb friction varies by +-{amp_Nm:.2g} Nm over the revolution, highest at {peak_deg:.0f} deg after needle top")
+
+    def apply(self, v, s, drive):
+        drive.coulomb_Nm += v["coulomb_order1_cos_Nm"] * s.harmonic(1, "cos") + v["coulomb_order1_sin_Nm"] * s.harmonic(1, "sin")
+        np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
+
+    def summary(self, v, s=None):
+        amp, phase = _amplitude(v, "coulomb_order1_cos_Nm", "coulomb_order1_sin_Nm")
+        return {"amp_Nm": amp, "peak_deg": math.degrees(phase) % 360}
+
+
+class Stribeck(Effect):
+    name = "stribeck"
+    meaning = "static friction above the kinetic level, decaying with speed (Tustin: Fc + Fx exp(-(|w|/ws)^delta))"
+    enters = "friction"
+    parameters = (
+        Parameter("static_excess_arm_Nm", 0.05, 0.0, 1.5, "static minus kinetic friction on the arm", scale=0.05),
+        Parameter("stribeck_velocity_arm_rad_s", 2.0, 0.02, 40.0, "speed at which the excess has decayed to 1/e", log=True),
+        Parameter("stribeck_exponent", 1.0, 0.4, 3.0, "shape exponent delta (Tustin 0.5-2)", scale=1.0),
+    )
+    sentence = ("the residual concentrates at low speed, at starts and stops: the friction at standstill is "
+                "{excess_Nm:.2g} Nm above the kinetic level and decays over {ws:.2g} rad/s of arm speed")
+
+    def apply(self, v, s, drive):
+        drive.static_excess_Nm += v["static_excess_arm_Nm"]
+        drive.stribeck_velocity_rad_s = v["stribeck_velocity_arm_rad_s"]
+        drive.stribeck_exponent = v["stribeck_exponent"]
+
+    def starts(self, s, located):
+        return [{"static_excess_arm_Nm": fx, "stribeck_velocity_arm_rad_s": ws, "stribeck_exponent": 1.0}
+                for ws in (0.5, 3.0, 12.0) for fx in (0.05, 0.2)]
+
+    def summary(self, v, s=None):
+        return {"excess_Nm": v["static_excess_arm_Nm"], "ws": v["stribeck_velocity_arm_rad_s"]}
+
+
+class ThermalDrift(Effect):
+    name = "thermal_drift"
+    meaning = "friction falls as the sintered bearings warm up during the run: Coulomb and viscous scaled by 1 - a (1 - exp(-t/tau))"
+    enters = "friction"
+    parameters = (
+        Parameter("coulomb_drop_fraction", 0.0, -0.5, 0.95, "fraction of the Coulomb friction lost when warm", scale=0.2),
+        Parameter("viscous_drop_fraction", 0.0, -2.0, 0.95, "fraction of the viscous friction lost when warm", scale=0.5),
+        Parameter("warmup_time_constant_s", 60.0, 3.0, 3000.0, "warm-up time constant", log=True),
+    )
+    sentence = ("the residual drifts with time at repeated voltage levels: the machine runs faster as it warms, friction "
+                "falling by {coulomb_pct:.0f}% (Coulomb) and {viscous_pct:.0f}% (viscous) by the end of the recording")
+
+    def warmth(self, v, s):
+        return 1.0 - np.exp(-(s.time_s - s.time_s[0]) / v["warmup_time_constant_s"])
+
+    def apply(self, v, s, drive):
+        w = self.warmth(v, s)
+        drive.coulomb_Nm *= 1.0 - v["coulomb_drop_fraction"] * w
+        drive.viscous_Nm_s *= 1.0 - v["viscous_drop_fraction"] * w
+        np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
+        np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
+
+    def starts(self, s, located):
+        return [{"coulomb_drop_fraction": 0.1, "viscous_drop_fraction": 0.1, "warmup_time_constant_s": tau} for tau in (15.0, 60.0, 400.0)]
+
+    def summary(self, v, s=None):
+        duration = float(s.time_s[-1] - s.time_s[0]) if s is not None else 60.0
+        w = 1 - math.exp(-duration / v["warmup_time_constant_s"])
+        return {"coulomb_pct": 100 * v["coulomb_drop_fraction"] * w, "viscous_pct": 100 * v["viscous_drop_fraction"] * w}
+
+
+class NeedlePenetration(Effect):
+    name = "needle_penetration"
+    meaning = "fabric load: a resisting torque in a window of arm angle around needle-down (raised-cosine window)"
+    enters = "friction"
+    parameters = (
+        Parameter("penetration_load_arm_Nm", 0.05, 0.0, 3.0, "peak resisting torque on the arm while the needle is in the fabric", scale=0.1),
+        Parameter("penetration_centre_rad", PI, PI / 2, 3 * PI / 2, "arm angle at the peak (pi = needle bottom dead centre)", scale=1.0),
+        Parameter("penetration_half_width_rad", 0.5, 0.08, 1.6, "half width of the window", scale=0.5),
+    )
+    sentence = ("the residual is a dip once per revolution confined to {width_deg:.0f} deg of arm angle around "
+                "{centre_deg:.0f} deg (needle down): a load of {load_Nm:.2g} Nm while the needle penetrates explains it")
+
+    def window(self, v, s):
+        delta = np.mod(s.arm_angle_rad - v["penetration_centre_rad"] + PI, 2 * PI) - PI
+        hw = v["penetration_half_width_rad"]
+        return np.where(np.abs(delta) < hw, 0.5 * (1 + np.cos(PI * delta / hw)), 0.0)
+
+    def apply(self, v, s, drive):
+        drive.coulomb_Nm += v["penetration_load_arm_Nm"] * self.window(v, s)
+
+    def starts(self, s, located):
+        return [{"penetration_load_arm_Nm": 0.05, "penetration_centre_rad": c, "penetration_half_width_rad": hw}
+                for c in (PI - 0.7, PI - 0.25, PI + 0.25, PI + 0.7) for hw in (0.3, 0.8)]
+
+    def summary(self, v, s=None):
+        return {"load_Nm": v["penetration_load_arm_Nm"], "centre_deg": math.degrees(v["penetration_centre_rad"]),
+                "width_deg": 2 * math.degrees(v["penetration_half_width_rad"])}
+
+
+class BeltCompliance(Effect):
+    name = "belt_compliance"
+    meaning = "elastic belt between motor and arm: two inertias on a spring-damper, a resonance excited by steps and ripple"
+    enters = "belt"
+    parameters = (
+        Parameter("belt_resonance_Hz", 30.0, 2.0, 250.0, "resonance frequency of motor against arm on the belt", log=True),
+        Parameter("belt_damping_ratio", 0.1, 0.003, 2.0, "damping ratio of the belt mode", log=True),
+        Parameter("motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia (thesis: 8.6e-6 of 2.78e-5)", scale=1.0),
+    )
+    sentence = ("the residual rings at {f:.3g} Hz after voltage steps, a frequency unrelated to the shaft rates: an elastic "
+                "belt (resonance {f:.3g} Hz, damping ratio {zeta:.2g}) between motor and arm explains it")
+
+    def apply(self, v, s, drive):
+        total = float(np.median(drive.inertia_kgm2))
+        jm = v["motor_inertia_fraction"] * total
+        ja = total - jm
+        wr = 2 * PI * v["belt_resonance_Hz"]
+        stiffness = wr**2 / (1 / jm + 1 / ja)
+        reduced = jm * ja / total
+        drive.belt_stiffness_Nm_rad = stiffness
+        drive.belt_damping_Nm_s = 2 * v["belt_damping_ratio"] * math.sqrt(stiffness * reduced)
+        drive.motor_inertia_kgm2 = jm
+
+    def starts(self, s, located):
+        nyquist = 0.5 / s.dt
+        freqs = [f for f in located.resonance_hz if 2.0 < f < min(250.0, 0.9 * nyquist)][:3] or [8.0, 25.0, 60.0]
+        return [{"belt_resonance_Hz": f, "belt_damping_ratio": z, "motor_inertia_fraction": 0.31} for f in freqs for z in (0.03, 0.2)]
+
+    def summary(self, v, s=None):
+        return {"f": v["belt_resonance_Hz"], "zeta": v["belt_damping_ratio"]}
+
+
+class VoltageNonlinearity(Effect):
+    name = "voltage_nonlinearity"
+    meaning = "the voltage reaching the motor is a nonlinear function of the logged one (PWM switch): U + U (c1 + c2 u + c3 u^2), u = U/24 V"
+    enters = "voltage"
+    U_REF = 24.0
+    parameters = (
+        Parameter("supply_gain_error", 0.0, -0.5, 0.5, "linear gain error of the supply", scale=0.05),
+        Parameter("supply_quadratic", 0.0, -1.0, 1.0, "quadratic term c2", scale=0.05),
+        Parameter("supply_cubic", 0.0, -1.0, 1.0, "cubic term c3", scale=0.05),
+    )
+    sentence = ("the steady-state residual depends on the voltage level in a way no friction law reproduces and has no "
+                "angle dependence: the applied voltage deviates from the logged one by {lo:+.2g} V at {ulo:.3g} V and "
+                "{hi:+.2g} V at {uhi:.3g} V")
+
+    def applied(self, v, u):
+        x = u / self.U_REF
+        return u + u * (v["supply_gain_error"] + v["supply_quadratic"] * x + v["supply_cubic"] * x * x)
+
+    def apply(self, v, s, drive):
+        drive.voltage_V = self.applied(v, drive.voltage_V)
+
+    def summary(self, v, s=None, levels=(5.0, 20.0)):
+        lo, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
+        return {"lo": lo, "hi": hi, "ulo": levels[0], "uhi": levels[1]}
+
+
+class EncoderEccentricity(Effect):
+    name = "encoder_eccentricity"
+    meaning = "the encoder (adapter) is eccentric: it reports theta + e cos(theta - psi); a measurement error, not a torque"
+    enters = "measurement"
+    parameters = _harmonic_pair("encoder_order1", "rad", 0.05, "once-per-revolution angle error of the sensor", 0.002)
+    sentence = ("the once-per-revolution residual grows in proportion to speed, which a torque cannot do (inertia filters "
+                "it), but an angle-sensor error does: the encoder reads {amp_mrad:.2g} mrad off once per revolution")
+
+    def measure(self, v, s, angle):
+        return angle + v["encoder_order1_cos_rad"] * np.cos(angle) + v["encoder_order1_sin_rad"] * np.sin(angle)
+
+    def summary(self, v, s=None):
+        return {"amp_mrad": 1e3 * _amplitude(v, "encoder_order1_cos_rad", "encoder_order1_sin_rad")[0]}
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    TorqueRipple(), LinkageDynamics(), PositionFriction(), Stribeck(), ThermalDrift(), NeedlePenetration(),
+    BeltCompliance(), VoltageNonlinearity(), EncoderEccentricity())}
+
+
+def effect(name: str) -> Effect:
+    from mechanism.errors import UserError, close_matches
+
+    if name not in EFFECTS:
+        raise UserError(f"unknown effect {name!r}; known: {close_matches(name, EFFECTS)}")
+    return EFFECTS[name]
