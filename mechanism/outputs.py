@@ -13,6 +13,14 @@ import tempfile
 from pathlib import Path
 
 
+def _umask_mode(mode: int = 0o666) -> int:
+    """The permission a plain ``open()`` would give: mkstemp's private 0600 is wrong for
+    outputs that users share and serve."""
+    current = os.umask(0)
+    os.umask(current)
+    return mode & ~current
+
+
 @contextlib.contextmanager
 def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
     """Open a temporary file next to ``path``; on success it replaces ``path``."""
@@ -20,6 +28,7 @@ def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
+    os.chmod(tmp, _umask_mode())
     try:
         if "b" not in mode:
             open_kwargs.setdefault("encoding", "utf-8")
@@ -41,6 +50,7 @@ def atomic_path(path: str | os.PathLike):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
+    os.chmod(tmp, _umask_mode())
     try:
         yield Path(tmp)
         os.replace(tmp, path)
@@ -62,6 +72,7 @@ def atomic_dir(path: str | os.PathLike):
     created_parent = not parent.exists()
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
+    os.chmod(tmp, _umask_mode(0o777))
     try:
         yield tmp
         if path.exists():

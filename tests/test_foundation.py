@@ -93,3 +93,16 @@ def test_unknown_verb_and_bad_option_give_one_error_line(cli):
     cli("no-such-verb").assert_bad_input()
     result = cli()
     assert result.returncode == 2
+
+
+def test_outputs_get_ordinary_permissions_not_mkstemp_private_ones(tmp_path):
+    old = os.umask(0o022)
+    try:
+        with atomic_file(tmp_path / "a.csv") as handle:
+            handle.write("x")
+        with atomic_dir(tmp_path / "d"):
+            pass
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.csv").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "d").stat().st_mode & 0o777 == 0o755

@@ -45,9 +45,14 @@ def load(name: str) -> ctypes.CDLL | None:
     import mujoco
 
     source = _HERE / f"{name}.c"
-    include = Path(mujoco.__file__).parent / "include"
+    package = Path(mujoco.__file__).parent
+    include = package / "include"
+    libraries = sorted(package.glob("libmujoco.so*")) + sorted(package.glob("libmujoco*.dylib"))
     text = source.read_bytes()
-    key = hashlib.sha256(text + mujoco.__version__.encode() + str(include).encode() + sys.platform.encode()).hexdigest()[:16]
+    # Link the very libmujoco the Python bindings loaded (same file, so one instance).
+    link = [str(libraries[0]), f"-Wl,-rpath,{package}"] if libraries else []
+    recipe = " ".join([mujoco.__version__, str(include), sys.platform, *link]).encode()
+    key = hashlib.sha256(text + recipe).hexdigest()[:16]
     target = cache_dir() / f"lib{name}-{key}.so"
     if not target.exists():
         compiler = _compiler()
@@ -57,7 +62,7 @@ def load(name: str) -> ctypes.CDLL | None:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
         os.close(fd)
-        cmd = [compiler, "-O2", "-shared", "-fPIC", f"-I{include}", str(source), "-o", tmp, "-lm"]
+        cmd = [compiler, "-O2", "-shared", "-fPIC", f"-I{include}", str(source), "-o", tmp, *link, "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             os.unlink(tmp)

@@ -1,0 +1,91 @@
+// Passive forces of a machine model that MuJoCo has no native element for:
+// kinetic friction laws (Stribeck/Tustin/Hess-Soom, position-dependent Coulomb level)
+// and the fabric load on the needle. Installed as mjcb_passive (process-global), so it
+// acts only on models carrying the custom numerics written by mechanism/friction.py and
+// mechanism/loads.py, and leaves every other model untouched.
+//
+// Friction split (see mechanism/friction.py): the joint's native frictionloss holds the
+// static (break-away) level, which MuJoCo's constraint solver enforces exactly at rest;
+// this callback (1) sets that level per step for position-dependent friction by editing
+// the friction-loss row of the current constraint set, and (2) while sliding, adds back
+// the part of the static level that the kinetic law does not have, so the net friction
+// follows the kinetic law. Near zero velocity the added torque fades out and the
+// constraint alone holds the joint.
+
+#include <math.h>
+#include <string.h>
+#include <mujoco/mujoco.h>
+
+#define FRICTION_FIELDS 11
+#define LOAD_FIELDS 9
+
+static int find_numeric(const mjModel* m, const char* name) {
+  for (int i = 0; i < m->nnumeric; i++) {
+    if (strcmp(m->names + m->name_numericadr[i], name) == 0) return i;
+  }
+  return -1;
+}
+
+// smooth sign: v/sqrt(v^2+eps^2), exact sign well above eps
+static mjtNum smooth_sign(mjtNum v, mjtNum eps) { return v / sqrt(v * v + eps * eps); }
+
+// Must match friction.py: the Stribeck shape S(v) in [0, 1], 1 at rest.
+static mjtNum stribeck_shape(int law, mjtNum v, mjtNum vs, mjtNum delta) {
+  if (law == 0 || vs <= 0) return 0;
+  mjtNum x = fabs(v) / vs;
+  if (law == 1) return exp(-pow(x, delta));  // Tustin
+  return 1.0 / (1.0 + x * x);                // Hess and Soom
+}
+
+static void apply_friction(const mjModel* m, mjData* d, const mjtNum* p, int n) {
+  // p: [version, count, then count * FRICTION_FIELDS]
+  int count = (int)p[1];
+  if (n < 2 + count * FRICTION_FIELDS) return;
+  for (int k = 0; k < count; k++) {
+    const mjtNum* f = p + 2 + k * FRICTION_FIELDS;
+    int dof = (int)f[0], qadr = (int)f[1], law = (int)f[5];
+    mjtNum coulomb = f[2], stat = f[3], vs = f[4], delta = f[6];
+    mjtNum amp = f[7], phase = f[8], harmonic = f[9], eps = f[10];
+    mjtNum scale = 1.0;
+    if (amp != 0 && qadr >= 0) scale = 1.0 + amp * cos(harmonic * d->qpos[qadr] - phase);
+    mjtNum level = stat * scale;  // the static level the constraint holds now
+    for (int r = 0; r < d->nefc; r++) {
+      if (d->efc_type[r] == mjCNSTR_FRICTION_DOF && d->efc_id[r] == dof) {
+        d->efc_frictionloss[r] = level;
+        break;
+      }
+    }
+    mjtNum v = d->qvel[dof];
+    mjtNum kinetic = (coulomb + (stat - coulomb) * stribeck_shape(law, v, vs, delta)) * scale;
+    d->qfrc_passive[dof] += (level - kinetic) * smooth_sign(v, eps);
+  }
+}
+
+static void apply_needle_load(const mjModel* m, mjData* d, const mjtNum* p, int n) {
+  // p: [version, site, body, fabric_top_z, fabric_thickness, down_force, up_force, ramp, eps]
+  if (n < LOAD_FIELDS) return;
+  int site = (int)p[1], body = (int)p[2];
+  mjtNum top = p[3], thickness = p[4], down = p[5], up = p[6], ramp = p[7], eps = p[8];
+  if (site < 0 || site >= m->nsite || body < 0 || body >= m->nbody) return;
+  const mjtNum* tip = d->site_xpos + 3 * site;
+  mjtNum depth = top - tip[2];  // how far the point is below the fabric's top surface
+  if (depth <= 0) return;
+  mjtNum vel[6];
+  mj_objectVelocity(m, d, mjOBJ_SITE, site, vel, 0);  // world frame: vel[3..5] linear
+  mjtNum vz = vel[5];
+  // Piercing (moving down) builds up over the point's taper and lasts until the blade is
+  // through the stack; after that, and while withdrawing, only the blade's drag remains.
+  mjtNum engaged = depth < ramp ? depth / ramp : 1.0;
+  mjtNum piercing = vz < 0 && depth < thickness + ramp;
+  mjtNum magnitude = (piercing ? down : up) * engaged;
+  mjtNum force[3] = {0, 0, -magnitude * smooth_sign(vz, eps)};
+  mjtNum torque[3] = {0, 0, 0};
+  mj_applyFT(m, d, force, torque, tip, body, d->qfrc_passive);
+}
+
+void mechanism_passive(const mjModel* m, mjData* d) {
+  int i = find_numeric(m, "mechanism_friction");
+  if (i >= 0) apply_friction(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
+  i = find_numeric(m, "mechanism_needle_load");
+  if (i >= 0) apply_needle_load(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
+}

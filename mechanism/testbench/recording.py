@@ -1,0 +1,304 @@
+"""Bench recordings from the truth model: voltage profile, simulation, sensors, files."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mechanism import __version__
+from mechanism.errors import UserError, close_matches
+from mechanism.outputs import atomic_file
+from mechanism.tables import write_table
+from mechanism.testbench import simulate as sim
+from mechanism.testbench.truth import (
+    ANGLE_STEP_RAD,
+    ENCODER_COUNTS_PER_REV,
+    TWO_PI,
+    draw_baseline,
+    draw_effects,
+    mean_square_slider_speed,
+    needle_entry_angle,
+    parse_effects,
+    position_friction_shape,
+    stream,
+)
+
+SAMPLE_RATE_HZ = 1000
+TRUTH_FORMAT = "mechanism-testbench-truth/1"
+CURRENT_RESOLUTION_A = 1e-3
+VOLTAGE_BANDS_V = ((4.0, 7.0), (7.0, 11.0), (11.0, 15.0), (15.0, 20.0))
+CSV_COLUMNS = ("time", "voltage", "arm_angle", "current")
+
+
+@dataclass
+class Recording:
+    """What the bench logged (the CSV columns) and the concealed truth behind it.
+
+    ``traces`` holds the true, noise-free signals at the sample times (arm angle and
+    velocity, motor angle and velocity, current, applied voltage, warmth) for tests and
+    plots; none of it is written to the CSV.
+    """
+
+    time: np.ndarray
+    voltage: np.ndarray
+    arm_angle: np.ndarray
+    current: np.ndarray
+    truth: dict
+    traces: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def effects(self) -> list[str]:
+        return list(self.truth["effects"])
+
+    def columns(self) -> dict[str, np.ndarray]:
+        return {"time": self.time, "voltage": self.voltage, "arm_angle": self.arm_angle, "current": self.current}
+
+
+# --- voltage profile --------------------------------------------------------------------
+
+def draw_plateaus(seed: int, duration_s: float) -> list[tuple[float, float]]:
+    """(duration [s], commanded voltage [V]) steps: rest, then 4-20 V plateaus of 2-6 s in a
+    shuffled order that visits every voltage band, with 0 V stops every 2-4 plateaus."""
+    rng = stream(seed, "profile")
+    plateaus = [(round(rng.uniform(0.3, 1.0), 3), 0.0)]
+    elapsed = plateaus[0][0]
+    bands: list[int] = []
+    since_stop, next_stop = 0, int(rng.integers(2, 5))
+    while elapsed < duration_s:
+        if since_stop >= next_stop:
+            step = (round(rng.uniform(1.0, 2.5), 3), 0.0)
+            since_stop, next_stop = 0, int(rng.integers(2, 5))
+        else:
+            if not bands:
+                bands = list(rng.permutation(len(VOLTAGE_BANDS_V)))
+            low, high = VOLTAGE_BANDS_V[bands.pop()]
+            step = (round(rng.uniform(2.0, 6.0), 3), round(rng.uniform(low, high), 1))
+            since_stop += 1
+        plateaus.append(step)
+        elapsed += step[0]
+    return plateaus
+
+
+def voltage_samples(plateaus, n: int) -> np.ndarray:
+    """Commanded voltage at each 1 kHz sample (held from each plateau's start)."""
+    edges = np.round(np.cumsum([0.0] + [d for d, _ in plateaus]) * SAMPLE_RATE_HZ).astype(np.int64)
+    levels = np.array([v for _, v in plateaus] + [plateaus[-1][1]], dtype=float)
+    index = np.searchsorted(edges, np.arange(n), side="right") - 1
+    return levels[np.clip(index, 0, len(levels) - 1)]
+
+
+def applied_voltage(logged: np.ndarray, params: dict | None) -> np.ndarray:
+    """The voltage the motor gets: the logged one, or through the PWM switch's distortion."""
+    logged = np.asarray(logged, dtype=float)
+    if params is None:
+        return logged.copy()
+    duty = np.clip(logged / params["supply_V"], 0.0, 1.0)
+    distorted = (
+        logged
+        + params["mid_duty_gain_V"] * duty * (1.0 - duty)
+        - params["low_duty_loss_V"] * (1.0 - duty) ** params["low_duty_loss_exponent"]
+    )
+    return np.where(logged > 0.0, np.maximum(distorted, 0.0), 0.0)
+
+
+# --- truth model assembly ------------------------------------------------------------------
+
+def _model_parameters(base: dict, effects: dict[str, dict], substeps: int) -> tuple[dict, dict]:
+    """Integrator parameters (simulate.PARAM_FIELDS) and the derived truth values."""
+    ratio = base["belt_ratio"]
+    total = base["inertia_motor_side_kgm2"]
+    r, rod = base["crank_radius_m"], base["rod_length_m"]
+    p = dict.fromkeys(sim.PARAM_FIELDS, 0.0)
+    p.update(
+        dt=1.0 / SAMPLE_RATE_HZ, n_sub=float(substeps), R=base["resistance_ohm"], L=base["inductance_H"],
+        Kt=base["torque_constant_Nm_per_A"], Ke=base["back_emf_constant_V_s_per_rad"], ratio=ratio,
+        d_motor=base["viscous_motor_side_Nm_s_per_rad"], coulomb=base["coulomb_arm_Nm"], lk_r=r, lk_l=rod,
+        rp_nc=12.0, st_velocity=1.0, st_exponent=1.0, th_tau_cool=1.0,
+    )
+    derived: dict[str, dict] = {}
+    belt = effects.get("belt_compliance")
+    motor_share = belt["motor_inertia_fraction"] if belt else 0.0
+    arm_side = ratio**2 * (1.0 - motor_share) * total  # mean inertia carried by the arm shaft
+    link = effects.get("linkage_dynamics")
+    p["J_arm0"] = arm_side
+    if link:
+        p["lk_mass"], p["gravity"] = link["reciprocating_mass_kg"], link["gravity_m_s2"]
+        p["J_arm0"] = arm_side - link["reciprocating_mass_kg"] * mean_square_slider_speed(r, rod)
+        if p["J_arm0"] <= 0:
+            raise UserError("linkage_dynamics: the reciprocating mass carries more inertia than the whole machine")
+    if belt:
+        motor = ratio**2 * motor_share * total  # rotor inertia seen from the arm
+        stiffness = (TWO_PI * belt["resonance_Hz"]) ** 2 / (1.0 / motor + 1.0 / arm_side)
+        reduced = motor * arm_side / (motor + arm_side)
+        p.update(belt=1.0, J_motor=motor_share * total, belt_k=stiffness,
+                 belt_c=2.0 * belt["damping_ratio"] * math.sqrt(stiffness * reduced))
+        derived["belt_compliance"] = {"stiffness_arm_side_Nm_per_rad": stiffness, "damping_arm_side_Nm_s_per_rad": p["belt_c"],
+                                      "rotor_inertia_arm_side_kgm2": motor, "arm_inertia_kgm2": arm_side}
+    if "torque_ripple" in effects:
+        e = effects["torque_ripple"]
+        p.update(rp_a1=e["once_per_motor_rev_Nm"], rp_p1=e["once_per_motor_rev_phase_rad"], rp_ac=e["cogging_Nm"],
+                 rp_pc=e["cogging_phase_rad"], rp_nc=float(e["cogging_per_motor_rev"]))
+    if "position_friction" in effects:
+        e = effects["position_friction"]
+        p.update(pf_a1=e["first_harmonic_fraction"], pf_p1=e["first_harmonic_phase_rad"],
+                 pf_a2=e["second_harmonic_fraction"], pf_p2=e["second_harmonic_phase_rad"])
+        derived["position_friction"] = position_friction_shape(e)
+    if "stribeck" in effects:
+        e = effects["stribeck"]
+        if e["model"] not in ("tustin", "hess_soom"):
+            raise UserError(f"stribeck model must be tustin or hess_soom, not {e['model']!r}")
+        p.update(st_model=sim.STRIBECK_MODELS[e["model"]], st_excess=e["static_over_kinetic_fraction"],
+                 st_velocity=e["stribeck_velocity_arm_rad_s"], st_exponent=e["tustin_exponent"])
+    if "thermal_drift" in effects:
+        e = effects["thermal_drift"]
+        p.update(th_coulomb_drop=e["coulomb_drop_fraction"], th_viscous_drop=e["viscous_drop_fraction"],
+                 th_tau_warm=e["warm_up_time_constant_s"], th_tau_cool=e["cool_down_time_constant_s"])
+    if "needle_penetration" in effects:
+        e = effects["needle_penetration"]
+        p.update(nd_force_per_m=e["force_per_layer_N"] / e["layer_thickness_m"], nd_fabric=e["layers"] * e["layer_thickness_m"],
+                 nd_point=e["point_length_m"], nd_sliding=e["sliding_fraction"], nd_depth_bdc=e["needle_depth_below_plate_at_bdc_m"])
+        derived["needle_penetration"] = {"entry_arm_angle_rad": needle_entry_angle(e, r, rod)}
+    return p, derived
+
+
+def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> dict:
+    """Merge user overrides into baseline and effect parameters; return the remaining options."""
+    options = {}
+    for key, value in overrides.items():
+        if key in base:
+            base[key] = float(value)
+        elif key in effects:
+            if not isinstance(value, dict):
+                raise UserError(f"override for effect '{key}' must be a dict of its parameters")
+            unknown = set(value) - set(effects[key])
+            if unknown:
+                raise UserError(f"{key} has no parameter {sorted(unknown)[0]!r}; it has {', '.join(effects[key])}")
+            effects[key].update(value)
+        elif key in OPTIONS:
+            options[key] = value
+        else:
+            known = list(base) + list(effects) + list(OPTIONS)
+            raise UserError(f"unknown override '{key}'; did you mean {close_matches(key, known)}?")
+    return options
+
+
+OPTIONS = ("randomize_baseline", "voltage_plateaus", "start_angle_rad", "current_noise_A", "substeps_per_ms", "integrator")
+
+
+def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overrides) -> Recording:
+    """A 1 kHz bench recording of the truth model with the named concealed effects.
+
+    ``effects``: names from :data:`mechanism.testbench.EFFECTS` (a list or ``"a,b"``;
+    ``()`` or ``"none"`` is the clean machine). Overrides (keyword arguments):
+
+    - any baseline parameter by name (``coulomb_arm_Nm=0.18``); ``randomize_baseline=False``
+      uses the thesis's values;
+    - an effect's parameters as a dict (``torque_ripple={"cogging_Nm": 0.0}``);
+    - ``voltage_plateaus=[(duration_s, volts), ...]`` instead of the drawn profile,
+      ``start_angle_rad``, ``current_noise_A`` (sensor standard deviation),
+      ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build).
+    """
+    names = parse_effects(effects)
+    seed = int(seed)
+    duration_s = float(duration_s)
+    if not math.isfinite(duration_s) or not 0.01 <= duration_s <= 3600:
+        raise UserError(f"duration must be between 0.01 and 3600 s, not {duration_s}")
+    randomize = bool(overrides.pop("randomize_baseline", True))
+    base = draw_baseline(seed, randomize=randomize)
+    effect_params = draw_effects(seed, names, base)
+    options = _apply_overrides(effect_params, base, overrides)
+    substeps = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
+    params, derived = _model_parameters(base, effect_params, substeps)
+    for name, values in derived.items():
+        effect_params[name].update(values)
+
+    n = int(round(duration_s * SAMPLE_RATE_HZ))
+    time = np.arange(n) / SAMPLE_RATE_HZ
+    plateaus = options.get("voltage_plateaus") or draw_plateaus(seed, duration_s)
+    plateaus = [(float(d), float(v)) for d, v in plateaus]
+    if any(d <= 0 or not math.isfinite(v) or v < 0 for d, v in plateaus):
+        raise UserError("voltage plateaus need positive durations and non-negative voltages")
+    logged_voltage = voltage_samples(plateaus, n)
+    motor_voltage = applied_voltage(logged_voltage, effect_params.get("voltage_nonlinearity"))
+
+    sensors = stream(seed, "sensors")
+    start = float(options.get("start_angle_rad", sensors.uniform(0.0, TWO_PI)))
+    noise = float(options.get("current_noise_A", sensors.uniform(0.01, 0.03)))
+    state = dict(theta_arm=start, omega_arm=0.0, theta_motor=base["belt_ratio"] * start, omega_motor=0.0, current=0.0, warmth=0.0)
+    solver_name = options.get("integrator", "native")
+    traces = sim.simulate(params, motor_voltage, state, prefer=solver_name)
+    traces["applied_voltage_V"] = motor_voltage
+
+    true_angle = traces["arm_angle_rad"]
+    sensed = true_angle
+    if "encoder_eccentricity" in effect_params:
+        e = effect_params["encoder_eccentricity"]
+        # the count is reset at the index pulse (needle TDC), so the error vanishes there
+        sensed = true_angle + e["amplitude_rad"] * (np.sin(true_angle + e["phase_rad"]) - math.sin(e["phase_rad"]))
+    arm_angle = np.floor(sensed / ANGLE_STEP_RAD) * ANGLE_STEP_RAD
+    current = np.round((traces["current_A"] + sensors.normal(0.0, noise, n)) / CURRENT_RESOLUTION_A) * CURRENT_RESOLUTION_A
+
+    truth = {
+        "format": TRUTH_FORMAT,
+        "generator": f"mechanism {__version__} testbench",
+        "seed": seed,
+        "duration_s": duration_s,
+        "sample_rate_Hz": SAMPLE_RATE_HZ,
+        "effects": names,
+        "effect_params": effect_params,
+        "baseline": base,
+        "baseline_randomized": randomize,
+        "start_arm_angle_rad": start,
+        "voltage_plateaus": [[d, v] for d, v in plateaus],
+        "sensors": {
+            "encoder_counts_per_rev": ENCODER_COUNTS_PER_REV,
+            "angle_step_rad": ANGLE_STEP_RAD,
+            "current_noise_std_A": noise,
+            "current_resolution_A": CURRENT_RESOLUTION_A,
+        },
+        "integrator": {"substeps_per_ms": substeps, "solver": sim.solver(solver_name).name},
+    }
+    return Recording(time, logged_voltage, arm_angle, current, truth, traces)
+
+
+def truth_path_for(csv_path: str | Path) -> Path:
+    """``REC.csv`` -> ``REC.truth.json`` (next to it); UserError for a name not ending in .csv."""
+    csv_path = Path(csv_path)
+    if csv_path.suffix.lower() != ".csv":
+        raise UserError(f"recording file name must end in .csv: {csv_path}")
+    return csv_path.with_name(csv_path.stem + ".truth.json")
+
+
+def write_recording(recording: Recording, csv_path: str | Path) -> tuple[Path, Path]:
+    """Write the CSV (contract columns only) and its truth JSON next to it, atomically."""
+    csv_path = Path(csv_path)
+    truth_path = truth_path_for(csv_path)
+    truth = dict(recording.truth, recording=csv_path.name)
+    comments = [
+        f"mechanism virtual test bench recording ({SAMPLE_RATE_HZ} Hz); what is concealed in it is in {truth_path.name}",
+        "columns: time [s], voltage [V, commanded], arm_angle [rad, unwrapped, 0 = needle top dead centre, "
+        f"{ENCODER_COUNTS_PER_REV} counts/rev], current [A]",
+    ]
+    write_table(csv_path, recording.columns(), comments=comments, fmt="%.10g")
+    try:
+        with atomic_file(truth_path) as handle:
+            json.dump(_jsonable(truth), handle, indent=2)
+            handle.write("\n")
+    except BaseException:
+        csv_path.unlink(missing_ok=True)
+        raise
+    return csv_path, truth_path
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

@@ -1,0 +1,106 @@
+"""Motor, friction and simulation plumbing on a small hand-written machine (no CAD needed).
+
+References: the thesis's lumped steady state (eq. 5 with the belt), Ohm's law for the
+current, and statics for break-away.
+"""
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from mechanism import machine as machine_module
+from mechanism.friction import FrictionLaw, python_friction
+from mechanism.inputs import VoltageProfile, pwm_voltage
+from mechanism.errors import UserError
+from mechanism.machine import Machine, MachineConfig
+from mechanism.motor import DCMotor
+from mechanism.simulation import simulate
+
+TOY = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
+KT, KE, R, N = 0.017, 0.021, 1.1, 8
+
+
+def lumped_steady_rpm(voltage, coulomb_arm=0.18, viscous_motor=2.2e-5):
+    motor = (KT / R * voltage - coulomb_arm / N) / (KT * KE / R + viscous_motor)
+    return motor / N * 60 / (2 * np.pi)
+
+
+def no_position_friction():
+    return {"arm_shaft": FrictionLaw(coulomb=0.18, static=0.2394, stribeck="tustin", stribeck_velocity=0.5)}
+
+
+@pytest.fixture(scope="module")
+def toy():
+    return Machine(TOY, MachineConfig(friction=no_position_friction()))
+
+
+@pytest.mark.parametrize("voltage", [4.48, 12.49, 19.6])
+def test_steady_speed_and_current_follow_the_thesis_motor_equations(toy, voltage):
+    result = simulate(voltage, 3.0, machine=toy)
+    summary = result.speed_summary(1.0)
+    # The toy's linkage makes the speed ripple a little; its mean follows eq. 5 with the belt.
+    assert summary["mean_rpm"] == pytest.approx(lumped_steady_rpm(voltage), rel=0.01)
+    last = result.window(1.0)
+    expected_current = (voltage - KE * result.motor_velocity_rad_s[last]) / R
+    np.testing.assert_allclose(result.current_A[last], expected_current, atol=0.02)
+
+
+def test_dcmotor_keeps_kt_and_ke_distinct():
+    # <dcmotor> alone would use K = sqrt(Kt Ke) for both: torque at stall must be Kt V / R.
+    spec = mujoco.MjSpec.from_file(str(TOY))
+    DCMotor.from_thesis().add_to_spec(spec)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.ctrl[0] = 10.0
+    mujoco.mj_forward(model, data)
+    assert data.actuator_force[0] == pytest.approx(KT / R * 10.0, rel=1e-9)
+
+
+def test_machine_sticks_below_break_away_and_starts_above():
+    no_gravity = Machine(TOY, MachineConfig(friction={"arm_shaft": FrictionLaw(coulomb=0.18, static=0.24)}))
+    no_gravity.model.opt.gravity[:] = 0
+    # Stall torque at the arm is N Kt V / R: break-away at V = 0.24 R / (N Kt).
+    breakaway_V = 0.24 * R / (N * KT)
+    stuck = simulate(0.97 * breakaway_V, 2.0, machine=no_gravity)
+    moving = simulate(1.03 * breakaway_V, 2.0, machine=no_gravity)
+    assert abs(stuck.arm_angle_rad[-1] - stuck.arm_angle_rad[0]) < 2e-3
+    assert moving.arm_angle_rad[-1] - moving.arm_angle_rad[0] > 1.0
+
+
+def test_python_fallback_matches_the_compiled_callback():
+    laws = {"arm_shaft": FrictionLaw(coulomb=0.18, static=0.26, stribeck="hess-soom", stribeck_velocity=2.0,
+                                     position_amplitude=0.1, position_phase_rad=1.0)}
+    compiled = Machine(TOY, MachineConfig(friction=laws))
+    reference = simulate(VoltageProfile(np.array([0.0, 0.3]), np.array([3.0, 6.0])), 0.6, machine=compiled)
+    # Same model, friction stepped in Python instead of C.
+    model, data = compiled.model, compiled.reset(0.0)
+    ctrl = model.actuator("motor").id
+    mujoco.set_mjcb_passive(python_friction)
+    try:
+        velocities = []
+        for step in range(int(0.6 / model.opt.timestep)):
+            data.ctrl[ctrl] = 3.0 if step * model.opt.timestep < 0.3 else 6.0
+            mujoco.mj_step(model, data)
+            if (step + 1) % 2 == 0:
+                velocities.append(data.qvel[compiled.arm_dof])
+    finally:
+        machine_module._CALLBACK_INSTALLED = False
+        machine_module.install_callbacks()
+    np.testing.assert_allclose(velocities, reference.arm_velocity_rad_s, atol=1e-6)
+
+
+def test_pwm_duty_follows_table_2_and_rejects_out_of_range():
+    assert pwm_voltage(50) == pytest.approx(12.49)
+    assert pwm_voltage(25) == pytest.approx((4.48 + 7.0) / 2)
+    assert 0 < pwm_voltage(12) < pwm_voltage(14) < 4.48
+    with pytest.raises(UserError):
+        pwm_voltage(120)
+
+
+def test_bad_durations_and_voltages_are_user_errors(toy):
+    with pytest.raises(UserError, match="duration"):
+        simulate(5.0, -1.0, machine=toy)
+    with pytest.raises(UserError, match="outside"):
+        simulate(31.0, 1.0, machine=toy)
