@@ -22,14 +22,17 @@ physics from the candidate library, choose by validation, and show the fit impro
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
 from scipy.signal import find_peaks, welch
 
+from mechanism.diagnosis_report import Traces
 from mechanism.effects import EFFECTS, Effect, Located
-from mechanism.identification import (FitResult, ModelStructure, Problem, baseline_model, fit,
+from mechanism.identification import (FitResult, ModelStructure, Problem, baseline_model, equation_error_start, fit,
                                       initial_baseline_values, require_identifiable)
 from mechanism.recording import Recording
 
@@ -197,6 +200,7 @@ class Diagnosis:
     localisation: Localisation
     problem: Problem = field(repr=False)
     rounds: list = field(default_factory=list)  # per round: {candidate: rmse_val}
+    traces: "Traces | None" = field(default=None, repr=False)
 
     @property
     def final(self) -> FitResult:
@@ -246,6 +250,13 @@ def _evidence(effect: Effect, result: FitResult, before: float, problem: Problem
 
 
 def _starts(effect: Effect, current: FitResult, problem: Problem, located: Located) -> list[dict]:
+    """Where the fit of ``effect`` starts: the equation-error estimate for effects with a
+    torque form (no simulation needed), otherwise the effect's own guesses."""
+    if effect.linear is not None:
+        structure = current.structure.with_effect(effect)
+        base = {**{p.name: p.nominal for p in effect.parameters}, **current.values}
+        start, _ = equation_error_start(problem, structure, base, effect, effect.grid(problem.signals, located))
+        return [start]
     return [{**current.values, **start} for start in effect.starts(problem.signals, located)]
 
 
@@ -261,13 +272,42 @@ def _rank(results: dict[str, FitResult], current: FitResult) -> str:
     return min(near, key=score)
 
 
+def _fit_all(jobs: list[tuple], workers: int) -> list[FitResult]:
+    """Run independent fits (problem, structure, starts, kwargs) on threads: the kernel and
+    most numpy work release the GIL, so two cores give close to twice the speed."""
+    if workers <= 1 or len(jobs) <= 1:
+        return [fit(p, st, starts, **kw) for p, st, starts, kw in jobs]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(lambda job: fit(job[0], job[1], job[2], **job[3]), jobs))
+
+
+def _screen_and_refit(problem, current: FitResult, effects: list[Effect], located: Located, tick, workers: int) -> dict[str, FitResult]:
+    """Fit each candidate added to ``current``: first its own and the baseline's parameters
+    (the baseline's friction must be free to give back what the effect now explains), then
+    the best few again with every parameter free."""
+    base_names = [p.name for p in current.structure.baseline.parameters]
+    jobs = [(problem, current.structure.with_effect(e), _starts(e, current, problem, located),
+             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 15}) for e in effects]
+    tick(f"screening {len(effects)} candidates")
+    results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
+    top = sorted(results, key=lambda n: results[n].rmse_val)[:REFINE_TOP]
+    if current.structure.effects:  # with effects already found, refit everything together
+        tick(f"refitting {', '.join(top)}")
+        refits = _fit_all([(problem, results[n].structure, [results[n].values], {"max_nfev": 25}) for n in top], workers)
+        for name, refined in zip(top, refits):
+            if refined.rmse_fit <= results[name].rmse_fit:
+                results[name] = refined
+    return results
+
+
 def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None) -> Diagnosis:
+             progress: Callable[[str], None] | None = None, model_path=None, workers: int | None = None) -> Diagnosis:
     """Fit the baseline, locate its residual, and add candidate effects while the validation
     error falls clearly (see the module docstring for the rule)."""
     require_identifiable(recording)
+    workers = workers or min(4, os.cpu_count() or 1)
     problem = Problem(recording)
-    model = baseline_model(baseline)
+    model = baseline_model(baseline, model_path=model_path)
     structure = ModelStructure(model)
     tick = (lambda what: progress(what)) if progress else (lambda what: None)
     tick("baseline")
@@ -276,8 +316,6 @@ def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequenc
     where = locate(problem, base)
     located = where.located()
     library = [EFFECTS[name] for name in (candidates or EFFECTS)]
-    if baseline == "multibody":
-        library = [e for e in library if e.name != "linkage_dynamics"] + [e for e in library if e.name == "linkage_dynamics"]
     current = base
     findings: list[Finding] = []
     rounds = []
@@ -285,27 +323,44 @@ def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequenc
         remaining = [e for e in library if e.name not in current.structure.names]
         if not remaining:
             break
-        # screen: only the new effect's parameters move (cheap), then refit the best few
-        # with every parameter free, so that the baseline can settle around the effect
-        screened = {}
-        for effect in remaining:
-            tick(effect.name)
-            screened[effect.name] = fit(problem, current.structure.with_effect(effect),
-                                        _starts(effect, current, problem, located),
-                                        free=[p.name for p in effect.parameters], max_nfev=15)
-        results = dict(screened)
-        for name in sorted(screened, key=lambda n: screened[n].rmse_val)[:REFINE_TOP]:
-            tick(f"refit {name}")
-            refined = fit(problem, screened[name].structure, [screened[name].values], max_nfev=30)
-            if refined.rmse_fit <= screened[name].rmse_fit:
-                results[name] = refined
+        results = _screen_and_refit(problem, current, remaining, located, tick, workers)
         rounds.append({name: r.rmse_val for name, r in results.items()})
         best = _rank(results, current)
         chosen = results[best]
         if chosen.rmse_val > (1 - MIN_RELATIVE_GAIN) * current.rmse_val:
             break
         effect = EFFECTS[best]
-        findings.append(Finding(effect, chosen, current.rmse_val, _evidence(effect, chosen, current.rmse_val, problem),
-                                {name: r.rmse_val for name, r in results.items()}))
+        findings.append(Finding(effect, chosen, current.rmse_val, "", {name: r.rmse_val for name, r in results.items()}))
         current = chosen
-    return Diagnosis(recording, baseline, base, findings, where, problem, rounds)
+        findings, current = _drop_redundant(problem, base, findings, current, tick, workers)
+    for i, finding in enumerate(findings):
+        before = findings[i - 1].fit.rmse_val if i else base.rmse_val
+        finding.rmse_before = before
+        finding.evidence = _evidence(finding.effect, finding.fit, before, problem)
+    result = Diagnosis(recording, baseline, base, findings, where, problem, rounds)
+    predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
+    if findings:
+        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
+    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
+    return result
+
+
+def _drop_redundant(problem, base: FitResult, findings: list[Finding], current: FitResult, tick, workers):
+    """Backward step: a greedy search can accept an effect early that a later one explains
+    better (a linkage fitted to part of a needle pulse). Refit without each earlier effect;
+    drop it when the validation rmse stays within the acceptance margin of the full model."""
+    if len(findings) < 2:
+        return findings, current
+    effects = [f.effect for f in findings]
+    jobs = []
+    for i in range(len(effects) - 1):
+        kept = [e for j, e in enumerate(effects) if j != i]
+        structure = ModelStructure(base.structure.baseline, kept)
+        jobs.append((problem, structure, [current.values], {"max_nfev": 25}))
+    tick("checking earlier findings")
+    fits = _fit_all(jobs, workers)
+    best_i = min(range(len(fits)), key=lambda i: fits[i].rmse_val)
+    if fits[best_i].rmse_val <= current.rmse_val / (1 - MIN_RELATIVE_GAIN):
+        return [f for j, f in enumerate(findings) if j != best_i][:-1] + [
+            Finding(findings[-1].effect, fits[best_i], 0.0, "", findings[-1].candidates)], fits[best_i]
+    return findings, current

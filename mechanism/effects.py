@@ -34,8 +34,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
-
 import numpy as np
 
 from mechanism.lumped import Drive, Signals
@@ -69,7 +67,18 @@ class Effect:
         """The angle the sensor reports for the true ``angle`` (measurement effects)."""
         return angle
 
+    # Parameters in which the effect's torque is linear (amplitudes). For such effects the
+    # diagnosis starts from an equation-error fit: the torque the current model misses at
+    # the measured velocity and acceleration is regressed on these amplitudes, for each
+    # point of ``grid`` (the other parameters). None: no torque form (belt, sensor).
+    linear: tuple[str, ...] | None = None
+
+    def grid(self, s: Signals, located: Located) -> list[dict[str, float]]:
+        """Values of the non-linear parameters to try in the equation-error start."""
+        return [{}]
+
     def starts(self, s: Signals, located: Located) -> list[dict[str, float]]:
+        """Initial guesses for effects without an equation-error start."""
         return [{p.name: p.nominal for p in self.parameters}]
 
     def summary(self, v: dict[str, float], s: Signals | None = None) -> dict[str, float]:
@@ -105,6 +114,7 @@ class TorqueRipple(Effect):
         p for k in MOTOR_ORDERS
         for p in _harmonic_pair(f"ripple_motor_order{k}", "Nm", 0.05, f"motor-side torque {k}x per motor revolution", 0.005)
     )
+    linear = tuple(p.name for p in parameters)
     sentence = ("the residual repeats with the motor angle ({orders} per arm revolution) and its velocity amplitude falls "
                 "with speed as a torque does: a motor torque ripple of {amp_Nm:.2g} Nm (motor side) explains it")
 
@@ -125,30 +135,52 @@ class TorqueRipple(Effect):
 
 class LinkageDynamics(Effect):
     name = "linkage_dynamics"
-    meaning = ("position-dependent inertia and gravity of the needle-bar linkage: gravity once per arm revolution, "
-               "the slider-crank inertia twice per revolution with its 1/2 J'(theta) w^2 torque")
+    meaning = ("position-dependent inertia and gravity of the needle-bar linkage: a slider-crank (needle-bar mass m, "
+               "crank radius r, crank/rod ratio lambda, top dead centre at arm angle 0 + offset) with J(theta) = m x'^2, "
+               "G(theta) = m g x', and the 1/2 J'(theta) w^2 torque")
     enters = "torque"
     parameters = (
-        *_harmonic_pair("gravity_order1", "Nm", 0.5, "needle-bar gravity torque on the arm shaft", 0.02),
-        *_harmonic_pair("inertia_order2", "kgm2", 6e-4, "arm-side inertia variation of the linkage", 2e-5),
+        Parameter("needle_bar_mass_kg", 0.05, 0.0, 3.0, "equivalent reciprocating mass of the needle bar", scale=0.1),
+        Parameter("crank_radius_m", 0.015, 0.003, 0.05, "crank radius (half the needle stroke)", scale=0.015),
+        Parameter("crank_rod_ratio", 0.3, 0.0, 0.7, "crank radius over connecting-rod length", scale=0.3),
+        Parameter("top_dead_centre_offset_rad", 0.0, -0.6, 0.6, "arm angle of the linkage's top dead centre (0 by the encoder index)", scale=0.2),
     )
-    sentence = ("the residual is periodic in the arm angle with a twice-per-revolution part that grows with speed, "
-                "the signature of a varying inertia: needle-bar gravity {gravity_Nm:.2g} Nm and an inertia variation of "
-                "{inertia_kgm2:.2g} kg m^2 (arm side) explain it")
+    linear = ("needle_bar_mass_kg",)
+    sentence = ("the residual is periodic in the arm angle with harmonics whose torque grows with the square of speed, "
+                "the signature of a varying inertia: a needle-bar linkage (mass {mass_kg:.2g} kg on a {radius_mm:.3g} mm crank) "
+                "adds an inertia variation of {inertia_kgm2:.2g} kg m^2 and gravity of {gravity_Nm:.2g} Nm at the arm")
 
-    def __init__(self, shape: Callable | None = None):
-        self.shape = shape
+    @staticmethod
+    def kinematics(v, theta):
+        """dx/dtheta and d2x/dtheta2 of the needle-bar height for the slider-crank."""
+        r, lam = v["crank_radius_m"], v["crank_rod_ratio"]
+        a = theta - v["top_dead_centre_offset_rad"]
+        sa, ca = np.sin(a), np.cos(a)
+        root = np.sqrt(1.0 - (lam * sa) ** 2)
+        dx = -r * sa * (1.0 + lam * ca / root)
+        ddx = -r * ca * (1.0 + lam * ca / root) + r * lam * sa * sa * (1.0 - lam * lam) / root**3
+        return dx, ddx
 
     def apply(self, v, s, drive):
-        jc, js = v["inertia_order2_cos_kgm2"], v["inertia_order2_sin_kgm2"]
-        c2, s2 = s.harmonic(2, "cos"), s.harmonic(2, "sin")
-        drive.inertia_kgm2 += jc * c2 + js * s2
-        drive.quadratic_Nm_s2 += -jc * s2 + js * c2  # 1/2 dJ/dtheta
-        drive.tau_arm_Nm += v["gravity_order1_cos_Nm"] * s.harmonic(1, "cos") + v["gravity_order1_sin_Nm"] * s.harmonic(1, "sin")
+        m = v["needle_bar_mass_kg"]
+        if m == 0.0:
+            return
+        dx, ddx = self.kinematics(v, s.drive_angle_rad)
+        grid_dx, _ = self.kinematics(v, np.linspace(0, 2 * PI, 256, endpoint=False))
+        drive.inertia_kgm2 += m * (dx * dx - np.mean(grid_dx * grid_dx))  # the revolution mean is the baseline's J
+        drive.quadratic_Nm_s2 += m * dx * ddx  # 1/2 dJ/dtheta
+        drive.tau_arm_Nm += m * 9.81 * dx  # potential energy m g x, resisting when the bar rises
+
+    def grid(self, s, located):
+        return [{"crank_radius_m": r, "crank_rod_ratio": lam, "top_dead_centre_offset_rad": 0.0}
+                for r in (0.008, 0.016, 0.03) for lam in (0.1, 0.3, 0.5)]
 
     def summary(self, v, s=None):
-        return {"gravity_Nm": _amplitude(v, "gravity_order1_cos_Nm", "gravity_order1_sin_Nm")[0],
-                "inertia_kgm2": _amplitude(v, "inertia_order2_cos_kgm2", "inertia_order2_sin_kgm2")[0]}
+        theta = np.linspace(0, 2 * PI, 360, endpoint=False)
+        dx, _ = self.kinematics(v, theta)
+        m = v["needle_bar_mass_kg"]
+        return {"mass_kg": m, "radius_mm": 1e3 * v["crank_radius_m"], "inertia_kgm2": float(np.ptp(m * dx * dx)),
+                "gravity_Nm": float(np.max(np.abs(m * 9.81 * dx)))}
 
 
 class PositionFriction(Effect):
@@ -156,6 +188,7 @@ class PositionFriction(Effect):
     meaning = "the Coulomb friction level varies over the arm revolution (bearing load changing with the crank position)"
     enters = "friction"
     parameters = _harmonic_pair("coulomb_order1", "Nm", 0.5, "once-per-revolution variation of the Coulomb level", 0.02)
+    linear = tuple(p.name for p in parameters)
     sentence = ("the residual is periodic once per arm revolution and its torque does not change with speed: "
                 "the Coulomb friction varies by +-{amp_Nm:.2g} Nm over the revolution, highest at {peak_deg:.0f} deg after needle top")
 
@@ -185,9 +218,11 @@ class Stribeck(Effect):
         drive.stribeck_velocity_rad_s = v["stribeck_velocity_arm_rad_s"]
         drive.stribeck_exponent = v["stribeck_exponent"]
 
-    def starts(self, s, located):
-        return [{"static_excess_arm_Nm": fx, "stribeck_velocity_arm_rad_s": ws, "stribeck_exponent": 1.0}
-                for ws in (0.5, 3.0, 12.0) for fx in (0.05, 0.2)]
+    linear = ("static_excess_arm_Nm",)
+
+    def grid(self, s, located):
+        return [{"stribeck_velocity_arm_rad_s": ws, "stribeck_exponent": delta}
+                for ws in (0.3, 1.0, 3.0, 10.0) for delta in (1.0, 2.0)]
 
     def summary(self, v, s=None):
         return {"excess_Nm": v["static_excess_arm_Nm"], "ws": v["stribeck_velocity_arm_rad_s"]}
@@ -215,8 +250,10 @@ class ThermalDrift(Effect):
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
         np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
 
-    def starts(self, s, located):
-        return [{"coulomb_drop_fraction": 0.1, "viscous_drop_fraction": 0.1, "warmup_time_constant_s": tau} for tau in (15.0, 60.0, 400.0)]
+    linear = ("coulomb_drop_fraction", "viscous_drop_fraction")
+
+    def grid(self, s, located):
+        return [{"warmup_time_constant_s": tau} for tau in (8.0, 25.0, 80.0, 250.0, 1000.0)]
 
     def summary(self, v, s=None):
         duration = float(s.time_s[-1] - s.time_s[0]) if s is not None else 60.0
@@ -226,30 +263,52 @@ class ThermalDrift(Effect):
 
 class NeedlePenetration(Effect):
     name = "needle_penetration"
-    meaning = "fabric load: a resisting torque in a window of arm angle around needle-down (raised-cosine window)"
+    meaning = ("fabric load while the needle is below the fabric surface, a window of arm angle around needle-down "
+               "(bottom dead centre): the force on the needle acts through the needle bar's velocity ratio |dx/dtheta| "
+               "(piercing on the way down, shank friction on the way up), plus a smooth load bump")
     enters = "friction"
+    CRANK_ROD_RATIO = 0.3  # typical needle-bar slider-crank; only shapes |dx/dtheta|
+    EDGE_RAD = 0.03
     parameters = (
-        Parameter("penetration_load_arm_Nm", 0.05, 0.0, 3.0, "peak resisting torque on the arm while the needle is in the fabric", scale=0.1),
-        Parameter("penetration_centre_rad", PI, PI / 2, 3 * PI / 2, "arm angle at the peak (pi = needle bottom dead centre)", scale=1.0),
-        Parameter("penetration_half_width_rad", 0.5, 0.08, 1.6, "half width of the window", scale=0.5),
+        Parameter("penetration_down_arm_Nm", 0.05, 0.0, 3.0, "arm torque per unit velocity ratio while the needle goes down through the fabric (force x crank radius)", scale=0.1),
+        Parameter("penetration_up_arm_Nm", 0.05, 0.0, 3.0, "the same while the needle comes up out of the fabric", scale=0.1),
+        Parameter("penetration_bump_arm_Nm", 0.0, 0.0, 3.0, "peak of a smooth (cos^2) load over the window", scale=0.1),
+        Parameter("penetration_half_width_rad", 1.0, 0.15, 2.2, "half the arm angle the needle spends in the fabric", scale=0.5),
+        Parameter("penetration_centre_offset_rad", 0.0, -0.8, 0.8, "window centre relative to bottom dead centre (pi)", scale=0.3),
     )
-    sentence = ("the residual is a dip once per revolution confined to {width_deg:.0f} deg of arm angle around "
-                "{centre_deg:.0f} deg (needle down): a load of {load_Nm:.2g} Nm while the needle penetrates explains it")
+    sentence = ("the residual is a drop in speed once per revolution confined to {width_deg:.0f} deg of arm angle around "
+                "needle-down ({centre_deg:.0f} deg), largest where the needle bar moves fastest: a fabric load of "
+                "{load_Nm:.2g} Nm at the arm while the needle is in the fabric explains it")
 
-    def window(self, v, s):
-        delta = np.mod(s.arm_angle_rad - v["penetration_centre_rad"] + PI, 2 * PI) - PI
+    def shape(self, v, theta):
+        """Arm torque over the arm angle (>= 0, resisting)."""
+        centre = PI + v["penetration_centre_offset_rad"]
         hw = v["penetration_half_width_rad"]
-        return np.where(np.abs(delta) < hw, 0.5 * (1 + np.cos(PI * delta / hw)), 0.0)
+        rel = np.mod(theta - centre + PI, 2 * PI) - PI  # angle from the window centre
+        # the needle enters the fabric over a few degrees (a smooth edge keeps the fit differentiable)
+        inside = 0.5 * (1.0 + np.tanh((hw - np.abs(rel)) / self.EDGE_RAD))
+        lam = self.CRANK_ROD_RATIO
+        a = theta - v["penetration_centre_offset_rad"]
+        sa, ca = np.sin(a), np.cos(a)
+        ratio = np.abs(sa * (1.0 + lam * ca / np.sqrt(1.0 - (lam * sa) ** 2)))  # |dx/dtheta| / r
+        lobes = np.where(rel < 0, v["penetration_down_arm_Nm"], v["penetration_up_arm_Nm"]) * ratio
+        bump = v["penetration_bump_arm_Nm"] * np.cos(0.5 * PI * rel / hw) ** 2
+        bump = np.where(np.abs(rel) < hw, bump, 0.0)
+        return inside * lobes + bump
 
     def apply(self, v, s, drive):
-        drive.coulomb_Nm += v["penetration_load_arm_Nm"] * self.window(v, s)
+        drive.coulomb_Nm += self.shape(v, s.drive_angle_rad)
 
-    def starts(self, s, located):
-        return [{"penetration_load_arm_Nm": 0.05, "penetration_centre_rad": c, "penetration_half_width_rad": hw}
-                for c in (PI - 0.7, PI - 0.25, PI + 0.25, PI + 0.7) for hw in (0.3, 0.8)]
+    linear = ("penetration_down_arm_Nm", "penetration_up_arm_Nm", "penetration_bump_arm_Nm")
+
+    def grid(self, s, located):
+        return [{"penetration_half_width_rad": hw, "penetration_centre_offset_rad": off}
+                for hw in (0.35, 0.6, 0.9, 1.2, 1.5, 1.8) for off in (-0.5, -0.25, 0.0, 0.25, 0.5)]
 
     def summary(self, v, s=None):
-        return {"load_Nm": v["penetration_load_arm_Nm"], "centre_deg": math.degrees(v["penetration_centre_rad"]),
+        theta = np.linspace(0, 2 * PI, 720, endpoint=False)
+        load = self.shape(v, theta)
+        return {"load_Nm": float(load.max()), "centre_deg": math.degrees(PI + v["penetration_centre_offset_rad"]),
                 "width_deg": 2 * math.degrees(v["penetration_half_width_rad"])}
 
 
@@ -298,6 +357,8 @@ class VoltageNonlinearity(Effect):
     sentence = ("the steady-state residual depends on the voltage level in a way no friction law reproduces and has no "
                 "angle dependence: the applied voltage deviates from the logged one by {lo:+.2g} V at {ulo:.3g} V and "
                 "{hi:+.2g} V at {uhi:.3g} V")
+
+    linear = ("supply_gain_error", "supply_quadratic", "supply_cubic")
 
     def applied(self, v, u):
         x = u / self.U_REF

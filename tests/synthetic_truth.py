@@ -154,7 +154,8 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
         angle = angle + ecc * np.cos(angle - ecc_phase)
     angle = np.floor(angle / STEP) * STEP + rng.normal(0, 0.3 * STEP, n_samples)
     t = np.arange(n_samples) / fs
-    return t, u_log, angle
+    truth = {"inertia_motor_side_kgm2": jm, "viscous_motor_side_Nm_s_per_rad": dm, "coulomb_arm_Nm": fc}
+    return t, u_log, angle, truth
 
 
 def write_csv(path, t, u, angle, extra_comment="synthetic truth (tests/synthetic_truth.py)"):

@@ -10,7 +10,8 @@
  * Stick-slip (Karnopp): a shaft at rest stays at rest while the driving torque is within
  * the static level Fk + Fx; a velocity that would cross zero within a step stops at zero.
  * The linear damping is integrated exactly over a step (exponential integrator), the rest
- * is held over the step. Output: arm velocity at every sample of every segment.
+ * at a half-step prediction (exponential midpoint, second order). Position-dependent
+ * coefficients are evaluated by the caller at the mid-sample angle. Output: arm velocity at every sample of every segment.
  */
 #include <math.h>
 
@@ -34,7 +35,8 @@ static double friction_level(double fk, double fx, double w, double ws, double d
     return fk + fx * exp(-pow(r, delta));
 }
 
-/* Rigid belt: one velocity state. */
+/* Rigid belt: one velocity state. Exponential midpoint rule: the linear damping exactly,
+ * the velocity-dependent rest (1/2 J' w^2, Stribeck) at a half-step prediction. */
 static void run_rigid(const drive_params *p, const double *u, const double *tm, const double *ta,
                       const double *fk, const double *fx, const double *cv, const double *jt,
                       const double *q, int start, int length, double w0, double *out) {
@@ -45,15 +47,20 @@ static void run_rigid(const drive_params *p, const double *u, const double *tm, 
         out[i] = w;
         double c = p->c_emf + cv[k];
         double decay = exp(-c * h / jt[k]);
+        double decay_half = exp(-0.5 * c * h / jt[k]);
+        double drive = p->gain * u[k] - tm[k] - ta[k];
         for (int s = 0; s < p->substeps; s++) {
-            double f = p->gain * u[k] - tm[k] - ta[k] - q[k] * w * w;
+            double f = drive - q[k] * w * w;
             double dir = sgn(w);
             if (w == 0.0) {
                 if (fabs(f) <= fk[k] + fx[k]) continue;   /* stuck */
                 dir = sgn(f);
             }
-            f -= friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir;
-            double wss = f / c;
+            double wss = (f - friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir) / c;
+            double wh = wss + (w - wss) * decay_half;
+            if (sgn(wh) == -dir) wh = 0.0;
+            f = drive - q[k] * wh * wh - friction_level(fk[k], fx[k], wh, p->ws, p->delta) * dir;
+            wss = f / c;
             double wn = wss + (w - wss) * decay;
             if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
             w = wn;
