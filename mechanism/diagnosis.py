@@ -32,7 +32,8 @@ from scipy.signal import find_peaks, welch
 
 from mechanism.diagnosis_report import Traces
 from mechanism.effects import EFFECTS, Effect, Located
-from mechanism.identification import (FitResult, ModelStructure, Problem, baseline_model, equation_error_start, fit,
+from mechanism.identification import (FitResult, ModelStructure, Problem, baseline_model, blas_single_threaded,
+                                      equation_error_start, fit,
                                       initial_baseline_values, require_identifiable)
 from mechanism.recording import Recording
 
@@ -96,7 +97,7 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     rec = problem.recording
     s = problem.signals
     pred = problem.full_prediction(fitted.structure, fitted.values)
-    r = s.velocity_rad_s - pred
+    r = np.nan_to_num(s.velocity_rad_s - pred)  # the few unscored samples at the ends count as zero
     t, w = rec.time_s, s.velocity_rad_s
     speed = np.abs(w)
     top = max(np.percentile(speed, 99), 1e-6)
@@ -287,11 +288,11 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
     the best few again with every parameter free."""
     base_names = [p.name for p in current.structure.baseline.parameters]
     jobs = [(problem, current.structure.with_effect(e), _starts(e, current, problem, located),
-             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 15}) for e in effects]
+             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen"}) for e in effects]
     tick(f"screening {len(effects)} candidates")
     results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
     top = sorted(results, key=lambda n: results[n].rmse_val)[:REFINE_TOP]
-    if current.structure.effects:  # with effects already found, refit everything together
+    if True:  # the best few: every parameter free, on all fit segments
         tick(f"refitting {', '.join(top)}")
         refits = _fit_all([(problem, results[n].structure, [results[n].values], {"max_nfev": 25}) for n in top], workers)
         for name, refined in zip(top, refits):
@@ -305,6 +306,11 @@ def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequenc
     """Fit the baseline, locate its residual, and add candidate effects while the validation
     error falls clearly (see the module docstring for the rule)."""
     require_identifiable(recording)
+    with blas_single_threaded():
+        return _diagnose(recording, baseline, candidates, progress, model_path, workers)
+
+
+def _diagnose(recording, baseline, candidates, progress, model_path, workers) -> Diagnosis:
     workers = workers or min(4, os.cpu_count() or 1)
     problem = Problem(recording)
     model = baseline_model(baseline, model_path=model_path)

@@ -31,6 +31,8 @@ class Traces:
 
 
 def _profile(x, y, bins, lo, hi):
+    ok = np.isfinite(y)
+    x, y = x[ok], y[ok]
     edges = np.linspace(lo, hi, bins + 1)
     idx = np.clip(np.digitize(x, edges) - 1, 0, bins - 1)
     count = np.bincount(idx, minlength=bins)
@@ -96,7 +98,7 @@ def _plots(traces: Traces, folder: Path) -> list[tuple[str, str]]:
     fig, ax = plt.subplots(figsize=(11, 3.5))
     dt = float(t[1] - t[0])
     for k in labels:
-        f, p = welch(residuals[k], fs=1 / dt, nperseg=min(4096, len(t)))
+        f, p = welch(np.nan_to_num(residuals[k]), fs=1 / dt, nperseg=min(4096, len(t)))
         ax.semilogy(f, p, lw=0.8, label=k)
     ax.set(xlabel="frequency [Hz]", ylabel="PSD [(rad/s)^2/Hz]", title="residual spectrum (resonances, shaft-rate harmonics)")
     ax.legend()

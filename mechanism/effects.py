@@ -165,11 +165,11 @@ class LinkageDynamics(Effect):
         m = v["needle_bar_mass_kg"]
         if m == 0.0:
             return
-        dx, ddx = self.kinematics(v, s.drive_angle_rad)
-        grid_dx, _ = self.kinematics(v, np.linspace(0, 2 * PI, 256, endpoint=False))
-        drive.inertia_kgm2 += m * (dx * dx - np.mean(grid_dx * grid_dx))  # the revolution mean is the baseline's J
-        drive.quadratic_Nm_s2 += m * dx * ddx  # 1/2 dJ/dtheta
-        drive.tau_arm_Nm += m * 9.81 * dx  # potential energy m g x, resisting when the bar rises
+        grid_dx, grid_ddx = self.kinematics(v, Signals.periodic_grid())
+        inertia = grid_dx * grid_dx
+        drive.inertia_kgm2 += m * s.periodic(inertia - inertia.mean())  # the revolution mean is the baseline's J
+        drive.quadratic_Nm_s2 += m * s.periodic(grid_dx * grid_ddx)  # 1/2 dJ/dtheta
+        drive.tau_arm_Nm += m * 9.81 * s.periodic(grid_dx)  # potential energy m g x, resisting when the bar rises
 
     def grid(self, s, located):
         return [{"crank_radius_m": r, "crank_rod_ratio": lam, "top_dead_centre_offset_rad": 0.0}
@@ -185,20 +185,30 @@ class LinkageDynamics(Effect):
 
 class PositionFriction(Effect):
     name = "position_friction"
-    meaning = "the Coulomb friction level varies over the arm revolution (bearing load changing with the crank position)"
+    meaning = ("the Coulomb friction level varies over the arm revolution (bearing loads change with the crank "
+               "position): once- and twice-per-revolution terms, independent of speed")
     enters = "friction"
-    parameters = _harmonic_pair("coulomb_order1", "Nm", 0.5, "once-per-revolution variation of the Coulomb level", 0.02)
+    ORDERS = (1, 2)
+    parameters = tuple(p for k in ORDERS for p in _harmonic_pair(
+        f"coulomb_order{k}", "Nm", 0.5, f"{k}x-per-revolution variation of the Coulomb level", 0.02))
     linear = tuple(p.name for p in parameters)
-    sentence = ("the residual is periodic once per arm revolution and its torque does not change with speed: "
-                "the Coulomb friction varies by +-{amp_Nm:.2g} Nm over the revolution, highest at {peak_deg:.0f} deg after needle top")
+    sentence = ("the residual is periodic in the arm angle and the torque behind it does not change with speed: "
+                "the Coulomb friction varies by +-{amp_Nm:.2g} Nm over the revolution, highest at {peak_deg:.0f} deg "
+                "after needle top")
+
+    def variation(self, v, theta):
+        return sum(v[f"coulomb_order{k}_cos_Nm"] * np.cos(k * theta) + v[f"coulomb_order{k}_sin_Nm"] * np.sin(k * theta)
+                   for k in self.ORDERS)
 
     def apply(self, v, s, drive):
-        drive.coulomb_Nm += v["coulomb_order1_cos_Nm"] * s.harmonic(1, "cos") + v["coulomb_order1_sin_Nm"] * s.harmonic(1, "sin")
+        drive.coulomb_Nm += sum(v[f"coulomb_order{k}_cos_Nm"] * s.harmonic(k, "cos") + v[f"coulomb_order{k}_sin_Nm"] * s.harmonic(k, "sin")
+                                for k in self.ORDERS)
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
 
     def summary(self, v, s=None):
-        amp, phase = _amplitude(v, "coulomb_order1_cos_Nm", "coulomb_order1_sin_Nm")
-        return {"amp_Nm": amp, "peak_deg": math.degrees(phase) % 360}
+        theta = np.linspace(0, 2 * PI, 720, endpoint=False)
+        shape = self.variation(v, theta)
+        return {"amp_Nm": 0.5 * float(np.ptp(shape)), "peak_deg": math.degrees(theta[int(np.argmax(shape))])}
 
 
 class Stribeck(Effect):
@@ -273,7 +283,7 @@ class NeedlePenetration(Effect):
         Parameter("penetration_down_arm_Nm", 0.05, 0.0, 3.0, "arm torque per unit velocity ratio while the needle goes down through the fabric (force x crank radius)", scale=0.1),
         Parameter("penetration_up_arm_Nm", 0.05, 0.0, 3.0, "the same while the needle comes up out of the fabric", scale=0.1),
         Parameter("penetration_bump_arm_Nm", 0.0, 0.0, 3.0, "peak of a smooth (cos^2) load over the window", scale=0.1),
-        Parameter("penetration_half_width_rad", 1.0, 0.15, 2.2, "half the arm angle the needle spends in the fabric", scale=0.5),
+        Parameter("penetration_half_width_rad", 1.0, 0.15, 1.75, "half the arm angle the needle spends in the fabric", scale=0.5),
         Parameter("penetration_centre_offset_rad", 0.0, -0.8, 0.8, "window centre relative to bottom dead centre (pi)", scale=0.3),
     )
     sentence = ("the residual is a drop in speed once per revolution confined to {width_deg:.0f} deg of arm angle around "
@@ -297,13 +307,13 @@ class NeedlePenetration(Effect):
         return inside * lobes + bump
 
     def apply(self, v, s, drive):
-        drive.coulomb_Nm += self.shape(v, s.drive_angle_rad)
+        drive.coulomb_Nm += s.periodic(self.shape(v, Signals.periodic_grid()))
 
     linear = ("penetration_down_arm_Nm", "penetration_up_arm_Nm", "penetration_bump_arm_Nm")
 
     def grid(self, s, located):
         return [{"penetration_half_width_rad": hw, "penetration_centre_offset_rad": off}
-                for hw in (0.35, 0.6, 0.9, 1.2, 1.5, 1.8) for off in (-0.5, -0.25, 0.0, 0.25, 0.5)]
+                for hw in (0.35, 0.6, 0.9, 1.2, 1.45, 1.7) for off in (-0.5, -0.25, 0.0, 0.25, 0.5)]
 
     def summary(self, v, s=None):
         theta = np.linspace(0, 2 * PI, 720, endpoint=False)
@@ -346,30 +356,34 @@ class BeltCompliance(Effect):
 
 class VoltageNonlinearity(Effect):
     name = "voltage_nonlinearity"
-    meaning = "the voltage reaching the motor is a nonlinear function of the logged one (PWM switch): U + U (c1 + c2 u + c3 u^2), u = U/24 V"
+    meaning = ("the voltage reaching the motor is a nonlinear function of the logged one (the thesis's PWM power "
+               "switch): U + s(U) (c0 + c1 x + c2 x^2 + c3 x^3), x = U / 24 V, s ramping from 0 at 0 V to 1 at 0.5 V")
     enters = "voltage"
     U_REF = 24.0
+    U_RAMP = 0.5
     parameters = (
-        Parameter("supply_gain_error", 0.0, -0.5, 0.5, "linear gain error of the supply", scale=0.05),
-        Parameter("supply_quadratic", 0.0, -1.0, 1.0, "quadratic term c2", scale=0.05),
-        Parameter("supply_cubic", 0.0, -1.0, 1.0, "cubic term c3", scale=0.05),
+        Parameter("supply_offset_V", 0.0, -3.0, 3.0, "voltage offset of the switch (c0)", scale=0.3),
+        Parameter("supply_linear_V", 0.0, -6.0, 6.0, "linear term c1", scale=0.5),
+        Parameter("supply_quadratic_V", 0.0, -12.0, 12.0, "quadratic term c2", scale=1.0),
+        Parameter("supply_cubic_V", 0.0, -12.0, 12.0, "cubic term c3", scale=1.0),
     )
-    sentence = ("the steady-state residual depends on the voltage level in a way no friction law reproduces and has no "
-                "angle dependence: the applied voltage deviates from the logged one by {lo:+.2g} V at {ulo:.3g} V and "
-                "{hi:+.2g} V at {uhi:.3g} V")
-
-    linear = ("supply_gain_error", "supply_quadratic", "supply_cubic")
+    linear = tuple(p.name for p in parameters)
+    sentence = ("the steady-state residual depends on the voltage level in a way no friction law reproduces, the coast-downs "
+                "at 0 V fit, and there is no angle dependence: the motor sees {lo:+.2g} V at {ulo:.3g} V logged, "
+                "{mid:+.2g} V at {umid:.3g} V and {hi:+.2g} V at {uhi:.3g} V")
 
     def applied(self, v, u):
         x = u / self.U_REF
-        return u + u * (v["supply_gain_error"] + v["supply_quadratic"] * x + v["supply_cubic"] * x * x)
+        ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
+        poly = v["supply_offset_V"] + x * (v["supply_linear_V"] + x * (v["supply_quadratic_V"] + x * v["supply_cubic_V"]))
+        return u + ramp * poly
 
     def apply(self, v, s, drive):
         drive.voltage_V = self.applied(v, drive.voltage_V)
 
-    def summary(self, v, s=None, levels=(5.0, 20.0)):
-        lo, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
-        return {"lo": lo, "hi": hi, "ulo": levels[0], "uhi": levels[1]}
+    def summary(self, v, s=None, levels=(5.0, 12.0, 20.0)):
+        lo, mid, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
+        return {"lo": lo, "mid": mid, "hi": hi, "ulo": levels[0], "umid": levels[1], "uhi": levels[2]}
 
 
 class EncoderEccentricity(Effect):

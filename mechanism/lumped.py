@@ -113,6 +113,23 @@ class Signals:
             self._cache["mid"] = mid
         return self._cache["mid"]
 
+    PERIODIC_GRID = 2048
+
+    def periodic(self, values_on_grid: np.ndarray) -> np.ndarray:
+        """A function of the arm angle given on ``periodic_grid()``, at every drive angle
+        (linear interpolation; much cheaper than evaluating trigonometry per sample)."""
+        if "phase_index" not in self._cache:
+            x = np.mod(self.drive_angle_rad, 2 * np.pi) * (self.PERIODIC_GRID / (2 * np.pi))
+            i = np.minimum(x.astype(np.int64), self.PERIODIC_GRID - 1)
+            self._cache["phase_index"] = (i, x - i)
+        i, frac = self._cache["phase_index"]
+        table = np.append(values_on_grid, values_on_grid[0])
+        return table[i] + frac * (table[i + 1] - table[i])
+
+    @classmethod
+    def periodic_grid(cls) -> np.ndarray:
+        return np.arange(cls.PERIODIC_GRID) * (2 * np.pi / cls.PERIODIC_GRID)
+
     def harmonic(self, order: float, kind: str) -> np.ndarray:
         """cos/sin(order * drive angle), cached (orders 8k are motor-angle harmonics)."""
         key = (order, kind)
@@ -211,7 +228,11 @@ def make_segments(n_samples: int, dt: float, segment_s: float = 1.0, burn_in_s: 
     starts = np.clip(begins - burn, 0, n_samples - length)
     pattern = np.array([True, False, False, True])
     is_fit = pattern[np.arange(len(begins)) % 4]
-    return Segments(starts.astype(np.int64), int(length), (begins - starts).astype(np.int64), (ends - starts).astype(np.int64), is_fit)
+    # every scored sample has the differentiator's full support inside its window (the
+    # recording's first and last ``pad`` samples are not scored)
+    score_begin = np.maximum(begins - starts, pad)
+    score_end = np.minimum(ends - starts, length - pad)
+    return Segments(starts.astype(np.int64), int(length), score_begin.astype(np.int64), score_end.astype(np.int64), is_fit)
 
 
 class _DriveParams(ctypes.Structure):
