@@ -14,8 +14,10 @@ physics from the candidate library, choose by validation, and show the fit impro
   the validation rmse by at least :data:`MIN_RELATIVE_GAIN`. The validation segments are
   interleaved with the fit segments (1 s each, in pairs), so both see every voltage level,
   every transient and the whole warm-up; an extra parameter that only fits noise or
-  one part of the recording does not lower the validation error. Stop when no candidate
-  passes, or after :data:`MAX_EFFECTS`.
+  one part of the recording does not lower the validation error. When no single candidate
+  passes, pairs of the best few are fitted together (a motor ripple exciting an elastic
+  belt shows only as a pair). After each acceptance a backward step drops an earlier effect
+  that the later ones made redundant. Stop when nothing passes, or after :data:`MAX_EFFECTS`.
 - **show**: :meth:`Diagnosis.to_json` (the contract) and :mod:`mechanism.diagnosis_report`.
 """
 
@@ -37,11 +39,17 @@ from mechanism.identification import (FitResult, ModelStructure, Problem, baseli
                                       initial_baseline_values, require_identifiable)
 from mechanism.recording import Recording
 
-MIN_RELATIVE_GAIN = 0.12  # an effect must cut the validation rmse by at least 12 %
+# An effect must cut the validation rmse by at least 35 %. The contract asks every effect
+# recording to end at <= 0.7 of the baseline rmse (a 30 % cut), so a smaller gain is never
+# a finding; on the virtual bench, true effects cut it by 58-99 % (also when found second),
+# while refits that only soak up what an imperfect model of a true effect left behind cut
+# it by 18-25 %. 35 % sits between the two with margin on both sides.
+MIN_RELATIVE_GAIN = 0.35
 TIE_BAND = 0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
 MAX_EFFECTS = 3
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
+PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
 
 
 # ----------------------------------------------------------------------------- locate
@@ -333,11 +341,21 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
         rounds.append({name: r.rmse_val for name, r in results.items()})
         best = _rank(results, current)
         chosen = results[best]
-        if chosen.rmse_val > (1 - MIN_RELATIVE_GAIN) * current.rmse_val:
+        tried = {name: r.rmse_val for name, r in results.items()}
+        if chosen.rmse_val <= (1 - MIN_RELATIVE_GAIN) * current.rmse_val:
+            findings.append(Finding(EFFECTS[best], chosen, current.rmse_val, "", tried))
+            current = chosen
+        elif len(current.structure.effects) + 2 <= MAX_EFFECTS:
+            pair = _best_pair(problem, current, results, tick, workers)
+            if pair is None or pair[1].rmse_val > (1 - MIN_RELATIVE_GAIN) * current.rmse_val:
+                break
+            (first, second), together = pair
+            rounds.append({f"{first}+{second}": together.rmse_val})
+            findings.append(Finding(EFFECTS[first], results[first], current.rmse_val, "", tried))
+            findings.append(Finding(EFFECTS[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
+            current = together
+        else:
             break
-        effect = EFFECTS[best]
-        findings.append(Finding(effect, chosen, current.rmse_val, "", {name: r.rmse_val for name, r in results.items()}))
-        current = chosen
         findings, current = _drop_redundant(problem, base, findings, current, tick, workers)
     for i, finding in enumerate(findings):
         before = findings[i - 1].fit.rmse_val if i else base.rmse_val
@@ -349,6 +367,26 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
         predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
     result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
     return result
+
+
+def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], tick, workers, top: int = PAIR_TOP):
+    """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
+    of which explains much alone. When no single candidate passes, refit the pairs of the
+    best few singles together; returns ((first, second), fit) for the best pair, first being
+    the better single. Every pair member must have helped a little on its own."""
+    helped = [n for n in sorted(singles, key=lambda n: singles[n].rmse_val) if singles[n].rmse_val < current.rmse_val][:top]
+    pairs = [(a, b) for i, a in enumerate(helped) for b in helped[i + 1:]]
+    if not pairs:
+        return None
+    jobs = []
+    for a, b in pairs:
+        structure = current.structure.with_effect(EFFECTS[a]).with_effect(EFFECTS[b])
+        start = {**singles[b].values, **singles[a].values}
+        jobs.append((problem, structure, [start], {"max_nfev": 25}))
+    tick(f"refitting {len(pairs)} pairs")
+    fits = _fit_all(jobs, workers)
+    i = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
+    return pairs[i], fits[i]
 
 
 def _drop_redundant(problem, base: FitResult, findings: list[Finding], current: FitResult, tick, workers):

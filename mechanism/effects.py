@@ -107,9 +107,9 @@ def _harmonic_pair(prefix: str, unit: str, bound: float, what: str, scale: float
 
 class TorqueRipple(Effect):
     name = "torque_ripple"
-    meaning = "motor-angle-periodic torque: cogging of the 12-pole motor and shaft distortion (once and twice per motor revolution)"
+    meaning = "motor-angle-periodic torque: shaft distortion (once and twice per motor revolution) and cogging of the 12-pole motor (12 and 24 per revolution)"
     enters = "torque"
-    MOTOR_ORDERS = (1, 2, 12)
+    MOTOR_ORDERS = (1, 2, 12, 24)  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
     parameters = tuple(
         p for k in MOTOR_ORDERS
         for p in _harmonic_pair(f"ripple_motor_order{k}", "Nm", 0.05, f"motor-side torque {k}x per motor revolution", 0.005)
@@ -275,14 +275,16 @@ class NeedlePenetration(Effect):
     name = "needle_penetration"
     meaning = ("fabric load while the needle is below the fabric surface, a window of arm angle around needle-down "
                "(bottom dead centre): the force on the needle acts through the needle bar's velocity ratio |dx/dtheta| "
-               "(piercing on the way down, shank friction on the way up), plus a smooth load bump")
+               "(friction on the way down and up, a piercing peak as the point enters), plus a smooth load bump")
     enters = "friction"
     CRANK_ROD_RATIO = 0.3  # typical needle-bar slider-crank; only shapes |dx/dtheta|
     EDGE_RAD = 0.03
+    PIERCE_RAD = 0.15  # the piercing peak decays over ~9 deg of arm angle after the needle enters
     parameters = (
         Parameter("penetration_down_arm_Nm", 0.05, 0.0, 3.0, "arm torque per unit velocity ratio while the needle goes down through the fabric (force x crank radius)", scale=0.1),
         Parameter("penetration_up_arm_Nm", 0.05, 0.0, 3.0, "the same while the needle comes up out of the fabric", scale=0.1),
         Parameter("penetration_bump_arm_Nm", 0.0, 0.0, 3.0, "peak of a smooth (cos^2) load over the window", scale=0.1),
+        Parameter("piercing_arm_Nm", 0.0, 0.0, 3.0, "extra load as the point pierces the fabric, decaying over PIERCE_RAD after entry", scale=0.1),
         Parameter("penetration_half_width_rad", 1.0, 0.15, 1.75, "half the arm angle the needle spends in the fabric", scale=0.5),
         Parameter("penetration_centre_offset_rad", 0.0, -0.8, 0.8, "window centre relative to bottom dead centre (pi)", scale=0.3),
     )
@@ -304,12 +306,14 @@ class NeedlePenetration(Effect):
         lobes = np.where(rel < 0, v["penetration_down_arm_Nm"], v["penetration_up_arm_Nm"]) * ratio
         bump = v["penetration_bump_arm_Nm"] * np.cos(0.5 * PI * rel / hw) ** 2
         bump = np.where(np.abs(rel) < hw, bump, 0.0)
-        return inside * lobes + bump
+        since_entry = np.clip(rel + hw, 0.0, None)
+        pierce = v["piercing_arm_Nm"] * ratio * np.exp(-since_entry / self.PIERCE_RAD) * inside
+        return inside * lobes + bump + pierce
 
     def apply(self, v, s, drive):
         drive.coulomb_Nm += s.periodic(self.shape(v, Signals.periodic_grid()))
 
-    linear = ("penetration_down_arm_Nm", "penetration_up_arm_Nm", "penetration_bump_arm_Nm")
+    linear = ("penetration_down_arm_Nm", "penetration_up_arm_Nm", "penetration_bump_arm_Nm", "piercing_arm_Nm")
 
     def grid(self, s, located):
         return [{"penetration_half_width_rad": hw, "penetration_centre_offset_rad": off}

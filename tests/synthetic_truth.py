@@ -36,7 +36,9 @@ def voltage_profile(rng: np.random.Generator, duration: float, fs: float = 1000.
     return u
 
 
-def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strength=1.0):
+def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strength=1.0, smooth_friction=0.0):
+    """``smooth_friction`` > 0: Coulomb friction as Fc tanh(w / smooth_friction) without
+    stick-slip (what an ODE-solver truth model often does), else Karnopp stick-slip."""
     rng = np.random.default_rng(seed)
     u_log = voltage_profile(rng, duration, fs)
     n_samples = len(u_log)
@@ -131,7 +133,9 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
                 tau = drive_motor - visc * w - grav - quad * w * w
                 jeff = j_arm_total + j_lin
             fr = friction(theta, w, temp)
-            if stuck:
+            if smooth_friction > 0:
+                w += h * (tau - fr * math.tanh(w / smooth_friction)) / jeff
+            elif stuck:
                 if abs(tau) > fr:
                     stuck = False
                     w = h * (tau - math.copysign(fr, tau)) / jeff
