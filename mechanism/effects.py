@@ -59,6 +59,7 @@ class Effect:
     enters: str = ""  # "torque", "friction", "voltage", "belt", "measurement"
     parameters: tuple[Parameter, ...] = ()
     sentence: str = ""
+    feature: str = ""  # the residual feature (see mechanism.diagnosis.FEATURES) the evidence quotes
 
     def apply(self, v: dict[str, float], s: Signals, drive: Drive) -> None:
         """Add this effect to the drive coefficients (torque, friction, voltage, belt)."""
@@ -115,8 +116,9 @@ class TorqueRipple(Effect):
         for p in _harmonic_pair(f"ripple_motor_order{k}", "Nm", 0.05, f"motor-side torque {k}x per motor revolution", 0.005)
     )
     linear = tuple(p.name for p in parameters)
-    sentence = ("the residual repeats with the motor angle ({orders} per arm revolution) and its velocity amplitude falls "
-                "with speed as a torque does: a motor torque ripple of {amp_Nm:.2g} Nm (motor side) explains it")
+    feature = "motor_profile"
+    sentence = ("a torque ripple of {amp_Nm:.2g} Nm at the motor, {orders} times per arm revolution (cogging, shaft "
+                "distortion), explains the residual that repeats with the motor angle")
 
     def apply(self, v, s, drive):
         torque = np.zeros(len(s))
@@ -146,9 +148,10 @@ class LinkageDynamics(Effect):
         Parameter("top_dead_centre_offset_rad", 0.0, -0.6, 0.6, "arm angle of the linkage's top dead centre (0 by the encoder index)", scale=0.2),
     )
     linear = ("needle_bar_mass_kg",)
-    sentence = ("the residual is periodic in the arm angle with harmonics whose torque grows with the square of speed, "
-                "the signature of a varying inertia: a needle-bar linkage (mass {mass_kg:.2g} kg on a {radius_mm:.3g} mm crank) "
-                "adds an inertia variation of {inertia_kgm2:.2g} kg m^2 and gravity of {gravity_Nm:.2g} Nm at the arm")
+    feature = "order2_by_speed"
+    sentence = ("the needle-bar linkage's varying inertia ({inertia_kgm2:.2g} kg m^2 at the arm, a {mass_kg:.2g} kg bar on "
+                "a {radius_mm:.3g} mm crank, whose 1/2 J' w^2 torque grows with the square of speed) and its gravity "
+                "({gravity_Nm:.2g} Nm) explain the residual that is periodic in the arm angle")
 
     @staticmethod
     def kinematics(v, theta):
@@ -192,9 +195,9 @@ class PositionFriction(Effect):
     parameters = tuple(p for k in ORDERS for p in _harmonic_pair(
         f"coulomb_order{k}", "Nm", 0.5, f"{k}x-per-revolution variation of the Coulomb level", 0.02))
     linear = tuple(p.name for p in parameters)
-    sentence = ("the residual is periodic in the arm angle and the torque behind it does not change with speed: "
-                "the Coulomb friction varies by +-{amp_Nm:.2g} Nm over the revolution, highest at {peak_deg:.0f} deg "
-                "after needle top")
+    feature = "arm_profile"
+    sentence = ("a Coulomb friction that varies by +-{amp_Nm:.2g} Nm over the arm revolution, highest {peak_deg:.0f} deg "
+                "after needle top and the same at every speed, explains the residual that is periodic in the arm angle")
 
     def variation(self, v, theta):
         return sum(v[f"coulomb_order{k}_cos_Nm"] * np.cos(k * theta) + v[f"coulomb_order{k}_sin_Nm"] * np.sin(k * theta)
@@ -220,8 +223,9 @@ class Stribeck(Effect):
         Parameter("stribeck_velocity_arm_rad_s", 2.0, 0.02, 40.0, "speed at which the excess has decayed to 1/e", log=True),
         Parameter("stribeck_exponent", 1.0, 0.4, 3.0, "shape exponent delta (Tustin 0.5-2)", scale=1.0),
     )
-    sentence = ("the residual concentrates at low speed, at starts and stops: the friction at standstill is "
-                "{excess_Nm:.2g} Nm above the kinetic level and decays over {ws:.2g} rad/s of arm speed")
+    feature = "low_speed"
+    sentence = ("static friction {excess_Nm:.2g} Nm above the kinetic level, fading over {ws:.2g} rad/s of arm speed, "
+                "explains the residual at starts, stops and low speed")
 
     def apply(self, v, s, drive):
         drive.static_excess_Nm += v["static_excess_arm_Nm"]
@@ -247,8 +251,9 @@ class ThermalDrift(Effect):
         Parameter("viscous_drop_fraction", 0.0, -2.0, 0.95, "fraction of the viscous friction lost when warm", scale=0.5),
         Parameter("warmup_time_constant_s", 60.0, 3.0, 3000.0, "warm-up time constant", log=True),
     )
-    sentence = ("the residual drifts with time at repeated voltage levels: the machine runs faster as it warms, friction "
-                "falling by {coulomb_pct:.0f}% (Coulomb) and {viscous_pct:.0f}% (viscous) by the end of the recording")
+    feature = "drift"
+    sentence = ("friction that falls as the bearings warm up ({coulomb_pct:.0f}% Coulomb, {viscous_pct:.0f}% viscous by the end "
+                "of the recording) explains a residual that drifts with time at repeated voltage levels")
 
     def warmth(self, v, s):
         return 1.0 - np.exp(-(s.time_s - s.time_s[0]) / v["warmup_time_constant_s"])
@@ -288,9 +293,9 @@ class NeedlePenetration(Effect):
         Parameter("penetration_half_width_rad", 1.0, 0.15, 1.75, "half the arm angle the needle spends in the fabric", scale=0.5),
         Parameter("penetration_centre_offset_rad", 0.0, -0.8, 0.8, "window centre relative to bottom dead centre (pi)", scale=0.3),
     )
-    sentence = ("the residual is a drop in speed once per revolution confined to {width_deg:.0f} deg of arm angle around "
-                "needle-down ({centre_deg:.0f} deg), largest where the needle bar moves fastest: a fabric load of "
-                "{load_Nm:.2g} Nm at the arm while the needle is in the fabric explains it")
+    feature = "arm_profile"
+    sentence = ("a fabric load of up to {load_Nm:.2g} Nm at the arm while the needle is in the fabric ({width_deg:.0f} deg of "
+                "arm angle around needle-down at {centre_deg:.0f} deg) explains the once-per-revolution drop in speed")
 
     def shape(self, v, theta):
         """Arm torque over the arm angle (>= 0, resisting)."""
@@ -335,8 +340,9 @@ class BeltCompliance(Effect):
         Parameter("belt_damping_ratio", 0.1, 0.003, 2.0, "damping ratio of the belt mode", log=True),
         Parameter("motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia (thesis: 8.6e-6 of 2.78e-5)", scale=1.0),
     )
-    sentence = ("the residual rings at {f:.3g} Hz after voltage steps, a frequency unrelated to the shaft rates: an elastic "
-                "belt (resonance {f:.3g} Hz, damping ratio {zeta:.2g}) between motor and arm explains it")
+    feature = "transient"
+    sentence = ("an elastic belt between motor and arm (resonance {f:.3g} Hz, damping ratio {zeta:.2g}, unrelated to the "
+                "shaft rates) explains the ringing after voltage steps")
 
     def apply(self, v, s, drive):
         total = float(np.median(drive.inertia_kgm2))
@@ -372,9 +378,10 @@ class VoltageNonlinearity(Effect):
         Parameter("supply_cubic_V", 0.0, -12.0, 12.0, "cubic term c3", scale=1.0),
     )
     linear = tuple(p.name for p in parameters)
-    sentence = ("the steady-state residual depends on the voltage level in a way no friction law reproduces, the coast-downs "
-                "at 0 V fit, and there is no angle dependence: the motor sees {lo:+.2g} V at {ulo:.3g} V logged, "
-                "{mid:+.2g} V at {umid:.3g} V and {hi:+.2g} V at {uhi:.3g} V")
+    feature = "steady"
+    sentence = ("a supply that gives the motor {lo:+.2g} V at {ulo:.3g} V logged, {mid:+.2g} V at {umid:.3g} V and {hi:+.2g} V "
+                "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
+                "while the coast-downs at 0 V already fit")
 
     def applied(self, v, u):
         x = u / self.U_REF
@@ -395,8 +402,9 @@ class EncoderEccentricity(Effect):
     meaning = "the encoder (adapter) is eccentric: it reports theta + e cos(theta - psi); a measurement error, not a torque"
     enters = "measurement"
     parameters = _harmonic_pair("encoder_order1", "rad", 0.05, "once-per-revolution angle error of the sensor", 0.002)
-    sentence = ("the once-per-revolution residual grows in proportion to speed, which a torque cannot do (inertia filters "
-                "it), but an angle-sensor error does: the encoder reads {amp_mrad:.2g} mrad off once per revolution")
+    feature = "order1_by_speed"
+    sentence = ("an eccentric encoder reading {amp_mrad:.2g} mrad off once per revolution explains a once-per-revolution "
+                "error that grows with speed, which a torque cannot do (the inertia filters it)")
 
     def measure(self, v, s, angle):
         return angle + v["encoder_order1_cos_rad"] * np.cos(angle) + v["encoder_order1_sin_rad"] * np.sin(angle)

@@ -35,6 +35,7 @@ class MultibodyBaseline(LumpedBaseline):
                       scale=1e-5),
             lumped["viscous_motor_side_Nm_s_per_rad"],
             lumped["coulomb_arm_Nm"],
+            lumped["electrical_time_constant_s"],
             *[p for p in self.parameters if p.name.startswith("motor_")],
         )
 
