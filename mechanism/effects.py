@@ -244,19 +244,34 @@ class Stribeck(Effect):
 
 class ThermalDrift(Effect):
     name = "thermal_drift"
-    meaning = "friction falls as the sintered bearings warm up during the run: Coulomb and viscous scaled by 1 - a (1 - exp(-t/tau))"
+    meaning = ("friction falls as the sintered bearings warm up during the run: Coulomb and viscous scaled by "
+               "1 - a x(t), the warmth x a first-order lag (time constant tau) of a heating that is partly constant "
+               "(ambient, motor) and partly proportional to the shaft speed (bearing friction), cold at the start")
     enters = "friction"
     parameters = (
         Parameter("coulomb_drop_fraction", 0.0, -0.5, 0.95, "fraction of the Coulomb friction lost when warm", scale=0.2),
         Parameter("viscous_drop_fraction", 0.0, -2.0, 0.95, "fraction of the viscous friction lost when warm", scale=0.5),
         Parameter("warmup_time_constant_s", 60.0, 3.0, 3000.0, "warm-up time constant", log=True),
+        Parameter("speed_heating_share", 0.5, 0.0, 1.0, "share of the heating that follows the shaft speed (0: warms with time alone)", scale=1.0),
     )
+    linear = ("coulomb_drop_fraction", "viscous_drop_fraction")
     feature = "drift"
     sentence = ("friction that falls as the bearings warm up ({coulomb_pct:.0f}% Coulomb, {viscous_pct:.0f}% viscous by the end "
                 "of the recording) explains a residual that drifts with time at repeated voltage levels")
 
     def warmth(self, v, s):
-        return 1.0 - np.exp(-(s.time_s - s.time_s[0]) / v["warmup_time_constant_s"])
+        """x' = (heating - x) / tau, x(0) = 0; heating = 1 - b + b |w| / mean |w| (measured speed)."""
+        from scipy.signal import lfilter
+
+        tau, b = v["warmup_time_constant_s"], v["speed_heating_share"]
+
+        def compute():
+            speed = np.abs(s.velocity_rad_s)
+            heating = 1.0 - b + b * speed / max(float(speed.mean()), 1e-9)
+            a = math.exp(-s.dt / tau)
+            return lfilter([0.0, 1.0 - a], [1.0, -a], heating)
+
+        return s.memo("warmth", (tau, b), compute)
 
     def apply(self, v, s, drive):
         w = self.warmth(v, s)
@@ -265,14 +280,12 @@ class ThermalDrift(Effect):
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
         np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
 
-    linear = ("coulomb_drop_fraction", "viscous_drop_fraction")
-
     def grid(self, s, located):
-        return [{"warmup_time_constant_s": tau} for tau in (8.0, 25.0, 80.0, 250.0, 1000.0)]
+        return [{"warmup_time_constant_s": tau, "speed_heating_share": b}
+                for tau in (8.0, 25.0, 80.0, 250.0, 1000.0) for b in (0.0, 0.5, 1.0)]
 
     def summary(self, v, s=None):
-        duration = float(s.time_s[-1] - s.time_s[0]) if s is not None else 60.0
-        w = 1 - math.exp(-duration / v["warmup_time_constant_s"])
+        w = float(self.warmth(v, s)[-1]) if s is not None else 1 - math.exp(-60.0 / v["warmup_time_constant_s"])
         return {"coulomb_pct": 100 * v["coulomb_drop_fraction"] * w, "viscous_pct": 100 * v["viscous_drop_fraction"] * w}
 
 
@@ -373,9 +386,9 @@ class VoltageNonlinearity(Effect):
     U_RAMP = 0.5
     parameters = (
         Parameter("supply_offset_V", 0.0, -3.0, 3.0, "voltage offset of the switch (c0)", scale=0.3),
-        Parameter("supply_linear_V", 0.0, -6.0, 6.0, "linear term c1", scale=0.5),
-        Parameter("supply_quadratic_V", 0.0, -12.0, 12.0, "quadratic term c2", scale=1.0),
-        Parameter("supply_cubic_V", 0.0, -12.0, 12.0, "cubic term c3", scale=1.0),
+        Parameter("supply_linear_V", 0.0, -12.0, 12.0, "linear term c1", scale=0.5),
+        Parameter("supply_quadratic_V", 0.0, -30.0, 30.0, "quadratic term c2", scale=1.0),
+        Parameter("supply_cubic_V", 0.0, -30.0, 30.0, "cubic term c3", scale=1.0),
     )
     linear = tuple(p.name for p in parameters)
     feature = "steady"

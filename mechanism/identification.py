@@ -16,11 +16,11 @@ the residual's correlation length (neighbouring samples of a smoothed, model-err
 residual are not independent; without the inflation the intervals would be far too narrow).
 
 Why not ``mujoco.sysid``: it fits MuJoCo models through rollouts of an ``MjModel``; the
-lumped drive is a 1-2 state ODE with stick-slip that a small C loop integrates about a
-hundred times faster than a MuJoCo rollout of the same segments, and ``mujoco.sysid``
-needs the optional ``mujoco[sysid]`` extras (absl, colorama, tabulate) that are not
-installed. We follow its structure instead: typed parameters (:mod:`mechanism.parameters`),
-a residual, an optimiser, confidence intervals from the Jacobian, a report kept apart.
+lumped drive is a 1-2 state ODE with stick-slip, not an ``MjModel``, integrated by a small C
+loop at ~30 ns per sample, and ``mujoco.sysid`` needs the optional ``mujoco[sysid]`` extras
+(absl, colorama, tabulate) that are not installed. We follow its structure instead: typed
+parameters (:mod:`mechanism.parameters`), a residual, an optimiser, confidence intervals from
+the Jacobian, a report kept apart.
 """
 
 from __future__ import annotations

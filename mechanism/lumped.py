@@ -31,6 +31,8 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -97,6 +99,23 @@ class Signals:
     dt: float
     ratio: float
     _cache: dict = field(default_factory=dict, repr=False)
+    _memos: dict = field(default_factory=dict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def memo(self, kind: str, key, compute, keep: int = 16):
+        """A small per-kind LRU of derived arrays (lagged voltages, warmth curves), safe for
+        the diagnosis's parallel fits."""
+        with self._lock:
+            store = self._memos.setdefault(kind, OrderedDict())
+            if key in store:
+                store.move_to_end(key)
+                return store[key]
+        value = compute()
+        with self._lock:
+            store[key] = value
+            while len(store) > keep:
+                store.popitem(last=False)
+        return value
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -427,12 +446,7 @@ class LumpedBaseline:
     def finish(self, values: dict[str, float], signals: Signals, drive: Drive) -> None:
         """After the effects: the winding lag acts on the voltage the motor finally sees."""
         tau = values["electrical_time_constant_s"]
-        if drive.voltage_V is signals.voltage_V:  # unmodified: cache per time constant
-            key = ("lagged", tau)
-            if key not in signals._cache:
-                for old in [k for k in signals._cache if isinstance(k, tuple) and k[0] == "lagged"][:-8]:
-                    del signals._cache[old]
-                signals._cache[key] = lagged_voltage(drive.voltage_V, tau, signals.dt)
-            drive.voltage_V = signals._cache[key]
+        if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
+            drive.voltage_V = signals.memo("lagged", tau, lambda: lagged_voltage(drive.voltage_V, tau, signals.dt))
         else:
             drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)
