@@ -140,3 +140,14 @@ def test_multibody_without_a_model_is_a_user_error(tmp_path, cli):
     rec = write_recording(bench_recording("none", seed=13, duration_s=5), tmp_path / "c.csv")[0]
     line = cli("identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml").assert_bad_input()
     assert "missing.xml" in line
+
+
+def test_table2_cli(cli, tmp_path):
+    out = tmp_path / "t2.json"
+    done = cli("identify", "--table2", "--json", out)
+    assert done.returncode == 0, done.stderr
+    data = json.loads(out.read_text())
+    assert set(data) == {"cold", "warm_30s", "warm_2min"}
+    assert data["cold"]["coulomb_arm_Nm"] == pytest.approx(thesis_table2()["cold"].fit.coulomb_arm_Nm)
+    assert "cold" in done.stdout
+    cli("identify").assert_bad_input()

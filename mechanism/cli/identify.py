@@ -5,9 +5,9 @@ from __future__ import annotations
 ORDER = 60
 
 
-def add_recording_arguments(parser, what: str) -> None:
+def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
     """Options shared by identify and diagnose."""
-    parser.add_argument("recording", metavar="REC.csv",
+    parser.add_argument("recording", metavar="REC.csv", nargs="?" if optional else None,
                         help="bench recording: CSV with columns time [s], voltage [V], arm_angle [rad, unwrapped, "
                              "0 = needle top dead centre], optional current [A]; leading '#' lines are metadata")
     parser.add_argument("--baseline", choices=["lumped", "multibody"], default="lumped",
@@ -26,13 +26,18 @@ def register(subparsers) -> None:
         description=(
             "Fit the baseline model to a bench recording by simulation-error minimisation (scipy least squares; "
             "multiple shooting: 1 s segments restarted from the measured velocity). Fitted: inertia (motor side, "
-            "kg m^2), viscous friction (motor side, N m s/rad), Coulomb friction (arm side, N m); the motor constants "
-            "stay at the datasheet values (R 1.1 ohm, Kt 0.017 N m/A, Ke 0.021 V s/rad) unless --free names them. "
-            "Half of the segments (interleaved) are held out: the reported rmse [rad/s] is on them."
+            "kg m^2), viscous friction (motor side, N m s/rad), Coulomb friction (arm side, N m) and the winding's "
+            "L/R [s]; the motor constants stay at the datasheet values (R 1.1 ohm, Kt 0.017 N m/A, Ke 0.021 V s/rad) "
+            "unless --free names them. Half of the segments (interleaved) are held out: the reported rmse [rad/s] "
+            "is on them. With --table2 instead of a recording: the steady-state friction fit of the thesis's "
+            "Table 2 (cold, warm 30 s, warm 2 min) and what its 24 V point says is missing."
         ),
-        epilog="example: mechanism identify rec.csv --json out/identify.json --report out/identify",
+        epilog="examples: mechanism identify rec.csv --json out/identify.json --report out/identify; "
+               "mechanism identify --table2",
     )
-    add_recording_arguments(parser, "fitted parameters with 1-sigma uncertainties and rmse")
+    add_recording_arguments(parser, "fitted parameters with 1-sigma uncertainties and rmse", optional=True)
+    parser.add_argument("--table2", action="store_true",
+                        help="fit Coulomb and viscous friction to the thesis's Table 2 steady-state speeds (no recording)")
     parser.add_argument("--free", metavar="Kt,Ke,R", default="",
                         help="motor constants to fit as well, comma-separated from R, Kt, Ke (default: none)")
     parser.set_defaults(handler=run)
@@ -57,10 +62,15 @@ def progress_bar(description: str):
 def run(args) -> int:
     import json
 
+    from mechanism.errors import UserError
     from mechanism.identification import identify
     from mechanism.outputs import atomic_file
     from mechanism.recording import read_recording
 
+    if args.table2:
+        return run_table2(args)
+    if not args.recording:
+        raise UserError("identify needs a recording REC.csv (or --table2)")
     free = tuple(x.strip() for x in args.free.split(",") if x.strip())
     rec = read_recording(args.recording)
     bar, tick = progress_bar("identify")
@@ -78,4 +88,22 @@ def run(args) -> int:
         unc = result.fit.uncertainties.get(name)
         print(f"{name:40s} {value:.5g}" + (f" +- {unc:.2g}" if unc == unc and unc is not None else ""))
     print(f"{'rmse (validation) [rad/s]':40s} {result.rmse:.4g}")
+    return 0
+
+
+def run_table2(args) -> int:
+    import json
+
+    from mechanism.outputs import atomic_file
+    from mechanism.steady_state import thesis_table2
+
+    columns = thesis_table2()
+    print(f"{'column':10s} {'Coulomb arm [N m]':>18s} {'viscous motor [N m s/rad]':>26s} {'24 V rpm pred/meas':>19s} {'supply short [V]':>17s}")
+    for name, col in columns.items():
+        fit = col.fit
+        print(f"{name:10s} {fit.coulomb_arm_Nm:9.3f} +- {fit.coulomb_sigma:5.3f} {fit.viscous_motor_side_Nm_s_per_rad:14.3g} +- "
+              f"{fit.viscous_sigma:7.2g} {col.high_rpm_predicted:9.0f}/{col.high_rpm_measured:<9.0f} {col.supply_deficit_V:12.2f}")
+    if args.json:
+        with atomic_file(args.json) as handle:
+            json.dump({name: col.to_json() for name, col in columns.items()}, handle, indent=2)
     return 0
