@@ -8,9 +8,12 @@
 | kinetic Coulomb Fc < Fs              | compiled ``mjcb_passive`` (native/machine.c): while        |
 | Stribeck: Tustin, Hess-Soom          | sliding it adds back (Fs - F_kin(ω)) in the direction of   |
 |                                      | motion, so net friction = F_kin(ω) = Fc + (Fs-Fc)·S(ω)      |
-| position-dependent level             | the same callback scales Fs and F_kin by                   |
-|   (1 + a·cos(k·θ - φ))               | (1 + a cos(kθ-φ)) each step, editing the friction row of   |
-|                                      | the constraint set so break-away varies with θ too          |
+| position-dependent level             | the same callback scales F_kin by (1 + a cos(kθ-φ)) and Fs |
+|   (1 + a·cos(k·θ - φ))               | by (1 + a_s cos(kθ-φ)) each step, editing the friction row |
+|                                      | of the constraint set so break-away varies with θ too       |
+
+The running (a) and break-away (a_s) amplitudes may differ: at rest only gravity loads the
+bearings, while running adds the cyclic inertia and cam/spring loads of the mechanism.
 
 S(ω) is ``exp(-(|ω|/ωs)^δ)`` (Tustin, thesis eq. 12) or ``1/(1+(ω/ωs)²)`` (Hess and Soom,
 thesis eq. 13); plain Coulomb + viscous is thesis eq. 14. Torques are at the joint they
@@ -35,7 +38,7 @@ STRIBECK_LAWS = {"none": 0, "tustin": 1, "hess-soom": 2}
 STICTION_SOLIMP = (0.9999, 0.99999, 0.001, 0.5, 2.0)
 SMOOTH_SIGN_VELOCITY = 0.05  # rad/s: the kinetic add-back fades out below this speed
 NUMERIC_NAME = "mechanism_friction"
-FIELDS = 11
+FIELDS = 12
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,7 @@ class FrictionLaw:
     stribeck_velocity: float = 0.0
     tustin_exponent: float = 1.0
     position_amplitude: float = 0.0
+    static_position_amplitude: float | None = None  # break-away variation; None: same as running
     position_phase_rad: float = 0.0
     position_harmonic: float = 1.0
     position_joint: str | None = None  # whose angle sets the position dependence (default: own)
@@ -60,17 +64,23 @@ class FrictionLaw:
             raise UserError("friction levels, viscous coefficient and Stribeck velocity must be non-negative")
         if self.static is not None and self.static < self.coulomb:
             raise UserError(f"static friction {self.static} is below the kinetic level {self.coulomb}")
-        if not 0 <= self.position_amplitude < 1:
-            raise UserError("position-dependent friction amplitude must be in [0, 1)")
+        if not 0 <= self.position_amplitude < 1 or not 0 <= self.static_amplitude < 1:
+            raise UserError("position-dependent friction amplitudes must be in [0, 1)")
 
     @property
     def static_level(self) -> float:
         return self.coulomb if self.static is None else self.static
 
-    def position_scale(self, angle) -> np.ndarray | float:
-        if not self.position_amplitude:
+    @property
+    def static_amplitude(self) -> float:
+        return self.position_amplitude if self.static_position_amplitude is None else self.static_position_amplitude
+
+    def position_scale(self, angle, amplitude: float | None = None) -> np.ndarray | float:
+        """Scale of the sliding friction level (or, with ``amplitude``, of another level) at ``angle``."""
+        amplitude = self.position_amplitude if amplitude is None else amplitude
+        if not amplitude:
             return 1.0
-        return 1.0 + self.position_amplitude * np.cos(self.position_harmonic * np.asarray(angle) - self.position_phase_rad)
+        return 1.0 + amplitude * np.cos(self.position_harmonic * np.asarray(angle) - self.position_phase_rad)
 
     def stribeck_shape(self, velocity) -> np.ndarray:
         x = np.abs(np.asarray(velocity, dtype=float))
@@ -90,7 +100,8 @@ class FrictionLaw:
         return self.sliding_level(velocity) * self.position_scale(angle)
 
     def static_at(self, angle=0.0):
-        return self.static_level * self.position_scale(angle)
+        """Break-away level at ``angle`` of the position joint."""
+        return self.static_level * self.position_scale(angle, self.static_amplitude)
 
     def scaled(self, factor: float) -> "FrictionLaw":
         """The same law with every level (Coulomb, static, viscous) multiplied by ``factor``."""
@@ -135,7 +146,8 @@ class FrictionSet:
 
     def _needs_callback(self) -> bool:
         return any(
-            law.static_level != law.coulomb or law.position_amplitude for law in self.laws.values()
+            law.static_level != law.coulomb or law.position_amplitude or law.static_amplitude
+            for law in self.laws.values()
         )
 
     def bind(self, model: mujoco.MjModel) -> None:
@@ -158,6 +170,7 @@ class FrictionSet:
                 law.position_phase_rad,
                 law.position_harmonic,
                 SMOOTH_SIGN_VELOCITY,
+                law.static_amplitude,
             ]
         model.numeric(NUMERIC_NAME).data[:] = block
 
@@ -173,13 +186,16 @@ def python_friction(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     ids = data.efc_id[: data.nefc]
     for k in range(count):
         f = block[2 + k * FIELDS : 2 + (k + 1) * FIELDS]
-        dof, qadr, coulomb, static, vs, law, delta, amp, phase, harmonic, eps = f
+        dof, qadr, coulomb, static, vs, law, delta, amp, phase, harmonic, eps, static_amp = f
         dof = int(dof)
-        scale = 1.0 + amp * np.cos(harmonic * data.qpos[int(qadr)] - phase) if amp else 1.0
-        level = static * scale
+        wave = np.cos(harmonic * data.qpos[int(qadr)] - phase)
+        scale = 1.0 + amp * wave
+        level = static * (1.0 + static_amp * wave)
         match = np.flatnonzero((rows == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF) & (ids == dof))
         if match.size:
             data.efc_frictionloss[match[0]] = level
+            if data.nisland > 0:  # the island solver works on its own sorted copy
+                data.iefc_frictionloss[data.map_efc2iefc[match[0]]] = level
         v = data.qvel[dof]
         shape = 0.0
         if law and vs > 0:

@@ -139,7 +139,9 @@ class Machine:
     """A compiled, ready-to-simulate machine. ``machine.model`` / ``machine.data`` are plain
     MuJoCo objects; everything added is visible in ``mujoco.mj_saveLastXML``."""
 
-    def __init__(self, model_path: str | os.PathLike | None = None, config: MachineConfig | None = None):
+    def __init__(self, model_path: str | os.PathLike | None = None, config: MachineConfig | None = None, extend=None):
+        """``extend(spec)``, if given, adds to the spec before it is compiled (probe sites
+        and sensors, mechanism.probes); it must not add joints or actuators."""
         self.config = config or MachineConfig()
         spec = load_spec(model_path)
         self.model_path = model_path
@@ -160,6 +162,8 @@ class Machine:
                             objtype=mujoco.mjtObj.mjOBJ_SITE, objname=NEEDLE_SITE)
         spec.add_sensor(name="motor_torque", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname="motor")
+        if extend is not None:
+            extend(spec)
         try:
             self.model = spec.compile()
         except Exception as exc:

@@ -149,7 +149,8 @@ def linkage_tables(model_path: str | os.PathLike | None = None, n: int = 720) ->
 class _Tables(ctypes.Structure):
     _fields_ = [(name, ctypes.c_void_p) for name in (
         "inertia", "dinertia", "gravity", "motor_ratio", "viscous", "cogging",
-        "needle_depth", "needle_dz", "friction_ratio", "friction_scale", "friction_params")] + [
+        "needle_depth", "needle_dz", "friction_ratio", "friction_scale", "friction_static_scale",
+        "friction_params")] + [
         ("n", ctypes.c_int), ("nfriction", ctypes.c_int),
         ("kt", ctypes.c_double), ("ke", ctypes.c_double), ("resistance", ctypes.c_double),
         ("fabric_down", ctypes.c_double), ("fabric_up", ctypes.c_double),
@@ -175,13 +176,16 @@ class ReducedModel:
         t = self.tables
         self._motor_ratio = t.ratios[MOTOR]
         self._friction = []
+        self._static_scales = []
         viscous = np.zeros(n)
         for name, law in self.machine.friction.laws.items():
             ratio = t.ratios[name]
             viscous += law.viscous * ratio**2
             angle = t.positions[law.position_joint or name]
             scale = law.position_scale(angle) * np.ones(n)
+            static_scale = law.position_scale(angle, law.static_amplitude) * np.ones(n)
             self._friction.append((ratio, scale, law))
+            self._static_scales.append(static_scale)
         self._viscous = viscous
         cog = np.zeros(n)
         if motor.cogging_Nm:
@@ -201,7 +205,7 @@ class ReducedModel:
     def static_friction(self, angle) -> float:
         """Break-away torque at the arm [N m] at rest at ``angle``."""
         return float(sum(abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
-                         for r, s, law in self._friction))
+                         for (r, _, law), s in zip(self._friction, self._static_scales)))
 
     def generalized_force(self, angle, velocity, voltage) -> float:
         """Everything but inertia: motor - ½J'ω² - G - friction - fabric [N m at the arm]."""
@@ -270,13 +274,14 @@ class ReducedModel:
 
         ratios = np.concatenate([r for r, _, _ in self._friction]) if self._friction else np.zeros(1)
         scales = np.concatenate([s for _, s, _ in self._friction]) if self._friction else np.zeros(1)
+        static_scales = np.concatenate(self._static_scales) if self._friction else np.zeros(1)
         params = np.array([[law.coulomb, law.static_level, law.stribeck_velocity, STRIBECK_LAWS[law.stribeck],
                             law.tustin_exponent] for _, _, law in self._friction] or [[0.0] * 5]).ravel()
         motor, fabric = self.machine.motor, self.machine.fabric
         tables = _Tables(
             ptr(t.inertia_kgm2), ptr(t.dinertia_drad), ptr(t.gravity_torque_Nm), ptr(self._motor_ratio),
             ptr(self._viscous), ptr(self._cogging), ptr(self._needle_depth), ptr(self._needle_dz),
-            ptr(ratios), ptr(scales), ptr(params), n, len(self._friction),
+            ptr(ratios), ptr(scales), ptr(static_scales), ptr(params), n, len(self._friction),
             motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, motor.resistance_ohm,
             fabric.piercing_force_N if fabric.layers else 0.0,
             fabric.drag_fraction * fabric.piercing_force_N if fabric.layers else 0.0,

@@ -62,6 +62,7 @@ class SimulationResult:
     needle_z_mm: np.ndarray
     motor_velocity_rad_s: np.ndarray
     metadata: dict = field(default_factory=dict)
+    state: np.ndarray | None = None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
 
     def columns(self) -> dict[str, np.ndarray]:
         return {
@@ -147,4 +148,5 @@ def simulate(
         needle_z_mm=needle[samples],
         motor_velocity_rad_s=motor_velocity[samples],
         metadata={"timestep_s": dt, "native_callbacks": machine.native, "start_angle_rad": start_angle_rad},
+        state=state[samples],
     )

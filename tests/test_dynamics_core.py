@@ -71,7 +71,7 @@ def test_machine_sticks_below_break_away_and_starts_above():
 
 def test_python_fallback_matches_the_compiled_callback():
     laws = {"arm_shaft": FrictionLaw(coulomb=0.18, static=0.26, stribeck="hess-soom", stribeck_velocity=2.0,
-                                     position_amplitude=0.1, position_phase_rad=1.0)}
+                                     position_amplitude=0.1, static_position_amplitude=0.03, position_phase_rad=1.0)}
     compiled = Machine(TOY, MachineConfig(friction=laws))
     reference = simulate(VoltageProfile(np.array([0.0, 0.3]), np.array([3.0, 6.0])), 0.6, machine=compiled)
     # Same model, friction stepped in Python instead of C.
@@ -104,3 +104,18 @@ def test_bad_durations_and_voltages_are_user_errors(toy):
         simulate(5.0, -1.0, machine=toy)
     with pytest.raises(UserError, match="outside"):
         simulate(31.0, 1.0, machine=toy)
+
+
+@pytest.mark.parametrize("rest_angle", [0.0, np.pi])
+def test_break_away_follows_the_static_position_amplitude(rest_angle):
+    # Static level 0.24 (1 + 0.1 cos θ): 0.264 N m at θ = 0, 0.216 N m at θ = π; the running
+    # amplitude (0.3 here) must not change when the machine starts.
+    law = FrictionLaw(coulomb=0.18, static=0.24, position_amplitude=0.3, static_position_amplitude=0.1)
+    machine = Machine(TOY, MachineConfig(friction={"arm_shaft": law}))
+    machine.model.opt.gravity[:] = 0
+    breakaway_V = law.static_at(rest_angle) * R / (N * KT)
+    assert law.static_at(rest_angle) == pytest.approx(0.24 * (1 + 0.1 * np.cos(rest_angle)))
+    stuck = simulate(0.98 * breakaway_V, 1.5, machine=machine, start_angle_rad=rest_angle)
+    moving = simulate(1.02 * breakaway_V, 1.5, machine=machine, start_angle_rad=rest_angle)
+    assert abs(stuck.arm_angle_rad[-1] - rest_angle) < 2e-3
+    assert moving.arm_angle_rad[-1] - rest_angle > 0.5

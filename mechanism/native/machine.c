@@ -16,7 +16,7 @@
 #include <string.h>
 #include <mujoco/mujoco.h>
 
-#define FRICTION_FIELDS 11
+#define FRICTION_FIELDS 12
 #define LOAD_FIELDS 9
 
 static int find_numeric(const mjModel* m, const char* name) {
@@ -45,13 +45,15 @@ static void apply_friction(const mjModel* m, mjData* d, const mjtNum* p, int n) 
     const mjtNum* f = p + 2 + k * FRICTION_FIELDS;
     int dof = (int)f[0], qadr = (int)f[1], law = (int)f[5];
     mjtNum coulomb = f[2], stat = f[3], vs = f[4], delta = f[6];
-    mjtNum amp = f[7], phase = f[8], harmonic = f[9], eps = f[10];
-    mjtNum scale = 1.0;
-    if (amp != 0 && qadr >= 0) scale = 1.0 + amp * cos(harmonic * d->qpos[qadr] - phase);
-    mjtNum level = stat * scale;  // the static level the constraint holds now
+    mjtNum amp = f[7], phase = f[8], harmonic = f[9], eps = f[10], static_amp = f[11];
+    mjtNum wave = qadr >= 0 ? cos(harmonic * d->qpos[qadr] - phase) : 0;
+    mjtNum scale = 1.0 + amp * wave;                  // running level
+    mjtNum level = stat * (1.0 + static_amp * wave);  // the static level the constraint holds now
     for (int r = 0; r < d->nefc; r++) {
       if (d->efc_type[r] == mjCNSTR_FRICTION_DOF && d->efc_id[r] == dof) {
         d->efc_frictionloss[r] = level;
+        // the island solver works on its own sorted copy of the constraint rows
+        if (d->nisland > 0) d->iefc_frictionloss[d->map_efc2iefc[r]] = level;
         break;
       }
     }

@@ -9,7 +9,8 @@
 typedef struct {
   const double *inertia, *dinertia, *gravity, *motor_ratio, *viscous, *cogging;
   const double *needle_depth, *needle_dz;
-  const double *friction_ratio, *friction_scale, *friction_params;  // nfriction x n, n, 5
+  const double *friction_ratio, *friction_scale, *friction_static_scale;  // nfriction x n each
+  const double *friction_params;                                          // nfriction x 5
   int n, nfriction;
   double kt, ke, resistance;
   double fabric_down, fabric_up, fabric_thickness, fabric_ramp;
@@ -75,7 +76,7 @@ static double breakaway(const Tables* t, double theta) {
   Cell c = locate(t, theta);
   double total = 0;
   for (int k = 0; k < t->nfriction; k++) {
-    double r = at(t->friction_ratio + k * t->n, c), s = at(t->friction_scale + k * t->n, c);
+    double r = at(t->friction_ratio + k * t->n, c), s = at(t->friction_static_scale + k * t->n, c);
     total += fabs(r) * t->friction_params[5 * k + 1] * s;
   }
   return total;

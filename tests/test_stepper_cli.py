@@ -1,0 +1,67 @@
+"""`mechanism stepper` and `mechanism zigzag` as a user runs them."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+REQUIRED = ["time_s", "commanded_position_deg", "rotor_position_deg", "rotor_speed_rad_s",
+            "phase_a_current_A", "phase_b_current_A", "torque_Nm"]
+
+
+def read_csv(path):
+    lines = [line for line in path.read_text().splitlines() if not line.startswith("#")]
+    rows = list(csv.DictReader(lines))
+    return {name: [float(row[name]) for row in rows] for name in rows[0]}
+
+
+def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
+    out = tmp_path / "tc.csv"
+    result = cli("stepper", "--sequence", "thread-cut", "--csv", out, "--plot", tmp_path / "tc.png",
+                 "--json", tmp_path / "tc.json")
+    assert result.returncode == 0, result.stderr
+    table = read_csv(out)
+    assert all(name in table for name in REQUIRED)
+    assert table["rotor_position_deg"][0] == 0.0 and max(table["commanded_position_deg"]) == pytest.approx(2625.0)
+    assert abs(table["rotor_position_deg"][-1]) < 7.5
+    summary = json.loads((tmp_path / "tc.json").read_text())
+    assert summary["lost_steps"] == 0 and summary["reversals"][0]["overshoot_deg"] > 0
+    assert (tmp_path / "tc.png").stat().st_size > 10_000
+    assert "lost steps 0" in result.stdout and "overshoot" in result.stdout
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--sequence", "thread-cutt"],
+        ["--sequence", "missing.csv"],
+        ["--sequence", "thread-cut", "--rate", "-1000"],
+        ["--sequence", "thread-cut", "--mode", "quarter"],
+        ["--sequence", "thread-cut", "--model", "both"],
+        ["--sweep", "3000:1000:100"],
+    ],
+)
+def test_bad_input_is_one_error_line(cli, tmp_path, args):
+    out = tmp_path / "out.csv"
+    cli("stepper", *args, "--csv", out).assert_bad_input()
+    assert not out.exists()
+
+
+def test_malformed_sequence_file(cli, tmp_path):
+    bad = tmp_path / "seq.csv"
+    bad.write_text("time_s,rate_steps_s\n0,100\n0.1,fast\n")
+    line = cli("stepper", "--sequence", bad, "--csv", tmp_path / "out.csv").assert_bad_input()
+    assert "seq.csv" in line and "line 3" in line
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_zigzag_exit_status_says_flagged(cli, tmp_path):
+    flagged = cli("zigzag", "--spm", "1000", "--rate", "1000", "--csv", tmp_path / "z.csv")
+    assert flagged.returncode == 1 and "FLAGGED" in flagged.stdout
+    assert "needle_in_fabric" in (tmp_path / "z.csv").read_text()
+    fits = cli("zigzag", "--spm", "1000", "--rate", "1500")
+    assert fits.returncode == 0 and "fits" in fits.stdout
+    cli("zigzag", "--spm", "-1").assert_bad_input()
+    cli("zigzag", "--spm", "1000", "--needle", "machine").assert_bad_input()
