@@ -374,9 +374,14 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
             current = chosen
         elif len(current.structure.effects) + 2 <= MAX_EFFECTS:
             pair = _best_pair(problem, current, results, tick, workers)
-            if pair is None or pair[1].rmse_val > (1 - MIN_RELATIVE_GAIN) * current.rmse_val:
+            if pair is None:
                 break
             (first, second), together = pair
+            # the pair must pass against the current model, and each member must add the
+            # same clear gain on top of the other alone (no passenger)
+            alone = min(results[first].rmse_val, results[second].rmse_val)
+            if together.rmse_val > (1 - MIN_RELATIVE_GAIN) * min(current.rmse_val, alone):
+                break
             rounds.append({f"{first}+{second}": together.rmse_val})
             findings.append(Finding(EFFECTS[first], results[first], current.rmse_val, "", tried))
             findings.append(Finding(EFFECTS[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
