@@ -131,7 +131,7 @@ class TorqueRipple(Effect):
     def summary(self, v, s=None):
         amps = {k: _amplitude(v, f"ripple_motor_order{k}_cos_Nm", f"ripple_motor_order{k}_sin_Nm")[0] for k in self.MOTOR_ORDERS}
         main = max(amps, key=amps.get)
-        orders = ", ".join(f"{int(k * 8)}" for k in self.MOTOR_ORDERS if amps[k] > 0.2 * amps[main])
+        orders = " and ".join(f"{int(k * 8)}" for k in self.MOTOR_ORDERS if amps[k] > 0.2 * amps[main])
         return {"amp_Nm": amps[main], "orders": orders}
 
 

@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 
 from mechanism.effects import Effect
 from mechanism.errors import UserError
-from mechanism.lumped import Drive, LumpedBaseline, MotorConstants, Segments, Signals, make_segments, simulate
+from mechanism.lumped import Drive, LumpedBaseline, MotorConstants, Signals, make_segments, simulate
 from mechanism.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
 from mechanism.recording import Recording, check_excitation, smoothed_velocity, velocity_coefficients
 

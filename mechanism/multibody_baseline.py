@@ -13,7 +13,6 @@ in the lumped baseline. A ``linkage_dynamics`` finding on top of it means the li
 
 from __future__ import annotations
 
-import numpy as np
 
 from mechanism.lumped import Drive, LumpedBaseline, Signals
 from mechanism.parameters import Parameter

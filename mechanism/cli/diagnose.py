@@ -30,14 +30,12 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    import json
     import sys
 
-    from mechanism.cli.identify import progress_bar
+    from mechanism.cli.identify import progress_bar, write_outputs
     from mechanism.diagnosis import diagnose, not_identifiable_json
     from mechanism.effects import effect
     from mechanism.identification import NotIdentifiable
-    from mechanism.outputs import atomic_file
     from mechanism.recording import read_recording
 
     candidates = None
@@ -50,19 +48,13 @@ def run(args) -> int:
             result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model)
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
-        if args.json:
-            with atomic_file(args.json) as handle:
-                json.dump(not_identifiable_json(rec.source, str(exc)), handle, indent=2)
+        write_outputs(args, not_identifiable_json(rec.source, str(exc)))
         sys.stderr.write(f"error: recording {rec.source}: not identifiable: {exc}\n")
         return 2
-    data = result.to_json()
-    if args.json:
-        with atomic_file(args.json) as handle:
-            json.dump(data, handle, indent=2)
-    if args.report:
-        from mechanism.diagnosis_report import diagnosis_report
+    from mechanism.diagnosis_report import diagnosis_report
 
-        diagnosis_report(result, args.report)
+    data = result.to_json()
+    write_outputs(args, data, lambda folder: diagnosis_report(result, folder))
     print(f"baseline ({args.baseline}): rmse {data['baseline']['rmse']:.4g} rad/s")
     if not data["effects"]:
         print("nothing is missing: no candidate effect lowers the validation error clearly")

@@ -43,6 +43,19 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run)
 
 
+def write_outputs(args, data: dict, report=None) -> None:
+    """The JSON (atomically) and, with --report, the HTML report, for identify and diagnose."""
+    import json
+
+    from mechanism.outputs import atomic_file
+
+    if getattr(args, "json", None):
+        with atomic_file(args.json) as handle:
+            json.dump(data, handle, indent=2)
+    if getattr(args, "report", None) and report is not None:
+        report(args.report)
+
+
 def progress_bar(description: str):
     """A tqdm bar on stderr (hidden when stderr is not a terminal) and its tick function."""
     import sys
@@ -60,11 +73,8 @@ def progress_bar(description: str):
 
 
 def run(args) -> int:
-    import json
-
     from mechanism.errors import UserError
     from mechanism.identification import identify
-    from mechanism.outputs import atomic_file
     from mechanism.recording import read_recording
 
     if args.table2:
@@ -76,14 +86,9 @@ def run(args) -> int:
     bar, tick = progress_bar("identify")
     with bar:
         result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model)
-    data = result.to_json()
-    if args.json:
-        with atomic_file(args.json) as handle:
-            json.dump(data, handle, indent=2)
-    if args.report:
-        from mechanism.diagnosis_report import identification_report
+    from mechanism.diagnosis_report import identification_report
 
-        identification_report(result, args.report)
+    write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))
     for name, value in result.params.items():
         unc = result.fit.uncertainties.get(name)
         print(f"{name:40s} {value:.5g}" + (f" +- {unc:.2g}" if unc == unc and unc is not None else ""))
@@ -92,18 +97,13 @@ def run(args) -> int:
 
 
 def run_table2(args) -> int:
-    import json
-
-    from mechanism.outputs import atomic_file
     from mechanism.steady_state import thesis_table2
 
     columns = thesis_table2()
+    write_outputs(args, {name: col.to_json() for name, col in columns.items()})
     print(f"{'column':10s} {'Coulomb arm [N m]':>18s} {'viscous motor [N m s/rad]':>26s} {'24 V rpm pred/meas':>19s} {'supply short [V]':>17s}")
     for name, col in columns.items():
         fit = col.fit
         print(f"{name:10s} {fit.coulomb_arm_Nm:9.3f} +- {fit.coulomb_sigma:5.3f} {fit.viscous_motor_side_Nm_s_per_rad:14.3g} +- "
               f"{fit.viscous_sigma:7.2g} {col.high_rpm_predicted:9.0f}/{col.high_rpm_measured:<9.0f} {col.supply_deficit_V:12.2f}")
-    if args.json:
-        with atomic_file(args.json) as handle:
-            json.dump({name: col.to_json() for name, col in columns.items()}, handle, indent=2)
     return 0
