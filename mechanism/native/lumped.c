@@ -1,0 +1,133 @@
+/* The lumped sewing-machine drive (thesis eq. 15-16), arm side, over many segments.
+ *
+ * One degree of freedom (rigid belt) or two (elastic belt: motor and arm masses joined
+ * by a spring-damper), driven by per-sample coefficient arrays that the Python effect
+ * library fills (see mechanism/lumped.py, which holds the same equations in numpy).
+ *
+ *   J(t) w' = g U(t) - c_emf w - cv(t) w - tau_motor(t) - tau_arm(t) - Q(t) w^2
+ *             - [Fk(t) + Fx(t) exp(-(|w|/ws)^delta)] sgn(w)
+ *
+ * Stick-slip (Karnopp): a shaft at rest stays at rest while the driving torque is within
+ * the static level Fk + Fx; a velocity that would cross zero within a step stops at zero.
+ * The linear damping is integrated exactly over a step (exponential integrator), the rest
+ * at a half-step prediction (exponential midpoint, second order). Position-dependent
+ * coefficients are evaluated by the caller at the mid-sample angle. Output: arm velocity at every sample of every segment.
+ */
+#include <math.h>
+
+typedef struct {
+    double gain;      /* n Kt / R  [Nm/V], arm side */
+    double c_emf;     /* n^2 Kt Ke / R [Nm s/rad], arm side */
+    double ws;        /* Stribeck velocity [rad/s] (arm) */
+    double delta;     /* Stribeck exponent */
+    double k_belt;    /* belt stiffness, arm-side units [Nm/rad]; 0 = rigid belt */
+    double c_belt;    /* belt damping [Nm s/rad] */
+    double j_motor;   /* motor-side inertia share, arm units [kg m^2] (belt mode) */
+    double dt;        /* sample step [s] */
+    int substeps;
+} drive_params;
+
+static double sgn(double x) { return (x > 0) - (x < 0); }
+
+static double friction_level(double fk, double fx, double w, double ws, double delta) {
+    if (fx == 0.0) return fk;
+    double r = fabs(w) / ws;
+    return fk + fx * exp(-pow(r, delta));
+}
+
+/* Rigid belt: one velocity state. Exponential midpoint rule: the linear damping exactly,
+ * the velocity-dependent rest (1/2 J' w^2, Stribeck) at a half-step prediction. */
+static void run_rigid(const drive_params *p, const double *u, const double *tm, const double *ta,
+                      const double *fk, const double *fx, const double *cv, const double *jt,
+                      const double *q, int start, int length, double w0, double *out) {
+    double w = w0;
+    double h = p->dt / p->substeps;
+    for (int i = 0; i < length; i++) {
+        int k = start + i;
+        out[i] = w;
+        double c = p->c_emf + cv[k];
+        double decay = exp(-c * h / jt[k]);
+        double decay_half = exp(-0.5 * c * h / jt[k]);
+        double drive = p->gain * u[k] - tm[k] - ta[k];
+        for (int s = 0; s < p->substeps; s++) {
+            double f = drive - q[k] * w * w;
+            double dir = sgn(w);
+            if (w == 0.0) {
+                if (fabs(f) <= fk[k] + fx[k]) continue;   /* stuck */
+                dir = sgn(f);
+            }
+            double wss = (f - friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir) / c;
+            double wh = wss + (w - wss) * decay_half;
+            if (sgn(wh) == -dir) wh = 0.0;
+            f = drive - q[k] * wh * wh - friction_level(fk[k], fx[k], wh, p->ws, p->delta) * dir;
+            wss = f / c;
+            double wn = wss + (w - wss) * decay;
+            if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
+            w = wn;
+        }
+    }
+}
+
+/* Elastic belt: motor velocity wm, arm velocity w, belt twist x (arm units). Motor torque,
+ * back-emf and motor-angle-periodic torque act on the motor; friction, viscous, position
+ * loads and the linkage on the arm. Semi-implicit Euler with enough substeps. */
+static void run_belt(const drive_params *p, const double *u, const double *tm, const double *ta,
+                     const double *fk, const double *fx, const double *cv, const double *jt,
+                     const double *q, int start, int length, double w0, double *out) {
+    double jm = p->j_motor;
+    double kb = p->k_belt, cb = p->c_belt;
+    int k0 = start;
+    double w = w0, wm = w0;
+    double ja0 = jt[k0] - jm;
+    double wr = sqrt(kb * (1.0 / jm + 1.0 / ja0));
+    int nsub = p->substeps;
+    int need = (int)ceil(wr * p->dt / 0.25);
+    if (need > nsub) nsub = need;
+    double h = p->dt / nsub;
+    /* quasi-static initial twist: the belt carries the arm's load */
+    double load = cv[k0] * w + ta[k0] + q[k0] * w * w + (w != 0.0 ? fk[k0] * sgn(w) : 0.0);
+    if (w == 0.0) {
+        double drive = p->gain * u[k0] - tm[k0];
+        double lim = fk[k0] + fx[k0];
+        load = drive > lim ? lim : (drive < -lim ? -lim : drive);
+    }
+    double x = load / kb;
+    for (int i = 0; i < length; i++) {
+        int k = start + i;
+        out[i] = w;
+        double ja = jt[k] - jm;
+        for (int s = 0; s < nsub; s++) {
+            double fb = kb * x + cb * (wm - w);
+            double fm = p->gain * u[k] - p->c_emf * wm - tm[k] - fb;
+            wm += h * fm / jm;
+            double f = fb - cv[k] * w - ta[k] - q[k] * w * w;
+            double dir = sgn(w);
+            int stuck = 0;
+            if (w == 0.0) {
+                if (fabs(f) <= fk[k] + fx[k]) stuck = 1;
+                else dir = sgn(f);
+            }
+            if (!stuck) {
+                f -= friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir;
+                double wn = w + h * f / ja;
+                if (sgn(wn) == -dir) wn = 0.0;
+                w = wn;
+            }
+            x += h * (wm - w);
+        }
+    }
+}
+
+/* Simulate n_seg segments; segment j starts at sample starts[j] with velocity w0[j] and
+ * runs lengths[j] samples; its velocities go to out[offsets[j] ...]. */
+void simulate_segments(const drive_params *p, const double *u, const double *tm, const double *ta,
+                       const double *fk, const double *fx, const double *cv, const double *jt,
+                       const double *q, int n_seg, const int *starts, const int *lengths,
+                       const int *offsets, const double *w0, double *out) {
+    for (int j = 0; j < n_seg; j++) {
+        if (p->k_belt > 0.0)
+            run_belt(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
+        else
+            run_rigid(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
+    }
+}

@@ -1,0 +1,156 @@
+"""Identification against truths it did not see: the virtual test bench, an independent
+synthetic truth, and the thesis's Table 2."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from mechanism.identification import identify
+from mechanism.recording import make_recording, read_recording
+from mechanism.steady_state import fit_steady_state, thesis_table2
+from mechanism.reference import thesis
+
+from synthetic_truth import simulate_truth
+
+
+@pytest.fixture(scope="module")
+def clean_bench(tmp_path_factory):
+    from mechanism.testbench import make_recording as bench_recording, write_recording
+
+    folder = tmp_path_factory.mktemp("bench")
+    csv, truth = write_recording(bench_recording("none", seed=11, duration_s=30), folder / "clean.csv")
+    return csv, json.loads(truth.read_text())["baseline"]
+
+
+def equivalent(truth, motor):
+    """The truth's parameters as a model with the datasheet motor constants sees them: the
+    torque gain differs, so inertia, damping and friction all scale with it."""
+    n = truth["belt_ratio"]
+    gain_true = truth["torque_constant_Nm_per_A"] / truth["resistance_ohm"]
+    gain_data = motor.torque_constant_Nm_per_A / motor.resistance_ohm
+    k = gain_data / gain_true
+    damping_true = truth["torque_constant_Nm_per_A"] * truth["back_emf_constant_V_s_per_rad"] / truth["resistance_ohm"] + truth["viscous_motor_side_Nm_s_per_rad"]
+    return {
+        "inertia_motor_side_kgm2": truth["inertia_motor_side_kgm2"] * k,
+        "viscous_motor_side_Nm_s_per_rad": damping_true * k - motor.torque_constant_Nm_per_A * motor.back_emf_V_s_per_rad / motor.resistance_ohm,
+        "coulomb_arm_Nm": truth["coulomb_arm_Nm"] * k,
+        "electrical_time_constant_s": truth["inductance_H"] / truth["resistance_ohm"],
+        "total_damping": damping_true * k * n * n,
+    }
+
+
+def test_identify_recovers_the_bench_machine(clean_bench):
+    from mechanism.lumped import MotorConstants
+
+    csv, truth = clean_bench
+    result = identify(read_recording(csv))
+    expect = equivalent(truth, MotorConstants.datasheet())
+    p = result.params
+    assert p["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
+    assert p["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
+    motor = MotorConstants.datasheet()
+    total = motor.emf_damping_arm + 64 * p["viscous_motor_side_Nm_s_per_rad"]
+    assert total == pytest.approx(expect["total_damping"], rel=0.02)
+    assert p["electrical_time_constant_s"] == pytest.approx(expect["electrical_time_constant_s"], rel=0.25)
+    assert result.rmse < 0.03  # down to the encoder's noise floor
+    assert all(np.isfinite(result.fit.uncertainties[k]) and result.fit.uncertainties[k] > 0
+               for k in ("inertia_motor_side_kgm2", "coulomb_arm_Nm"))
+    data = result.to_json()
+    assert data["rmse"] == result.rmse and data["split"]["segments_validation"] > 5
+
+
+def test_identify_recovers_an_independent_truth():
+    t, u, angle, truth = simulate_truth((), seed=4, duration=20.0)
+    result = identify(make_recording(t, u, angle))
+    for name in ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm"):
+        assert result.params[name] == pytest.approx(truth[name], rel=0.06), name
+
+
+def test_identify_cli_writes_json_and_report(clean_bench, cli, tmp_path):
+    csv, _ = clean_bench
+    out = tmp_path / "id.json"
+    done = cli("identify", csv, "--json", out, "--report", tmp_path / "rep")
+    assert done.returncode == 0, done.stderr
+    data = json.loads(out.read_text())
+    assert set(data["params"]) >= {"inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm"}
+    assert (tmp_path / "rep" / "index.html").exists() and (tmp_path / "rep" / "velocity.png").exists()
+    assert "coulomb_arm_Nm" in done.stdout
+
+
+def test_free_motor_constant_is_fitted(clean_bench):
+    csv, truth = clean_bench
+    result = identify(read_recording(csv), free=("Ke",))
+    # with Ke free the back-emf is separated from the torque gain: Ke/Kt is identifiable
+    ratio_true = truth["back_emf_constant_V_s_per_rad"] / truth["torque_constant_Nm_per_A"]
+    ratio = result.params["motor_back_emf_V_s_per_rad"] / 0.017
+    assert ratio == pytest.approx(ratio_true, rel=0.05)
+
+
+def test_steady_state_fit_is_exact_on_synthetic_points():
+    from mechanism.lumped import MotorConstants
+
+    motor = MotorConstants.datasheet()
+    d, fc = 3e-5, 0.2
+    volts = np.array([5.0, 10.0, 15.0, 20.0])
+    w = (motor.gain_arm * volts - fc) / (motor.emf_damping_arm + 64 * d)
+    fit = fit_steady_state(volts, w * 60 / (2 * math.pi))
+    assert fit.viscous_motor_side_Nm_s_per_rad == pytest.approx(d, rel=1e-9)
+    assert fit.coulomb_arm_Nm == pytest.approx(fc, rel=1e-9)
+
+
+def test_thesis_table2_friction_and_what_24V_says():
+    columns = thesis_table2()
+    ref = thesis()
+    cold, warm30, warm2 = columns["cold"], columns["warm_30s"], columns["warm_2min"]
+    # the cold Coulomb friction agrees with the thesis's separately measured kinetic friction (0.18 N m)
+    assert cold.fit.coulomb_arm_Nm == pytest.approx(ref["identified_parameters"]["kinetic_friction_arm_Nm"], rel=0.15)
+    # the fit reproduces the 4.5-19.6 V points it was fitted on to within 5 % (Table 2 scatters: 7 V sits low)
+    for col in columns.values():
+        assert np.allclose(col.fit.speed_rpm(col.valid_voltage_V), col.valid_rpm, rtol=0.05)
+    # warming up lowers the Coulomb level (the speed rises most at low voltage)
+    assert cold.fit.coulomb_arm_Nm > warm30.fit.coulomb_arm_Nm > warm2.fit.coulomb_arm_Nm
+    # the 24 V point runs 5-8 % slower than the model extrapolates: something is missing
+    for col in columns.values():
+        assert 1.04 < col.high_rpm_predicted / col.high_rpm_measured < 1.09
+        assert 0.8 < col.supply_deficit_V < 2.0
+
+
+def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
+    from pathlib import Path
+
+    from mechanism.testbench import make_recording as bench_recording, write_recording
+
+    toy = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
+    linkage = read_recording(write_recording(bench_recording("linkage_dynamics", seed=12, duration_s=20), tmp_path / "l.csv")[0])
+    clean = read_recording(write_recording(bench_recording("none", seed=12, duration_s=20), tmp_path / "c.csv")[0])
+    # the CAD's needle-bar linkage (toy model: TDC at 0, tens of grams on a ~15 mm crank)
+    # explains half of a linkage recording, with masses of the right order; a recording
+    # without a linkage scales the CAD's inertia variation and gravity to zero
+    with_linkage = identify(linkage, "multibody", model_path=toy)
+    assert with_linkage.rmse < 0.6 * identify(linkage).rmse
+    assert 0.2 < with_linkage.params["cad_inertia_variation_scale"] < 3
+    assert 0.2 < with_linkage.params["cad_gravity_scale"] < 3
+    fitted = identify(clean, "multibody", model_path=toy).params
+    assert fitted["cad_inertia_variation_scale"] < 0.05 and fitted["cad_gravity_scale"] < 0.05
+    assert "inertia_correction_motor_side_kgm2" in fitted
+
+
+def test_multibody_without_a_model_is_a_user_error(tmp_path, cli):
+    from mechanism.testbench import make_recording as bench_recording, write_recording
+
+    rec = write_recording(bench_recording("none", seed=13, duration_s=5), tmp_path / "c.csv")[0]
+    line = cli("identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml").assert_bad_input()
+    assert "missing.xml" in line
+
+
+def test_table2_cli(cli, tmp_path):
+    out = tmp_path / "t2.json"
+    done = cli("identify", "--table2", "--json", out)
+    assert done.returncode == 0, done.stderr
+    data = json.loads(out.read_text())
+    assert set(data) == {"cold", "warm_30s", "warm_2min"}
+    assert data["cold"]["coulomb_arm_Nm"] == pytest.approx(thesis_table2()["cold"].fit.coulomb_arm_Nm)
+    assert "cold" in done.stdout
+    cli("identify").assert_bad_input()

@@ -1,0 +1,143 @@
+"""The lumped drive kernel against analytic solutions and the thesis's numbers."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mechanism.lumped import (Drive, LumpedBaseline, MotorConstants, Segments, Signals, lagged_voltage,
+                              simulate, simulate_numpy)
+from mechanism.reference import thesis
+
+DT = 1e-3
+
+
+def one_segment(n):
+    return Segments(np.array([0]), n, np.array([0]), np.array([n]), np.array([True]))
+
+
+def signals_for(voltage, angle=None):
+    n = len(voltage)
+    t = np.arange(n) * DT
+    return Signals(t, np.asarray(voltage, float), np.zeros(n) if angle is None else angle, np.zeros(n), DT, 8.0)
+
+
+def thesis_drive(voltage, warm=False):
+    ref = thesis()["identified_parameters"]
+    s = signals_for(voltage)
+    d = ref["viscous_warm_Nm_s_per_rad" if warm else "viscous_cold_Nm_s_per_rad"]
+    return Drive.constant(s, s.voltage_V, ref["total_inertia_kgm2"] * 64, d * 64, ref["kinetic_friction_arm_Nm"])
+
+
+def test_steady_state_speeds_match_the_formula_and_thesis_table_2():
+    ref = thesis()
+    table = np.array(ref["steady_state_speed_table_2"]["rows"], float)
+    motor = MotorConstants.datasheet()
+    for volts, rpm_cold in zip(table[:, 1], table[:, 4]):
+        drive = thesis_drive(np.full(3000, volts))
+        w = simulate(drive, motor, one_segment(3000), np.zeros(1), DT)[0]
+        c = motor.emf_damping_arm + drive.viscous_Nm_s[0]
+        analytic = (motor.gain_arm * volts - drive.coulomb_Nm[0]) / c
+        assert w[-1] == pytest.approx(analytic, rel=1e-6)
+        if volts <= 20:  # the thesis's model is valid to 20 V: within 5 % of its own Table 2
+            assert w[-1] * 60 / (2 * math.pi) == pytest.approx(rpm_cold, rel=0.05)
+
+
+def test_step_response_time_constant_is_J_over_total_damping():
+    drive = thesis_drive(np.full(2000, 12.0))
+    drive.coulomb_Nm[:] = 0.0
+    motor = MotorConstants.datasheet()
+    w = simulate(drive, motor, one_segment(2000), np.zeros(1), DT)[0]
+    c = motor.emf_damping_arm + drive.viscous_Nm_s[0]
+    tau = drive.inertia_kgm2[0] / c
+    t = np.arange(2000) * DT
+    np.testing.assert_allclose(w, motor.gain_arm * 12 / c * (1 - np.exp(-t / tau)), rtol=1e-9, atol=1e-9)
+
+
+def test_stick_below_breakaway_and_stop_at_zero_voltage():
+    motor = MotorConstants.datasheet()
+    fc = thesis()["identified_parameters"]["kinetic_friction_arm_Nm"]
+    breakaway_V = fc / motor.gain_arm
+    u = np.r_[np.full(500, 0.95 * breakaway_V), np.full(1500, 10.0), np.zeros(1500)]
+    w = simulate(thesis_drive(u), motor, one_segment(len(u)), np.zeros(1), DT)[0]
+    assert np.all(w[:501] == 0.0)  # stuck below the breakaway voltage
+    assert w[1900] > 40
+    assert np.all(w[-500:] == 0.0)  # stopped by Coulomb friction, and stays stopped
+    assert np.all(w >= 0.0)  # never reverses
+
+
+def test_native_kernel_equals_numpy_fallback_with_every_term_and_a_belt():
+    rng = np.random.default_rng(1)
+    n = 4000
+    u = np.repeat(rng.uniform(0, 20, 8), n // 8)
+    drive = thesis_drive(u)
+    angle = np.cumsum(np.full(n, 0.05))
+    drive.tau_arm_Nm += 0.02 * np.sin(angle)
+    drive.tau_motor_Nm += 0.03 * np.sin(8 * angle)
+    drive.coulomb_Nm += 0.01 * np.cos(angle)
+    drive.static_excess_Nm += 0.05
+    drive.quadratic_Nm_s2 += 1e-5 * np.cos(2 * angle)
+    drive.inertia_kgm2 += 2e-5 * np.sin(2 * angle)
+    seg = Segments(np.array([0, 1000, 2500]), 1400, np.array([0, 100, 100]), np.array([1100, 1200, 1400]), np.array([True] * 3))
+    w0 = np.array([0.0, 30.0, 5.0])
+    motor = MotorConstants.datasheet()
+    native = simulate(drive, motor, seg, w0, DT)
+    np.testing.assert_allclose(native, simulate_numpy(drive, motor, seg, w0, DT), rtol=1e-10, atol=1e-10)
+    drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s, drive.motor_inertia_kgm2 = 40.0, 0.01, 5e-4
+    np.testing.assert_allclose(simulate(drive, motor, seg, w0, DT), simulate_numpy(drive, motor, seg, w0, DT), rtol=1e-9, atol=1e-9)
+
+
+def test_belt_rings_at_its_analytic_resonance():
+    motor = MotorConstants(1e9, 0.017, 0.021, 8.0)  # no electrical damping: a free two-mass system
+    n = 4000
+    drive = Drive.constant(signals_for(np.zeros(n)), np.zeros(n), 2e-3, 0.0, 0.0)
+    jm, k = 6e-4, 30.0
+    drive.belt_stiffness_Nm_rad, drive.motor_inertia_kgm2 = k, jm
+    drive.tau_motor_Nm[:5] = -2.0  # a short kick on the motor
+    w = simulate(drive, motor, one_segment(n), np.zeros(1), DT)[0]
+    spectrum = np.abs(np.fft.rfft(w[100:] - w[100:].mean()))
+    f = np.fft.rfftfreq(len(w) - 100, DT)
+    expected = math.sqrt(k * (1 / jm + 1 / (2e-3 - jm))) / (2 * math.pi)
+    assert f[np.argmax(spectrum)] == pytest.approx(expected, abs=0.5)
+
+
+def test_position_dependent_inertia_conserves_energy():
+    # Without friction or drive, J(theta) w^2 / 2 is constant. Close the loop around the
+    # kernel one step at a time (the diagnosis drives it with the measured angle instead).
+    j0, a, w = 2e-3, 4e-4, 20.0
+    motor = MotorConstants(1e12, 0.017, 0.021, 8.0)  # no motor damping
+    theta, energy = 0.0, []
+    for _ in range(1500):
+        mid = theta + 0.5 * DT * w  # predictor for the mid-step angle
+        s = signals_for(np.zeros(2), np.array([theta, 2 * mid - theta]))
+        drive = Drive.constant(s, s.voltage_V, j0, 0.0, 0.0)
+        drive.inertia_kgm2 = j0 + a * np.cos(2 * s.drive_angle_rad)
+        drive.quadratic_Nm_s2 = -a * np.sin(2 * s.drive_angle_rad)
+        w_next = simulate(drive, motor, one_segment(2), np.array([w]), DT)[0][1]
+        theta += 0.5 * (w + w_next) * DT
+        w = w_next
+        energy.append(0.5 * (j0 + a * np.cos(2 * theta)) * w * w)
+    energy = np.array(energy)
+    assert theta > 4 * math.pi  # several swings of the inertia
+    assert np.ptp(energy) < 2e-3 * energy.mean()  # kinetic energy exchanged, not lost or made
+
+
+def test_lagged_voltage_is_the_exact_first_order_step_average():
+    u = np.r_[np.zeros(10), np.full(40, 10.0)]
+    tau = 3e-3
+    y = lagged_voltage(u, tau, DT)
+    k = np.arange(40)
+    # average of 10 (1 - exp(-t/tau)) over [k dt, (k+1) dt]
+    exact = 10 * (1 - tau / DT * (np.exp(-k * DT / tau) - np.exp(-(k + 1) * DT / tau)))
+    np.testing.assert_allclose(y[10:], exact, rtol=1e-12)
+    assert np.all(y[:10] == 0)
+    assert lagged_voltage(u, 1e-9, DT) is u
+
+
+def test_baseline_parameters_carry_the_thesis_numbers():
+    base = LumpedBaseline()
+    nominal = {p.name: p.nominal for p in base.parameters}
+    ref = thesis()["identified_parameters"]
+    assert nominal["inertia_motor_side_kgm2"] == ref["total_inertia_kgm2"]
+    assert nominal["coulomb_arm_Nm"] == ref["kinetic_friction_arm_Nm"]
+    assert {"R", "Kt"} <= set(LumpedBaseline(("R", "Kt")).free)
