@@ -96,14 +96,14 @@ def _simulate(out: Path, model: Path) -> dict:
 
 def _diagnose(out: Path) -> dict:
     from mechanism.diagnosis import diagnose
+    from mechanism.diagnosis_report import diagnosis_report
     from mechanism.recording import read_recording
-    from mechanism.report import write_report
 
     result = diagnose(read_recording(RECORDING), "lumped")
     document = result.to_json()
     with atomic_file(out / "diagnosis.json") as handle:
         json.dump(document, handle, indent=2)
-    write_report(result, out / "diagnosis")
+    diagnosis_report(result, out / "diagnosis")
     truth = json.loads(RECORDING.with_suffix(".truth.json").read_text())
     return {"found": [e["name"] for e in document["effects"]], "concealed": truth["effects"],
             "baseline_rmse": document["baseline"]["rmse"], "final_rmse": document["final"]["rmse"]}
