@@ -64,4 +64,4 @@ def test_zigzag_exit_status_says_flagged(cli, tmp_path):
     fits = cli("zigzag", "--spm", "1000", "--rate", "1500")
     assert fits.returncode == 0 and "fits" in fits.stdout
     cli("zigzag", "--spm", "-1").assert_bad_input()
-    cli("zigzag", "--spm", "1000", "--needle", "machine").assert_bad_input()
+    cli("zigzag", "--spm", "1000", "--machine-model", tmp_path / "missing.xml").assert_bad_input()
