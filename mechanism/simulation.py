@@ -135,7 +135,7 @@ def simulate(
         cog = machine.motor.cogging_Nm * np.sin(machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad)
         current = (torque - cog) / machine.motor.torque_constant_Nm_A
     if machine.has_needle_site:
-        needle = machine.needle_z_mm(sensordata[:, model.sensor("needle_tip_pos").adr[0] + 2])
+        needle = machine.needle_z_mm_at(arm_angle)
     else:
         needle = np.full(nstep, np.nan)
     return SimulationResult(

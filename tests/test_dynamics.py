@@ -101,6 +101,34 @@ def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
     assert entry <= worst <= BDC_DEG + 10  # after piercing starts, while the needle is going down
 
 
+def test_simulated_needle_height_is_the_needle_inspection_at_the_simulated_angle():
+    from mechanism.needle import needle_motion
+
+    run = simulate(19.6, 1.0, machine=Machine())
+    motion = needle_motion(samples=720)
+    expected = np.interp(np.mod(np.degrees(run.arm_angle_rad), 360), motion.arm_angle_deg, motion.needle_z_mm, period=360)
+    np.testing.assert_allclose(run.needle_z_mm, expected, atol=0.01)
+    assert run.needle_z_mm.max() == pytest.approx(23.1, abs=0.01) and run.needle_z_mm.min() == pytest.approx(-9.9, abs=0.01)
+
+
+def test_loops_and_belts_stiffen_with_the_time_step():
+    def loop_gap(step):
+        import mujoco
+
+        machine = Machine(None, MachineConfig(timestep_s=step))
+        data = machine.reset(0.0)
+        data.ctrl[machine.model.actuator("motor").id] = 19.6
+        worst = 0.0
+        for k in range(int(1.0 / step)):
+            mujoco.mj_step(machine.model, data)
+            if k * step > 0.5:
+                rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+                worst = max(worst, np.abs(data.efc_pos[: data.nefc][rows]).max())
+        return worst
+
+    assert loop_gap(0.00025) < 0.4 * loop_gap(0.0005)
+
+
 def test_reduced_model_matches_the_full_model_within_one_percent(bare):
     profile = VoltageProfile(np.array([0, 2, 4, 6, 7, 9]), np.array([4.5, 12.5, 19.6, 0.0, 7.0, 15.0]))
     full = simulate(profile, 11.0, machine=bare)
