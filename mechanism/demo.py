@@ -33,12 +33,13 @@ class _Steps:
         print(f"[{self.done}/{self.total}] {what}", flush=True)
 
 
-def _convert(out: Path) -> tuple[Path, list[str]]:
+def _convert(out: Path, final: Path) -> tuple[Path, list[str]]:
     from converters import convert
     from mechanism.cli.convert import drive_lines, summary_lines
 
     report = convert(EXPORT, out / "model")
-    lines = summary_lines(report, extra=drive_lines(report))
+    # the folder is assembled aside: show the paths it will have
+    lines = [line.replace(str(out), str(final)) for line in summary_lines(report, extra=drive_lines(report))]
     (out / "model" / "conversion.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return report.mjcf_path, lines
 
@@ -129,7 +130,7 @@ def run(out: str | os.PathLike = "out") -> Path:
     facts: dict = {}
     with atomic_dir(out) as work:
         step("convert the shipped CAD export (first-generation XML + STL + couplings side-car)")
-        model, facts["conversion"] = _convert(work)
+        model, facts["conversion"] = _convert(work, out)
         step("needle motion over one arm revolution")
         facts["needle"] = _needle(work, model)
         step("simulate: thesis Table 2, voltage steps, sewing 12 layers")
@@ -166,7 +167,7 @@ def _index(out: Path, facts: dict) -> None:
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>mechanism demo: sewing machine</title>
 <style>body{{font-family:sans-serif;max-width:960px;margin:2em auto;line-height:1.4}}
 table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}
-pre{{background:#f6f6f6;padding:8px}}</style></head><body>
+pre{{background:#f6f6f6;padding:8px;white-space:pre-wrap}}</style></head><body>
 <h1>mechanism demo: Husqvarna Viking Sapphire 870 (Tegsten 2008)</h1>
 <h2>1. CAD export to MuJoCo</h2><pre>{html.escape(chr(10).join(facts['conversion']))}</pre>
 <p>{link('model/sewing_machine.xml', 'converted MJCF')} &middot; {link('machine.html', '3-D animation (opens offline)')}</p>
