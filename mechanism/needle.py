@@ -264,21 +264,16 @@ class _HookGeometry:
         return None if best is None else best[0]
 
     def clearance_to_needle_mesh(self) -> float | None:
-        """Exact distance [m] from the hook point to the needle's mesh triangles."""
+        """Exact distance [m] from the hook point to the needle's surface (its mesh triangles)."""
         import mujoco
-        import trimesh
 
-        m, d = self.model, self.data
-        if self.geom < 0 or m.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH:
+        from mechanism.shapes import PartShape
+
+        if self.geom < 0 or self.model.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH:
             return None
-        mesh = m.geom_dataid[self.geom]
-        v0, nv = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-        f0, nf = m.mesh_faceadr[mesh], m.mesh_facenum[mesh]
-        vertices = m.mesh_vert[v0:v0 + nv] @ d.geom_xmat[self.geom].reshape(3, 3).T + d.geom_xpos[self.geom]
-        triangles = vertices[m.mesh_face[f0:f0 + nf]]
-        point = np.broadcast_to(d.site(HOOK_POINT).xpos, (len(triangles), 3))
-        closest = trimesh.triangles.closest_point(triangles, point)
-        return float(np.linalg.norm(closest - point, axis=1).min())
+        needle = PartShape(self.model, NEEDLE_GEOM)
+        needle.update(self.data)
+        return float(needle.point_distance(self.data.site(HOOK_POINT).xpos)[0])
 
 
 def _velocity_zero(theta: np.ndarray, velocity: np.ndarray, falling: bool) -> float:
