@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mechanism.kinematics import _position_only, joint_dof, solve_pose, velocity_ratios
+from mechanism.kinematics import position_only, joint_dof, solve_pose, velocity_ratios
 
 DEFAULT_SPEED_RPM = 600.0  # a mid-range household sewing speed (10 stitches per second)
 DEFAULT_RESOLUTION_DEG = 0.5
@@ -115,7 +115,7 @@ def set_state(
     data.qpos[:] = qpos
     data.qvel[:] = qvel
     data.qacc[:] = qacc
-    with _position_only(model):
+    with position_only(model):
         mujoco.mj_fwdPosition(model, data)
         mujoco.mj_sensorPos(model, data)
         mujoco.mj_fwdVelocity(model, data)

@@ -42,7 +42,7 @@ def joint_dof(model: mujoco.MjModel, joint: str) -> tuple[int, int]:
 
 
 @contextlib.contextmanager
-def _position_only(model: mujoco.MjModel):
+def position_only(model: mujoco.MjModel):
     """Dense constraint Jacobians, and no contacts: only equality constraints matter here."""
     saved = (model.opt.jacobian, model.opt.disableflags)
     model.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
@@ -53,7 +53,7 @@ def _position_only(model: mujoco.MjModel):
         model.opt.jacobian, model.opt.disableflags = saved
 
 
-def _equality_residual(model, data) -> tuple[np.ndarray, np.ndarray]:
+def equality_residual(model, data) -> tuple[np.ndarray, np.ndarray]:
     mujoco.mj_fwdPosition(model, data)
     rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
     jac = data.efc_J[: data.nefc * model.nv].reshape(data.nefc, model.nv)[rows]
@@ -79,8 +79,8 @@ def solve_pose(
     for name, (qadr, dadr) in addresses.items():
         data.qpos[qadr] = fixed[name]
         free[dadr] = False
-    with _position_only(model):
-        residual, jac = _equality_residual(model, data)
+    with position_only(model):
+        residual, jac = equality_residual(model, data)
         norm = float(np.linalg.norm(residual, np.inf)) if residual.size else 0.0
         step = np.zeros(model.nv)
         for _ in range(max_iterations):
@@ -94,7 +94,7 @@ def solve_pose(
             while True:
                 data.qpos[:] = start
                 mujoco.mj_integratePos(model, data.qpos, step, trial_scale)
-                residual, jac = _equality_residual(model, data)
+                residual, jac = equality_residual(model, data)
                 trial = float(np.linalg.norm(residual, np.inf)) if residual.size else 0.0
                 if trial < norm or trial_scale < 1e-3:
                     break
@@ -114,8 +114,8 @@ def velocity_ratios(model: mujoco.MjModel, data: mujoco.MjData, driver: str) -> 
     """dq/dθ: the joint velocities (length nv) for a unit velocity of ``driver`` at the
     current pose, such that every equality constraint stays satisfied (J v = 0)."""
     _, dadr = joint_dof(model, driver)
-    with _position_only(model):
-        _, jac = _equality_residual(model, data)
+    with position_only(model):
+        _, jac = equality_residual(model, data)
     velocity = np.zeros(model.nv)
     velocity[dadr] = 1.0
     if jac.size:
