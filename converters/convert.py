@@ -42,10 +42,12 @@ class ConversionReport:
         return sum(self.joints_by_type.values())
 
 
-def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None) -> ConversionReport:
+def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z") -> ConversionReport:
     """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).
 
-    ``name`` defaults to the export's file stem. The MJCF refers to the meshes by a path
+    ``name`` defaults to the export's file stem. ``up`` is the export's world axis that points up
+    (``x``, ``y``, ``z``, ``-x``, ...): gravity acts against it; the export's frame is kept, since
+    exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). The MJCF refers to the meshes by a path
     relative to ``outdir``. Nothing is written unless the whole conversion succeeds; other
     files already in ``outdir`` and ``mesh_dir`` are left alone.
     """
@@ -53,6 +55,7 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None) -> C
     outdir = Path(outdir)
     mesh_dir = Path(mesh_dir) if mesh_dir is not None else outdir / "meshes"
     model_name = sanitize(name or export_path.stem)
+    gravity = mjcf.gravity_along(up)
     if outdir.exists() and not outdir.is_dir():
         raise ExportError(f"output {outdir}: exists and is not a folder")
 
@@ -61,7 +64,7 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None) -> C
     inertia.repair_parts(assembly, meshes)
     plan = tree.plan(assembly)
     meshdir = os.path.relpath(mesh_dir.resolve(), outdir.resolve()).replace(os.sep, "/")
-    built = mjcf.build(assembly, plan, meshes, model_name=model_name, meshdir=meshdir)
+    built = mjcf.build(assembly, plan, meshes, model_name=model_name, meshdir=meshdir, gravity=gravity)
     used = {m.name: m for m in meshes.values() if m is not None}
 
     mjcf_path = outdir / f"{model_name}.xml"
@@ -97,6 +100,13 @@ def _locked_warning(locked: list[str]) -> list[str]:
             f"(check the export for welds or joints that over-constrain the mechanism)"]
 
 
+# Relative singular value below which a loop equation counts as dependent. Exports print 6 to 9
+# digits: axes that are parallel in the CAD model come out parallel to ~1e-6 rad, so a loop that
+# over-constrains a real motion (a pin mated to a plane and a bore) leaves a singular value near
+# 1e-8 where that motion should be, while genuine constraints give 1e-3 and more.
+RANK_TOLERANCE = 1e-6
+
+
 def mobility(model) -> tuple[int, list[str]]:
     """Degrees of freedom the equality constraints leave at the assembly pose (``nv - rank(J_eq)``)
     and the joints they lock completely.
@@ -119,7 +129,7 @@ def mobility(model) -> tuple[int, list[str]]:
         if jacobian.size == 0:
             return 0, np.eye(model.nv)
         _, singular, vt = np.linalg.svd(jacobian)
-        rank = int(np.sum(singular > 1e-9 * max(singular.max(), 1e-300)))
+        rank = int(np.sum(singular > RANK_TOLERANCE * max(singular.max(), 1e-300)))
         return rank, vt[rank:].T  # columns span the motions the constraints allow
 
     if model.nv == 0:

@@ -4,7 +4,8 @@ exporters for Onshape, SolidWorks, Creo, Inventor).
 What the format says, and how this reader takes it:
 
 * ``<DataUnits length= mass=>`` is the unit of every number in the file (``ModelUnits`` is
-  only the CAD document's display unit).
+  only the CAD document's display unit, except in exports without ``DataUnits``: Creo's
+  Simscape Multibody Link 6 writes its numbers in ``ModelUnits``, e.g. ``mm``).
 * ``<RootAssembly>/<InstanceTree>`` nests ``<Instance>`` elements: an instance of a part
   (``entityUid`` names a ``<Part>``) or of a sub-assembly (names an ``<Assembly>``; its
   children are nested instances). Each ``<Transform>`` places the instance in its parent:
@@ -29,14 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
+from converters import mates, relations
 from converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint, Part, Primitive
 from converters.errors import ExportError
+from converters.mates import Mate, MateGeometry
 from converters.pose import Pose, orthonormal
 from converters.safety import MAX_DEPTH, numbers, resolve_inside
 from converters.units import length_factor, mass_factor
 
 ROOT_TAG = "SimscapeMultibodyImportXML"
-FORMAT = "second-generation SimscapeMultibodyImportXML"
+LEGACY_ROOT_TAG = "SimMechanicsImportXML"  # the same format as SimMechanics Link 4.x (2013-2016) wrote it
 
 _P = {"Px": (SLIDE, 0), "Py": (SLIDE, 1), "Pz": (SLIDE, 2), "Rx": (HINGE, 0), "Ry": (HINGE, 1), "Rz": (HINGE, 2),
       "S": (BALL, 2)}
@@ -48,6 +51,8 @@ JOINT_PRIMITIVES = {
     "rectangular": ["Px", "Py"], "cartesian": ["Px", "Py", "Pz"], "pinslot": ["Px", "Rz"],
     "telescoping": ["Pz", "S"], "bearing": ["Pz", "Rx", "Ry", "Rz"],
     "bushing": ["Px", "Py", "Pz", "Rx", "Ry", "Rz"], "leadscrew": ["Rz", "Pz"], "constantvelocity": ["Rx", "Ry"],
+    # names CAD tools use for the same joints (Onshape mate types, SolidWorks/Inventor wording)
+    "fastened": [], "slider": ["Pz"], "ball": ["S"], "pin": ["Rz"], "hinge": ["Rz"], "slot": ["Px", "Rz"],
 }
 APPROXIMATED = {
     "bushing": "its stiffness and damping are not modelled: it becomes 3 slides and 3 hinges",
@@ -83,14 +88,17 @@ def _decimals(element) -> int:
 
 
 class _Reader:
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, root_tag: str):
         self.path = Path(path)
         self.folder = self.path.parent
-        self.assembly = Assembly(name=self.path.stem, source=self.path, format=FORMAT)
+        self.assembly = Assembly(name=self.path.stem, source=self.path, format=f"second-generation {root_tag}")
         self.nodes: dict[str, tuple] = {}  # instance key -> (parent node key, element, is_assembly, entity uid)
 
     def read(self, root) -> Assembly:
+        # numbers are in DataUnits; exports without it (Creo's Simscape Multibody Link 6) write them in ModelUnits
         units = _child(root, "DataUnits")
+        if units is None:
+            units = _child(root, "ModelUnits")
         where = f"export {self.path.name}"
         self.length = length_factor(units.get("length", "meter") if units is not None else "meter", f"{where}: DataUnits")
         self.mass = mass_factor(units.get("mass", "kilogram") if units is not None else "kilogram", f"{where}: DataUnits")
@@ -106,6 +114,8 @@ class _Reader:
         scopes = [("", top)] + [(key, self.assembly_entities[entity]) for key, (_, _, is_asm, entity) in self.nodes.items()
                                 if is_asm and entity in self.assembly_entities]
         referenced: set[str] = set()
+        mate_list: list[Mate] = []
+        related: list = []  # (prefix, element): gears, rack-and-pinions, screws...
         for prefix, scope in scopes:
             for element in list(_child(scope, "Joints") or []):
                 joint = self._joint(element, prefix)
@@ -113,9 +123,24 @@ class _Reader:
                     self.assembly.joints.append(joint)
                     referenced.update(_ancestors(joint.base) | _ancestors(joint.follower))
             for element in list(_child(scope, "Constraints") or []):
-                self.assembly.warn(f"constraint <{_local(element.tag)}> {element.get('name', '')} is not supported: "
-                                   f"ignored (add gear or belt ratios to the couplings side-car)")
-        self._fix_instances(referenced)
+                if relations.is_relation(_local(element.tag)):
+                    related.append((prefix, element))
+                    continue
+                mate = self._mate(element, prefix)
+                if mate is not None:
+                    mate_list.append(mate)
+        for mate in mate_list:
+            if mates.usable(mate):
+                referenced.update(_ancestors(mate.first.part) | _ancestors(mate.second.part))
+        self.assembly.joints.extend(self._fix_instances(referenced))
+        names = {key: part.name for key, part in self.assembly.parts.items()}
+        welded = [(j.base, j.follower) for j in self.assembly.joints if j.is_weld]
+        inferred = mates.infer_joints(mate_list, welded, names)
+        self.assembly.joints.extend(inferred.joints)
+        for message in inferred.warnings:
+            self.assembly.warn(message)
+        for prefix, element in related:
+            relations.add_relation(self.assembly, element, self._relation_side(prefix), self.length)
         return self.assembly
 
     # -- instance tree ----------------------------------------------------------------------
@@ -179,23 +204,40 @@ class _Reader:
                     geometry_name=geometry_name, geometry_scale=self.length, color=color,
                     inertia_resolution=resolution)
 
-    # -- joints ------------------------------------------------------------------------------
+    # -- joints and mates --------------------------------------------------------------------
+    def _instance_key(self, element, prefix: str, where: str) -> str:
+        """The instance an ``InstancePath`` names below the assembly ``prefix``; an empty path is that
+        assembly itself (the world at the top level: Onshape writes mates to the origin this way)."""
+        uids = [(u.text or "").strip() for u in _children(_child(element, "InstancePath"), "Uid")]
+        if not uids:
+            return prefix or GROUND
+        key = "/".join(([prefix] if prefix else []) + uids)
+        if key not in self.assembly.parts:
+            raise ExportError(f"{where}: InstancePath {'/'.join(uids)} is not an instance of the export")
+        return key
+
+    def _pose_of(self, key: str) -> Pose:
+        return Pose() if key == GROUND else self.assembly.parts[key].frame
+
     def _frame(self, element, prefix: str, where: str) -> tuple[str, Pose]:
         if element is None:
             raise ExportError(f"{where}: frame missing")
-        uids = [(u.text or "").strip() for u in _children(_child(element, "InstancePath"), "Uid")]
-        key = "/".join(([prefix] if prefix else []) + uids)
-        if not uids or key not in self.assembly.parts:
-            raise ExportError(f"{where}: InstancePath {'/'.join(uids) or '(empty)'} is not an instance of the export")
-        return key, self.assembly.parts[key].frame @ self._transform(_child(element, "Transform"), where)
+        key = self._instance_key(element, prefix, where)
+        return key, self._pose_of(key) @ self._transform(_child(element, "Transform"), where)
 
     def _joint(self, element, prefix: str) -> Joint | None:
         tag = _local(element.tag)
         name = element.get("name") or tag
         where = f"export {self.path.name}, joint {name}"
         kind = re.sub(r"[^a-z0-9]", "", tag.lower()).removesuffix("joint") or tag.lower()
-        base, base_frame = self._frame(_child(element, "BaseFrame"), prefix, f"{where}: BaseFrame")
-        follower, follower_frame = self._frame(_child(element, "FollowerFrame"), prefix, f"{where}: FollowerFrame")
+        try:
+            base, base_frame = self._frame(_child(element, "BaseFrame"), prefix, f"{where}: BaseFrame")
+            follower, follower_frame = self._frame(_child(element, "FollowerFrame"), prefix, f"{where}: FollowerFrame")
+        except ExportError as exc:
+            if "InstancePath" not in str(exc):
+                raise
+            self.assembly.warn(f"joint {name} is ignored: {str(exc).split(': ', 2)[-1]} (a suppressed or deleted part?)")
+            return None
         if kind not in JOINT_PRIMITIVES:
             self.assembly.warn(f"joint {name}: type <{tag}> is not supported: treated as a weld")
             kind = "weld"
@@ -208,24 +250,96 @@ class _Reader:
         return Joint(name=name, kind=kind if primitives else "weld", base=base, follower=follower,
                      base_frame=base_frame, follower_frame=follower_frame, primitives=primitives)
 
-    def _fix_instances(self, referenced: set[str]) -> None:
-        """Grounded instances and rigid sub-assembly members become synthetic welds."""
-        for key, (parent, element, _, _) in self.nodes.items():
-            parent_entity = self.nodes[parent][3] if parent else None
-            rigid_parent = bool(parent) and not self._has_joints(parent_entity)
-            grounded = element.get("grounded", "").lower() == "true"
-            if grounded or rigid_parent or (parent and key not in referenced):
-                anchor = parent or GROUND
-                frame = self.assembly.parts[key].frame
-                reason = "grounded" if grounded else "rigid in"
-                self.assembly.joints.append(Joint(
-                    name=f"{self.assembly.parts[key].name} {reason} {self.assembly.parts[parent].name if parent else 'world'}",
-                    kind="weld", base=anchor, follower=key, base_frame=frame, follower_frame=frame, synthetic=True))
+    def _mate(self, element, prefix: str) -> Mate | None:
+        """A CAD mate: two ``ConstraintGeometry`` (geomType, InstancePath, Position and Axis in the
+        instance's frame) or, as Simscape constraint blocks write it, ``BaseFrame``/``FollowerFrame``."""
+        tag = _local(element.tag)
+        name = element.get("name") or tag
+        where = f"export {self.path.name}, constraint {name}"
+        sides = _children(element, "ConstraintGeometry")
+        try:
+            if len(sides) == 2:
+                first, second = (self._mate_geometry(side, prefix, where) for side in sides)
+            elif _child(element, "BaseFrame") is not None and _child(element, "FollowerFrame") is not None:
+                first, second = (self._frame_geometry(_child(element, side), prefix, where, tag)
+                                 for side in ("BaseFrame", "FollowerFrame"))
+            else:
+                first = second = None
+        except ExportError as exc:
+            self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
+            return None
+        if first is None or second is None:
+            self.assembly.warn(f"constraint {name} <{tag}> carries no usable geometry: ignored")
+            return None
+        return Mate(name=name, tag=tag, first=first, second=second)
 
-    def _has_joints(self, entity: str | None) -> bool:
+    def _mate_geometry(self, element, prefix: str, where: str) -> MateGeometry | None:
+        key = self._instance_key(element, prefix, where)
+        position_element = _child(element, "Position")
+        if position_element is None or not (position_element.text or "").strip():
+            return None
+        pose = self._pose_of(key)
+        position = pose.apply(_numbers(position_element, 3, f"{where}: Position") * self.length)
+        axis_element = _child(element, "Axis")
+        axis = None
+        if axis_element is not None and (axis_element.text or "").strip():
+            local = _numbers(axis_element, 3, f"{where}: Axis")
+            if np.linalg.norm(local) > 1e-12:
+                axis = pose.rotation @ (local / np.linalg.norm(local))
+        return MateGeometry(part=key, shape=(element.get("geomType") or "").lower(), position=position, axis=axis)
+
+    def _frame_geometry(self, element, prefix: str, where: str, tag: str) -> MateGeometry:
+        """A Simscape constraint block's frame as mate geometry: its origin (distance constraints)
+        or its z axis through the origin (angle constraints)."""
+        key, pose = self._frame(element, prefix, where)
+        shape = "line" if "angle" in tag.lower() else "point"
+        return MateGeometry(part=key, shape=shape, position=pose.position, axis=pose.rotation[:, 2].copy())
+
+    def _relation_side(self, prefix: str):
+        """For gear-like constraints: (element, where) -> (instance key, world pose) of one side."""
+        def side(element, where):
+            if _child(element, "Transform") is not None:
+                return self._frame(element, prefix, where)
+            geometry = self._mate_geometry(element, prefix, where)
+            if geometry is None:
+                key = self._instance_key(element, prefix, where)
+                return key, self._pose_of(key)
+            axis = geometry.axis if geometry.axis is not None else np.array([0, 0, 1.0])
+            return geometry.part, Pose(mates.frame_with_z(axis), geometry.position)
+        return side
+
+    def _fix_instances(self, referenced: set[str]) -> list[Joint]:
+        """Synthetic welds from the instance tree: grounded instances, members of rigid
+        sub-assemblies (``rigid="true"`` or no joints and no mates inside) and of rigid groups,
+        and instances of a flexible sub-assembly that no joint or mate refers to."""
+        welds = []
+
+        def weld(anchor: str, key: str, reason: str) -> None:
+            frame = self.assembly.parts[key].frame
+            anchor_name = self.assembly.parts[anchor].name if anchor != GROUND else "world"
+            welds.append(Joint(name=f"{self.assembly.parts[key].name} {reason} {anchor_name}", kind="weld",
+                               base=anchor, follower=key, base_frame=frame, follower_frame=frame, synthetic=True))
+
+        groups: dict[tuple[str, str], str] = {}
+        for key, (parent, element, _, _) in self.nodes.items():
+            grounded = element.get("grounded", "").lower() == "true"
+            rigid_parent = bool(parent) and self._is_rigid(parent)
+            if grounded or rigid_parent or (parent and key not in referenced):
+                weld(parent or GROUND, key, "grounded in" if grounded else "rigid in")
+            group = element.get("rigidGroup") or ""
+            if group:  # Onshape groups: members are fixed to each other
+                first = groups.setdefault((parent, group), key)
+                if first != key:
+                    weld(first, key, "grouped with")
+        return welds
+
+    def _is_rigid(self, key: str) -> bool:
+        _, element, _, entity = self.nodes[key]
+        if element.get("rigid", "").lower() == "true":
+            return True
         definition = self.assembly_entities.get(entity)
-        return definition is not None and bool(list(_child(definition, "Joints") or [])
-                                               or list(_child(definition, "Constraints") or []))
+        return definition is None or not (list(_child(definition, "Joints") or [])
+                                          or list(_child(definition, "Constraints") or []))
 
 
 def _ancestors(key: str) -> set[str]:
@@ -236,4 +350,4 @@ def _ancestors(key: str) -> set[str]:
 
 def read(root, path: Path) -> Assembly:
     """The neutral assembly of a second-generation export (``root``: its parsed root element)."""
-    return _Reader(path).read(root)
+    return _Reader(path, _local(root.tag)).read(root)

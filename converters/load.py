@@ -16,6 +16,7 @@ from converters.safety import parse_xml
 READERS = {
     gen1.ROOT_TAG: gen1.read,
     gen2.ROOT_TAG: gen2.read,
+    gen2.LEGACY_ROOT_TAG: gen2.read,
 }
 
 

@@ -311,7 +311,7 @@ class _Writer:
                                objtype=mujoco.mjtObj.mjOBJ_BODY, data=data.tolist())
 
     def _carrier(self, closure, label: str) -> None:
-        """A massless-ish carrier body on the base carries the joint's real freedoms and is
+        """A light carrier body on the base carries the joint's real freedoms and is
         welded to the follower: the closure keeps exactly the joint's degrees of freedom."""
         joint = closure.joint
         base_element, base_pose = self.spec_bodies[closure.base_body], self.body_poses[closure.base_body]
@@ -319,8 +319,11 @@ class _Writer:
         name = self.body_namer(f"{self.joint_names[id(joint)]}_carrier")
         carrier = base_element.add_body(name=name)
         self._set_pose(carrier, pose, base_pose)
-        follower_mass = sum(self.assembly.parts[k].mass for k in self.plan.bodies[closure.follower_body].parts if k != GROUND)
+        follower = self.spec_bodies[closure.follower_body]
+        follower_mass = float(follower.mass) if closure.follower_body in self.spec_bodies and follower is not self.spec.worldbody else 0.0
         mass = CARRIER_MASS_FRACTION * max(follower_mass, 1e-3)
+        if follower_mass > 2 * mass:  # the carrier is welded to the follower: move its mass there, the total stays exact
+            follower.mass = _r(follower_mass - mass)
         carrier.explicitinertial = True
         carrier.mass = _r(mass)
         carrier.ipos = [0.0, 0.0, 0.0]
@@ -345,6 +348,25 @@ class _Writer:
         return names[0]
 
 
-def build(assembly: Assembly, plan: Plan, meshes: dict[str, Mesh | None], *, model_name: str, meshdir: str) -> Built:
+GRAVITY_M_S2 = 9.81
+UP_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def gravity_along(up: str) -> list[float]:
+    """The gravity vector for an export whose ``up`` axis (``x``, ``y``, ``z``, ``-y``, ``+z``...) points up."""
+    text = str(up).strip().lower()
+    sign = -1.0 if text.startswith("-") else 1.0
+    axis = UP_AXES.get(text.lstrip("+-"))
+    if axis is None:
+        raise ExportError(f"up axis {up!r} is not one of x, y, z, -x, -y, -z")
+    gravity = [0.0, 0.0, 0.0]
+    gravity[axis] = -sign * GRAVITY_M_S2
+    return gravity
+
+
+def build(assembly: Assembly, plan: Plan, meshes: dict[str, Mesh | None], *, model_name: str, meshdir: str,
+          gravity=(0.0, 0.0, -GRAVITY_M_S2)) -> Built:
     """The MjSpec of ``assembly`` following ``plan`` (meshes are referenced as ``meshdir/<name>.stl``)."""
-    return _Writer(assembly, plan, meshes, model_name, meshdir).write()
+    writer = _Writer(assembly, plan, meshes, model_name, meshdir)
+    writer.spec.option.gravity = list(gravity)
+    return writer.write()

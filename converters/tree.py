@@ -19,25 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from converters.assembly import BALL, GROUND, HINGE, Assembly, Joint
-
-
-class _UnionFind:
-    def __init__(self):
-        self.parent: dict[str, str] = {}
-
-    def find(self, key: str) -> str:
-        self.parent.setdefault(key, key)
-        while self.parent[key] != key:
-            self.parent[key] = self.parent[self.parent[key]]
-            key = self.parent[key]
-        return key
-
-    def union(self, a: str, b: str) -> bool:
-        root_a, root_b = self.find(a), self.find(b)
-        if root_a == root_b:
-            return False
-        self.parent[root_b] = root_a
-        return True
+from converters.graph import UnionFind
 
 
 @dataclass
@@ -105,13 +87,13 @@ def plan(assembly: Assembly) -> Plan:
     reals = [j for j in assembly.joints if not j.is_weld]
     coupled = {name for c in assembly.couplings for name in (c.input, c.output)}
 
-    weld_only = _UnionFind()
+    weld_only = UnionFind()
     for joint in welds:
         weld_only.union(joint.base, joint.follower)
     locked = [j for j in reals if weld_only.find(j.base) == weld_only.find(j.follower)]
     free = sorted((j for j in reals if j not in locked), key=lambda j: (tree_rank(j, coupled), order[id(j)]))
 
-    spanning = _UnionFind()
+    spanning = UnionFind()
     tree_joints, left_out = [], []
     for joint in locked + welds + free:
         (tree_joints if spanning.union(joint.base, joint.follower) else left_out).append(joint)
@@ -119,7 +101,7 @@ def plan(assembly: Assembly) -> Plan:
                 f"the weld closing that cycle becomes a loop constraint" for j in locked if j in tree_joints]
 
     # bodies: parts joined by tree welds
-    rigid = _UnionFind()
+    rigid = UnionFind()
     keys = [GROUND] + list(assembly.parts)
     for key in keys:
         rigid.find(key)
@@ -219,7 +201,7 @@ def _ordered(members: list[str], entry: str, welds: list[Joint], keys: list[str]
     return result + [m for m in members if m not in seen]
 
 
-def _component(root: str, adjacency: dict, rigid: _UnionFind) -> list[str]:
+def _component(root: str, adjacency: dict, rigid: UnionFind) -> list[str]:
     seen, queue = {root}, [root]
     while queue:
         current = queue.pop()

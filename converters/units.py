@@ -64,7 +64,7 @@ _POWER = re.compile(r"^(?P<base>[a-z]+)(?:\^?(?P<exp>[0-9]))?$")
 
 
 def inertia_factor(unit: str, where: str) -> float:
-    """kg*m^2 per ``unit`` for units written as mass*length^2 (``kg*m^2``, ``g*mm^2``, ``lbm*in^2``)."""
+    """kg*m^2 per ``unit`` for units written as mass*length^2 (``kg*m^2``, ``g*mm^2``, ``lbm*in^2``, ``lbm*in*in``)."""
     text = _clean(unit).replace("²", "^2").replace(" ", "*").replace("·", "*")
     pieces = [piece for piece in re.split(r"[*.]", text) if piece]
     mass = length = None
@@ -76,8 +76,8 @@ def inertia_factor(unit: str, where: str) -> float:
         base, exp = match["base"], int(match["exp"] or 1)
         if base in MASS and exp == 1 and mass is None:
             mass = MASS[base]
-        elif base in LENGTH and length is None:
-            length, length_power = LENGTH[base], exp
+        elif base in LENGTH and (length is None or LENGTH[base] == length):  # m^2 or m*m
+            length, length_power = LENGTH[base], length_power + exp
         else:
             break
     else:

@@ -12,6 +12,7 @@ import pytest
 
 from converters import convert
 from exports import FourBar, Gen1Export, bar_inertia, rotation
+from quirk_exports import INCH, proe_fourbar
 
 
 def _drive(model_path, joint: str):
@@ -27,30 +28,42 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
-def test_fourbar_in_a_tilted_plane_follows_freudenstein_over_a_full_crank_turn(tmp_path):
+def _tilted_fourbar(folder):
     fourbar = FourBar()
-    report = convert(fourbar.export(tmp_path), tmp_path / "out")
+    return fourbar, fourbar.export(folder), 1e-3  # its length unit in metres
+
+
+def _proe_fourbar(folder):
+    built = proe_fourbar(folder)
+    return built.facts["fourbar"], built.path, INCH
+
+
+@pytest.mark.parametrize("export", [_tilted_fourbar, _proe_fourbar], ids=["tilted plane, mm and g",
+                                                                         "Pro/E: inches, lbm, RootPart, axes along -z"])
+def test_fourbar_follows_freudenstein_over_a_full_crank_turn(tmp_path, export):
+    fourbar, path, unit = export(tmp_path)
+    report = convert(path, tmp_path / "out")
     assert report.joints_by_type["hinge"] == 3 and report.n_loop_closures == 1
     assert report.degrees_of_freedom == 1
     model, data, drive = _drive(report.mjcf_path, "ground--crank")
-    assert model.opt.gravity[2] < 0  # gravity acts in the tilted plane: the drive works against it
+    assert model.opt.gravity[2] < 0
 
-    def mm(site):
-        return data.site(site).xpos * 1000.0
+    def at(site):  # in the export's length unit
+        return data.site(site).xpos / unit
 
     steps = int(1.0 / model.opt.timestep)  # one crank turn per second, 5% more to finish the turn
     errors, gaps, crank_angles = [], [], []
     for step in range(int(1.05 * steps)):
         model.eq_data[drive, 0] = 2 * math.pi * step / steps
         mujoco.mj_step(model, data)
-        crank = fourbar.plane_angle(mm("crank_end") - mm("crank_start"))
-        rocker = fourbar.plane_angle(mm("rocker_end") - mm("rocker_start"))
+        crank = fourbar.plane_angle(at("crank_end") - at("crank_start"))
+        rocker = fourbar.plane_angle(at("rocker_end") - at("rocker_start"))
         errors.append(abs(_wrap(rocker - fourbar.rocker_angle(crank))))
-        gap = mm("coupler_end") - mm("rocker_end")
+        gap = at("coupler_end") - at("rocker_end")
         gaps.append(np.linalg.norm(gap - (gap @ fourbar.plane[:, 2]) * fourbar.plane[:, 2]))
         crank_angles.append(crank)
-    assert np.ptp(np.unwrap(crank_angles)) > 2 * math.pi, "the crank made a full turn"
-    print(f"four-bar: worst rocker error {math.degrees(max(errors)):.5f} deg, loop gap {max(gaps):.2e} mm")
+    assert np.unwrap(crank_angles)[-1] - crank_angles[0] > 2 * math.pi, "a full turn about the export's joint axis"
+    print(f"four-bar: worst rocker error {math.degrees(max(errors)):.5f} deg, loop gap {max(gaps):.2e} (export length unit)")
     assert math.degrees(max(errors)) < 0.5
     assert max(gaps) < 0.001 * fourbar.coupler, "the closing pin stays closed to 0.1% of the coupler length"
 

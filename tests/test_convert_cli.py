@@ -72,6 +72,7 @@ BAD_INPUTS = {
     "sidecar joint": (_with_sidecar({"input": "ground-crank"}), "'ground-crank' does not exist"),
     "sidecar ratio": (_with_sidecar({"ratio": "2:1"}), "'ratio' must be a number"),
 }
+BAD_OPTIONS = {"up axis": (["--up", "w"], "up axis 'w' is not one of")}
 
 
 @pytest.mark.parametrize("case", sorted(BAD_INPUTS))
@@ -85,6 +86,27 @@ def test_bad_input_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
     line = result.assert_bad_input()
     assert fragment in line, line
     assert not (tmp_path / "out").exists(), "nothing is left behind"
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OPTIONS))
+def test_bad_option_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
+    options, fragment = BAD_OPTIONS[case]
+    path = FourBar().export(tmp_path, with_geometry=False)
+    line = cli("convert", path, "-o", tmp_path / "out", *options).assert_bad_input()
+    assert fragment in line, line
+    assert not (tmp_path / "out").exists()
+
+
+def test_up_axis_sets_gravity_against_it(tmp_path, cli):
+    """A Y-up CAD world (SolidWorks' default) falls along -y with --up y; the frame is kept."""
+    import mujoco
+
+    path = FourBar().export(tmp_path, with_geometry=False)
+    assert cli("convert", path, "-o", tmp_path / "out", "--up", "y").returncode == 0
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "fourbar.xml"))
+    assert model.opt.gravity == pytest.approx([0, -9.81, 0])
+    assert cli("convert", path, "-o", tmp_path / "down", "--up=-z").returncode == 0
+    assert mujoco.MjModel.from_xml_path(str(tmp_path / "down" / "fourbar.xml")).opt.gravity == pytest.approx([0, 0, 9.81])
 
 
 def test_failed_conversion_leaves_an_existing_output_folder_untouched(tmp_path, cli):
@@ -116,7 +138,7 @@ def test_help_explains_options_and_units(cli):
     result = cli("convert", "--help")
     assert result.returncode == 0
     text = " ".join(result.stdout.split())
-    for fragment in ("--out", "--name", "--mesh-dir", "metres", "couplings.json"):
+    for fragment in ("--out", "--name", "--mesh-dir", "--up", "metres", "couplings.json", "m/s^2"):
         assert fragment in text
 
 

@@ -403,6 +403,7 @@ def test_units_of_first_generation_exports():
     assert inertia_factor("g*mm^2", "t") == pytest.approx(1e-9)
     assert inertia_factor("lbm*in^2", "t") == pytest.approx(0.45359237 * 0.0254**2)
     assert inertia_factor("slug*ft^2", "t") == pytest.approx(14.593902937 * 0.3048**2)
+    assert inertia_factor("lbm*in*in", "t") == inertia_factor("lbm*in^2", "t")
     assert volume_factor("mm^3", "t") == pytest.approx(1e-9)
     with pytest.raises(ExportError, match="unknown inertia unit"):
         inertia_factor("kg*m", "t")

@@ -23,6 +23,10 @@ def register(subparsers) -> None:
     parser.add_argument("--name", metavar="NAME", help="model and file name (default: the export's file name stem)")
     parser.add_argument("--mesh-dir", metavar="DIR",
                         help="folder for the meshes (default: OUTDIR/meshes); the MJCF refers to it by relative path")
+    parser.add_argument("--up", default="z", metavar="AXIS",
+                        help="the export's world axis that points up: x, y, z, -x, -y or -z (write --up=-z; default z); gravity "
+                             "(9.81 m/s^2) acts against it. Exports do not record it: SolidWorks and Inventor "
+                             "assemblies are often Y-up (--up y)")
     parser.set_defaults(handler=run)
 
 
@@ -55,7 +59,10 @@ def drive_lines(report) -> list[str]:
     from mechanism.models import load_model
     from mechanism.reduced import compute_tables
 
-    model = load_model(report.mjcf_path)
+    try:
+        model = load_model(report.mjcf_path)
+    except Exception as exc:  # noqa: BLE001 - the model is written; a summary extra must not end the command
+        return [f"moving mass: not computed ({' '.join(str(exc).split())[:120]})"]
     moving = float(sum(model.body_mass[b] for b in range(1, model.nbody) if model.body_weldid[b] != 0))
     lines = [f"moving mass: {moving:.6g} kg"]
     if report.degrees_of_freedom != 1:
@@ -68,6 +75,8 @@ def drive_lines(report) -> list[str]:
         tables = compute_tables(model, n=180, driver=driver)
     except PoseError as exc:
         return lines + [f"reflected inertia: not computed ({exc})"]
+    except Exception as exc:  # noqa: BLE001 - numerical trouble in an odd export only loses this line
+        return lines + [f"reflected inertia: not computed ({exc.__class__.__name__}: {' '.join(str(exc).split())[:100]})"]
     inertia = tables.inertia_kgm2
     lines.append(f"reflected inertia at {driver}: {inertia.mean():.4g} kg*m^2 mean over a revolution "
                  f"({inertia.min():.4g} to {inertia.max():.4g})")
@@ -82,6 +91,6 @@ def drive_lines(report) -> list[str]:
 def run(args) -> int:
     from converters import convert
 
-    report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir)
+    report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up)
     print("\n".join(summary_lines(report, extra=drive_lines(report))))
     return 0
