@@ -36,6 +36,7 @@ from mechanism.diagnosis_report import Traces
 from mechanism.effects import EFFECTS, Effect, Located
 from mechanism.identification import (FitResult, ModelStructure, Problem, blas_single_threaded, damping_below_datasheet,
                                       equation_error_start, fit, fit_baseline, require_identifiable)
+from mechanism.lumped import MotorConstants
 from mechanism.recording import Recording
 
 # An effect must cut the validation rmse by at least 35 %. The contract asks every effect
@@ -220,6 +221,15 @@ class Diagnosis:
     def effect_names(self) -> list[str]:
         return [f.effect.name for f in self.findings]
 
+    def _baseline_notes(self) -> list[str]:
+        ke = self.baseline.values.get("motor_back_emf_V_s_per_rad")
+        if ke is None:
+            return []
+        sheet = MotorConstants.datasheet()
+        return [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
+                f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
+                f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"]
+
     def to_json(self) -> dict:
         base = self.baseline
         return {
@@ -232,6 +242,7 @@ class Diagnosis:
                 "rmse": base.rmse_val,
                 "rmse_fit": base.rmse_fit,
                 "located": self.localisation.to_json(),
+                "notes": self._baseline_notes(),
             },
             "effects": [f.to_json() for f in self.findings],
             "final": {"params": self.final.values, "uncertainty_1sigma": self.final.uncertainties,
@@ -370,8 +381,7 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
         results = _screen_and_refit(problem, current, remaining, located, tick, workers)
         rounds.append({name: r.rmse_val for name, r in results.items()})
         tried = {name: r.rmse_val for name, r in results.items()}
-        passing = {name: r for name, r in results.items()
-                   if r.rmse_val <= (1 - MIN_RELATIVE_GAIN) * _reference_rmse(problem, current, r)}
+        passing = {name: r for name, r in results.items() if _clear_gain(problem, current, r)}
         if passing:
             best = _rank(passing, current)
             findings.append(Finding(EFFECTS[best], passing[best], current.rmse_val, "", tried))
@@ -384,7 +394,7 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
             # the pair must pass against the current model, and each member must add the
             # same clear gain on top of the other alone (no passenger)
             alone = min(results[first].rmse_val, results[second].rmse_val)
-            if together.rmse_val > (1 - MIN_RELATIVE_GAIN) * min(_reference_rmse(problem, current, together), alone):
+            if not _clear_gain(problem, current, together) or together.rmse_val > (1 - MIN_RELATIVE_GAIN) * alone:
                 break
             rounds.append({f"{first}+{second}": together.rmse_val})
             findings.append(Finding(EFFECTS[first], results[first], current.rmse_val, "", tried))
@@ -414,12 +424,24 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
     return result
 
 
+def _clear_gain(problem: Problem, current: FitResult, candidate: FitResult) -> bool:
+    """The candidate cuts the validation rmse by :data:`MIN_RELATIVE_GAIN` and also fits the
+    fit segments better. A refit that ends in another optimum of the baseline's parameters,
+    worse on the half it was fitted to, can do better on the validation half by chance when the
+    baseline is misspecified; that is no evidence for the effect it carried."""
+    return (candidate.rmse_fit < current.rmse_fit
+            and candidate.rmse_val <= (1 - MIN_RELATIVE_GAIN) * _reference_rmse(problem, current, candidate))
+
+
 def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) -> float:
     """What a candidate's validation rmse must be compared with: the current model's, or the
     current model run with the parameters the candidate's fit moved (the candidate itself
-    switched off), whichever is lower. Refitting lets the baseline leave a poor optimum (one
-    transient it cannot explain can pull it there); that gain survives switching the effect
-    off and is no evidence for the effect."""
+    switched off) when that is also a better fit of the fit segments. Refitting lets the
+    baseline leave a poor optimum (one transient it cannot explain can pull it there); that
+    gain survives switching the effect off and is no evidence for the effect. Parameters that
+    merely suit the validation half (worse on the fit half) are no better optimum."""
+    if problem.rmse(current.structure, candidate.values, "fit") > current.rmse_fit:
+        return current.rmse_val
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
 
 

@@ -402,7 +402,8 @@ class VoltageNonlinearity(Effect):
         x = u / self.U_REF
         ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
         poly = v["supply_offset_V"] + x * (v["supply_linear_V"] + x * (v["supply_quadratic_V"] + x * v["supply_cubic_V"]))
-        return u + ramp * poly
+        # a switch between supply and motor can lose voltage (a dead band) but never reverse it
+        return np.where(u >= 0, np.maximum(u + ramp * poly, 0.0), np.minimum(u + ramp * poly, 0.0))
 
     def apply(self, v, s, drive):
         drive.voltage_V = self.applied(v, drive.voltage_V)

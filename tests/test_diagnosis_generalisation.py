@@ -66,6 +66,8 @@ def test_motor_with_kt_equal_ke_is_clean():
     result = diagnose(case.recording())
     assert result.effect_names == []
     assert "motor_back_emf_V_s_per_rad" in result.baseline.values
+    assert result.baseline.values["motor_back_emf_V_s_per_rad"] < thesis()["main_motor"]["back_emf_constant_V_s_per_rad"]
+    assert "back-emf constant fitted" in result.to_json()["baseline"]["notes"][0]
 
 
 def test_kt_equal_ke_thermal_drift_of_viscous_only():
