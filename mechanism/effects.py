@@ -189,9 +189,11 @@ class LinkageDynamics(Effect):
 class PositionFriction(Effect):
     name = "position_friction"
     meaning = ("the Coulomb friction level varies over the arm revolution (bearing loads change with the crank "
-               "position): once- and twice-per-revolution terms, independent of speed")
+               "position): once-, twice- and three-times-per-revolution terms, independent of speed")
     enters = "friction"
-    ORDERS = (1, 2)
+    # the bearing loads come from the slider-crank and the cams and levers off the arm shaft:
+    # a single cosine (thesis 5.2.2), a broad bump or a lobed profile all need the third order
+    ORDERS = (1, 2, 3)
     parameters = tuple(p for k in ORDERS for p in _harmonic_pair(
         f"coulomb_order{k}", "Nm", 0.5, f"{k}x-per-revolution variation of the Coulomb level", 0.02))
     linear = tuple(p.name for p in parameters)
@@ -400,7 +402,8 @@ class VoltageNonlinearity(Effect):
         x = u / self.U_REF
         ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
         poly = v["supply_offset_V"] + x * (v["supply_linear_V"] + x * (v["supply_quadratic_V"] + x * v["supply_cubic_V"]))
-        return u + ramp * poly
+        # a switch between supply and motor can lose voltage (a dead band) but never reverse it
+        return np.where(u >= 0, np.maximum(u + ramp * poly, 0.0), np.minimum(u + ramp * poly, 0.0))
 
     def apply(self, v, s, drive):
         drive.voltage_V = self.applied(v, drive.voltage_V)

@@ -331,6 +331,24 @@ def baseline_model(baseline: str = "lumped", free: Sequence[str] = (), model_pat
     raise UserError(f"unknown baseline {baseline!r}; choose lumped or multibody")
 
 
+def fit_baseline(problem: Problem, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
+                 progress: Callable[[], None] | None = None) -> FitResult:
+    """The baseline fitted from its equation-error start (and from the nominal values)."""
+    model = baseline_model(baseline, free, model_path)
+    start = initial_baseline_values(problem, model)
+    return fit(problem, ModelStructure(model), [start, {p.name: p.nominal for p in model.parameters}], progress=progress)
+
+
+def damping_below_datasheet(result: FitResult) -> bool:
+    """The fitted viscous friction sits at zero: the recording has less speed-proportional
+    damping than the datasheet's back-emf alone gives (Ke n^2 Kt / R), so the datasheet's
+    back-emf constant is too large for this motor. (The thesis prints Kt 0.017 and Ke
+    0.021; in SI units a DC motor has Kt = Ke, and speed data sees only Ke relative to
+    Kt/R.)"""
+    viscous = result.values.get("viscous_motor_side_Nm_s_per_rad")
+    return viscous is not None and "motor_back_emf_V_s_per_rad" not in result.values and viscous < 1e-7
+
+
 def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
     """Equation-error start for the baseline: regress the drive equation on the measured
     velocity and its derivative (moving samples only) for J, viscous and Coulomb friction.
@@ -354,6 +372,13 @@ def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
         return values
     j_arm, c_arm, fc = coef
     by_name = {q.name: q for q in baseline.parameters}
+    ke = by_name.get("motor_back_emf_V_s_per_rad")
+    if ke is not None and c_arm < 0:
+        # less damping than the datasheet back-emf gives: the back-emf constant is smaller
+        keep = 0.25 * by_name["viscous_motor_side_Nm_s_per_rad"].nominal * n * n  # start off the bound
+        k = ke.nominal + (c_arm - keep) * motor.resistance_ohm / (n * n * motor.torque_constant_Nm_per_A)
+        values[ke.name] = float(min(max(k, ke.lower), ke.upper))
+        c_arm = keep
     for p, value in (("inertia_motor_side_kgm2", j_arm / n**2), ("viscous_motor_side_Nm_s_per_rad", c_arm / n**2),
                      ("coulomb_arm_Nm", fc)):
         par = by_name.get(p)
@@ -426,8 +451,5 @@ def identify(recording: Recording, baseline: str = "lumped", free: Sequence[str]
     require_identifiable(recording)
     with blas_single_threaded():
         problem = Problem(recording)
-        model = baseline_model(baseline, free, model_path)
-        structure = ModelStructure(model)
-        start = initial_baseline_values(problem, model)
-        result = fit(problem, structure, [start, {p.name: p.nominal for p in model.parameters}], progress=progress)
+        result = fit_baseline(problem, baseline, free, model_path, progress)
     return IdentificationResult(recording, baseline, result, problem)
