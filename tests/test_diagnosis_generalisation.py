@@ -76,3 +76,25 @@ def test_kt_equal_ke_thermal_drift_of_viscous_only():
     result = diagnose(case.recording())
     assert result.effect_names == ["thermal_drift"]
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
+
+
+def test_supply_dead_band_is_not_taken_for_stribeck():
+    """A 0.5 V supply dead band on a noisy staircase: the baseline absorbs most of it into the
+    Coulomb level, and any candidate's refit could then land in another optimum that is worse
+    on the fit half but better on the validation half. Such a refit is no evidence: only the
+    supply model fits both halves better."""
+    case = make_case(("voltage_nonlinearity",), seed=1, variant="stairs_noisy", duration_s=60.0,
+                     flavours={"voltage_nonlinearity": "dead_band"})
+    result = diagnose(case.recording())
+    assert result.effect_names == ["voltage_nonlinearity"]
+    assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
+
+
+def test_supply_model_loses_voltage_but_never_reverses_it():
+    from mechanism.effects import EFFECTS
+
+    supply = EFFECTS["voltage_nonlinearity"]
+    values = {"supply_offset_V": -1.0, "supply_linear_V": 0.0, "supply_quadratic_V": 0.0, "supply_cubic_V": 0.0}
+    logged = np.array([-10.0, -0.8, 0.0, 0.3, 0.8, 10.0])
+    applied = supply.applied(values, logged)
+    assert applied.tolist() == pytest.approx([-9.0, 0.0, 0.0, 0.0, 0.0, 9.0])
