@@ -26,8 +26,8 @@ SPEED_RPM = 600.0
 
 
 def _model():
-    from mechanism.models import DEFAULT_MODEL, load_model
-    from mechanism.parts import part_names
+    from mechanism.machine.models import DEFAULT_MODEL, load_model
+    from mechanism.machine.parts import part_names
 
     path = Path(os.environ.get("MECHANISM_BENCH_MODEL", DEFAULT_MODEL))
     if path.exists():
@@ -41,7 +41,7 @@ def _model():
 
 
 def _sewing_timing(model) -> str:
-    from mechanism.variants import PRESETS
+    from mechanism.inspection.variants import PRESETS
 
     return PRESETS["hook_timing_deg"]
 
@@ -49,7 +49,7 @@ def _sewing_timing(model) -> str:
 def _variants(count: int, timing_target: str, scratch: Path):
     import json
 
-    from mechanism.variants import read_variants
+    from mechanism.inspection.variants import read_variants
 
     doc = {
         "format": "mechanism-variants/1",
@@ -67,14 +67,14 @@ def _variants(count: int, timing_target: str, scratch: Path):
 
 
 def _subset(variants, count):
-    from mechanism.variants import VariantSet
+    from mechanism.inspection.variants import VariantSet
 
     return VariantSet(variants.parameters, variants.names[:count], variants.values[:count], variants.source)
 
 
 def _timed(model, variants, pairs, workers):
     """A batch and the CPU seconds it used in this process and its workers."""
-    from mechanism.variants import run_variants
+    from mechanism.inspection.variants import run_variants
 
     before = os.times()
     batch = run_variants(model, variants, pairs, workers=workers, progress=False)
@@ -88,7 +88,7 @@ def _revolution_seconds(model) -> tuple[float, int]:
     import mujoco
     import numpy as np
 
-    from mechanism.kinematics import solve_pose, velocity_ratios
+    from mechanism.kinematics.pose import solve_pose, velocity_ratios
 
     data = mujoco.MjData(model)
     omega = SPEED_RPM * 2 * np.pi / 60
@@ -107,8 +107,8 @@ def _revolution_seconds(model) -> tuple[float, int]:
 def main() -> None:
     import copy
 
-    from mechanism.clearance import Pair
-    from mechanism.variants import run_variants
+    from mechanism.inspection.clearance import Pair
+    from mechanism.inspection.variants import run_variants
 
     count = int(os.environ.get("MECHANISM_BENCH_VARIANTS", "1000"))
     model, label, timing = _model()

@@ -35,8 +35,8 @@ def _exports(scratch: Path):
 def main() -> None:
     import mujoco
 
-    from converters import convert, read
-    from converters.geometry import load_meshes
+    from mechanism.converters import convert, read
+    from mechanism.converters.geometry import load_meshes
 
     with tempfile.TemporaryDirectory() as scratch:
         scratch = Path(scratch)

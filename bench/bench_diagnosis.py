@@ -21,7 +21,7 @@ PAIRS = ("torque_ripple,thermal_drift", "linkage_dynamics,needle_penetration", "
 
 
 def _cases(seeds: list[int]) -> list[tuple[str, int]]:
-    from mechanism.effects import EFFECTS
+    from mechanism.sysid.effects import EFFECTS
 
     cases = [(name, seed) for seed in seeds for name in EFFECTS]
     cases += [("none", seed) for seed in seeds] + [("none", seeds[-1] + 100)]
@@ -39,9 +39,9 @@ def _timed(fn, repeat: int = 1):
 
 
 def main() -> None:
-    from mechanism.diagnosis import diagnose
-    from mechanism.identification import ModelStructure, Problem, identify
-    from mechanism.recording import read_recording
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.identification import ModelStructure, Problem, identify
+    from mechanism.sysid.recording import read_recording
     from mechanism.testbench import make_recording, write_recording
 
     from bench.sindy_baseline import discover

@@ -87,8 +87,8 @@ def _member_detectability(cache, variant, seed, effects, member, truth, duration
 
 
 def run(variants, seeds, effects=None, pairs=True, duration=60.0, cache=None, out_json=None, quiet=False):
-    from mechanism.diagnosis import diagnose
-    from mechanism.recording import make_recording
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.recording import make_recording
 
     cache = Path(cache or os.environ.get("MECHANISM_GEN_CACHE") or tempfile.mkdtemp(prefix="gen-diagnosis-"))
     cache.mkdir(parents=True, exist_ok=True)

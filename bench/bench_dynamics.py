@@ -17,11 +17,11 @@ import mujoco
 import mujoco.rollout
 import numpy as np
 
-from mechanism.kinematics import solve_pose, velocity_ratios
-from mechanism.machine import Machine
-from mechanism.models import DEFAULT_MODEL, load_model
-from mechanism.reduced import ReducedModel
-from mechanism.simulation import simulate
+from mechanism.kinematics.pose import solve_pose, velocity_ratios
+from mechanism.machine.machine import Machine
+from mechanism.machine.models import DEFAULT_MODEL, load_model
+from mechanism.dynamics.reduced import ReducedModel
+from mechanism.dynamics.simulation import simulate
 
 SIM_SECONDS = 10.0
 

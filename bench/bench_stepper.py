@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from mechanism import step_profiles, stepper
+from mechanism.steppers import step_profiles, stepper
 
 
 def _best_of(function, repeats=3):

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from mechanism.effects import EFFECTS
-from mechanism.identification import ModelStructure, Problem, torque_balance
-from mechanism.lumped import LumpedBaseline
-from mechanism.recording import Recording, smoothed_velocity
+from mechanism.sysid.effects import EFFECTS
+from mechanism.sysid.identification import ModelStructure, Problem, torque_balance
+from mechanism.dynamics.lumped import LumpedBaseline
+from mechanism.sysid.recording import Recording, smoothed_velocity
 
 THRESHOLD = 0.02  # on coefficients of unit-variance columns, relative to the target's std
 SHARE = 0.05

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mechanism.models import ASSETS
-from mechanism.outputs import atomic_dir, atomic_file
+from mechanism.machine.models import ASSETS
+from mechanism.files.outputs import atomic_dir, atomic_file
 
 EXPORT = ASSETS / "cad" / "export" / "sewing_machine.xml"
 RECORDING = ASSETS / "recordings" / "torque_ripple_seed3.csv"
@@ -34,7 +34,7 @@ class _Steps:
 
 
 def _convert(out: Path, final: Path) -> tuple[Path, list[str]]:
-    from converters import convert
+    from mechanism.converters import convert
     from mechanism.cli.convert import drive_lines, summary_lines
 
     report = convert(EXPORT, out / "model")
@@ -45,7 +45,7 @@ def _convert(out: Path, final: Path) -> tuple[Path, list[str]]:
 
 
 def _needle(out: Path, model: Path) -> dict:
-    from mechanism.needle import needle_motion, plot, write_csv
+    from mechanism.inspection.needle import needle_motion, plot, write_csv
 
     motion = needle_motion(model)
     write_csv(motion, out / "needle.csv")
@@ -57,9 +57,9 @@ def _needle(out: Path, model: Path) -> dict:
 
 def table2(model: Path | None = None) -> list[dict]:
     """The thesis's Table 2 (no needle, no fabric) against the full model, cold and warm."""
-    from mechanism.machine import Machine, MachineConfig
-    from mechanism.reference import thesis
-    from mechanism.simulation import simulate
+    from mechanism.machine.machine import Machine, MachineConfig
+    from mechanism.data.reference import thesis
+    from mechanism.dynamics.simulation import simulate
 
     cold = Machine(model, MachineConfig(needle=False))
     warm = Machine(model, MachineConfig(needle=False, warm=True))
@@ -77,10 +77,10 @@ def table2(model: Path | None = None) -> list[dict]:
 
 def _simulate(out: Path, model: Path) -> dict:
     from mechanism.cli.simulate import plot_run
-    from mechanism.inputs import VoltageProfile
-    from mechanism.machine import Machine, MachineConfig
-    from mechanism.simulation import simulate
-    from mechanism.tables import write_table
+    from mechanism.physics.inputs import VoltageProfile
+    from mechanism.machine.machine import Machine, MachineConfig
+    from mechanism.dynamics.simulation import simulate
+    from mechanism.files.tables import write_table
 
     rows = table2(model)
     write_table(out / "table2.csv", {key: [row[key] for row in rows] for key in rows[0]},
@@ -96,9 +96,9 @@ def _simulate(out: Path, model: Path) -> dict:
 
 
 def _diagnose(out: Path) -> dict:
-    from mechanism.diagnosis import diagnose
-    from mechanism.diagnosis_report import diagnosis_report
-    from mechanism.recording import read_recording
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.report import diagnosis_report
+    from mechanism.sysid.recording import read_recording
 
     result = diagnose(read_recording(RECORDING), "lumped")
     document = result.to_json()
@@ -111,9 +111,9 @@ def _diagnose(out: Path) -> dict:
 
 
 def _stepper(out: Path) -> dict:
-    from mechanism import stepper
-    from mechanism.step_profiles import thread_cut
-    from mechanism.tables import write_table
+    from mechanism.steppers import stepper
+    from mechanism.steppers.step_profiles import thread_cut
+    from mechanism.files.tables import write_table
 
     run = stepper.simulate(thread_cut(), kind="circuit")
     write_table(out / "stepper_thread_cut.csv", run.columns(1e-4))
@@ -123,7 +123,7 @@ def _stepper(out: Path) -> dict:
 
 def run(out: str | os.PathLike = "out") -> Path:
     """Run every step into ``out`` (replaced as a whole at the end)."""
-    from mechanism import inspection
+    from mechanism.inspection import steps as inspection
 
     out = Path(out)
     step = _Steps(8)

@@ -1,7 +1,7 @@
 """A small, independent truth model for the diagnosis tests (a stand-in until/besides the
 project's virtual test bench, ``mechanism.testbench``).
 
-Deliberately a different code path from ``mechanism.lumped`` / ``mechanism.effects``:
+Deliberately a different code path from ``mechanism.dynamics.lumped`` / ``mechanism.sysid.effects``:
 fixed-step explicit Euler at 0.1 ms on the arm side, a slider-crank needle bar with real geometry,
 Hess-Soom (not Tustin) Stribeck friction, a thermal state heated by the friction power,
 a half-sine needle-penetration pulse, a PWM-switch voltage curve, a two-mass belt, and an

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import mechanisms as M
-from mechanism.clearance import Pair, all_pairs, check_clearance, parse_pairs
+from mechanism.inspection.clearance import Pair, all_pairs, check_clearance, parse_pairs
 from mechanism.errors import UserError
-from mechanism.kinematics import sweep
+from mechanism.kinematics.pose import sweep
 
 TOL_MM = 0.01
 
@@ -34,7 +34,7 @@ def test_two_cylinders_minimum_distance_and_angle():
 
 def test_sampled_curve_is_the_analytic_distance():
     sweep_result = check_clearance(M.crank_and_post().compile(), [Pair("post", "pin")], resolution_deg=5).results[0]
-    from mechanism.clearance import ClearanceSweep
+    from mechanism.inspection.clearance import ClearanceSweep
 
     sweep = ClearanceSweep(M.crank_and_post().compile(), [Pair("post", "pin")], resolution_deg=5)
     curve = sweep.run(full_curve=True)[0]

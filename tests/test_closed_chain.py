@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from converters import convert
+from mechanism.converters import convert
 from exports import FourBar, Gen1Export, bar_inertia, rotation
 from quirk_exports import INCH, proe_fourbar
 

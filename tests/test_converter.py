@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from converters import convert, read
-from converters.errors import ExportError
+from mechanism.converters import convert, read
+from mechanism.converters.errors import ExportError
 from exports import (FourBar, Gen1Export, bar_inertia, box_stl, gen2_export, gen2_joint, gen2_part, gen2_transform,
                      rotation)
 
@@ -396,7 +396,7 @@ def test_gen2_stl_written_in_millimetres_is_detected_by_its_mass_properties(tmp_
 
 
 def test_units_of_first_generation_exports():
-    from converters.units import inertia_factor, length_factor, mass_factor, volume_factor
+    from mechanism.converters.units import inertia_factor, length_factor, mass_factor, volume_factor
 
     assert length_factor('"in"', "t") == 0.0254 and length_factor("millimeter", "t") == 1e-3
     assert mass_factor("lbm", "t") == pytest.approx(0.45359237) and mass_factor("pound", "t") == mass_factor("lbm", "t")

@@ -5,11 +5,11 @@ import json
 
 import pytest
 
-from mechanism.diagnosis import TIE_BAND, Diagnosis, _rank, diagnose
-from mechanism.effects import EFFECTS
-from mechanism.identification import FitResult, ModelStructure
-from mechanism.lumped import LumpedBaseline
-from mechanism.recording import make_recording, read_recording
+from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank, diagnose
+from mechanism.sysid.effects import EFFECTS
+from mechanism.sysid.identification import FitResult, ModelStructure
+from mechanism.dynamics.lumped import LumpedBaseline
+from mechanism.sysid.recording import make_recording, read_recording
 
 from synthetic_truth import simulate_truth
 

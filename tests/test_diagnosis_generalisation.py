@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.diagnosis import diagnose
-from mechanism.reference import thesis
+from mechanism.sysid.diagnosis import diagnose
+from mechanism.data.reference import thesis
 
 from truth_variants import VARIANTS, draw_machine, make_case, simulate_truth
 
@@ -91,7 +91,7 @@ def test_supply_dead_band_is_not_taken_for_stribeck():
 
 
 def test_supply_model_loses_voltage_but_never_reverses_it():
-    from mechanism.effects import EFFECTS
+    from mechanism.sysid.effects import EFFECTS
 
     supply = EFFECTS["voltage_nonlinearity"]
     values = {"supply_offset_V": -1.0, "supply_linear_V": 0.0, "supply_quadratic_V": 0.0, "supply_cubic_V": 0.0}

@@ -4,12 +4,12 @@
 import numpy as np
 import pytest
 
-from mechanism.calibration import ripple
-from mechanism.inputs import VoltageProfile, pwm_voltage
-from mechanism.machine import ARM, Machine, MachineConfig
-from mechanism.reduced import ReducedModel
-from mechanism.reference import thesis
-from mechanism.simulation import simulate
+from mechanism.sysid.calibration import ripple
+from mechanism.physics.inputs import VoltageProfile, pwm_voltage
+from mechanism.machine.machine import ARM, Machine, MachineConfig
+from mechanism.dynamics.reduced import ReducedModel
+from mechanism.data.reference import thesis
+from mechanism.dynamics.simulation import simulate
 
 REF = thesis()
 KT = REF["main_motor"]["torque_constant_Nm_per_A"]
@@ -92,7 +92,7 @@ def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
     loss = speed_by_angle(machine) - speed_by_angle(plain)
     # Where the needle point enters the 12-layer stack on its way down (from the kinematics).
     tables = ReducedModel(machine).tables
-    height = machine.needle_z_mm(tables.needle_z_m)
+    height = machine.needle_z_mm(tables.tool_z_m)
     stack_mm = machine.fabric.thickness_m * 1e3
     down = np.degrees(tables.angle_rad) < BDC_DEG
     entry = np.degrees(tables.angle_rad[down][np.argmax(height[down] <= stack_mm)])
@@ -102,7 +102,7 @@ def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
 
 
 def test_simulated_needle_height_is_the_needle_inspection_at_the_simulated_angle():
-    from mechanism.needle import needle_motion
+    from mechanism.inspection.needle import needle_motion
 
     run = simulate(19.6, 1.0, machine=Machine())
     motion = needle_motion(samples=720)

@@ -10,13 +10,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from mechanism import machine as machine_module
-from mechanism.friction import FrictionLaw, python_friction
-from mechanism.inputs import VoltageProfile, pwm_voltage
+from mechanism.machine import machine as machine_module
+from mechanism.physics.friction import FrictionLaw, python_friction
+from mechanism.physics.inputs import VoltageProfile, pwm_voltage
 from mechanism.errors import UserError
-from mechanism.machine import Machine, MachineConfig
-from mechanism.motor import DCMotor
-from mechanism.simulation import simulate
+from mechanism.machine.machine import Machine, MachineConfig
+from mechanism.physics.motor import DCMotor
+from mechanism.dynamics.simulation import simulate
 
 TOY = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
 KT, KE, R, N = 0.017, 0.021, 1.1, 8

@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from converters import convert, read
-from converters.names import sanitize
+from mechanism.converters import convert, read
+from mechanism.converters.names import sanitize
 from exports import rotation
 from quirk_exports import (INCH, X, Y, Z, ball_and_beam, circles_meet, creo_arm, furuta, hexapod_link, onshape_copter,
                            proe_fourbar, robot_shin, scara_printer)

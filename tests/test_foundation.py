@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from mechanism.errors import UserError
-from mechanism.outputs import atomic_dir, atomic_file
-from mechanism.reference import thesis
-from mechanism.tables import check_increasing, parse_table, read_table, write_table
+from mechanism.files.outputs import atomic_dir, atomic_file
+from mechanism.data.reference import thesis
+from mechanism.files.tables import check_increasing, parse_table, read_table, write_table
 
 from conftest import shared_dir
 

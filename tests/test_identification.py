@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.identification import identify
-from mechanism.recording import make_recording, read_recording
-from mechanism.steady_state import fit_steady_state, thesis_table2
-from mechanism.reference import thesis
+from mechanism.sysid.identification import identify
+from mechanism.sysid.recording import make_recording, read_recording
+from mechanism.sysid.steady_state import fit_steady_state, thesis_table2
+from mechanism.data.reference import thesis
 
 from synthetic_truth import simulate_truth
 
@@ -42,7 +42,7 @@ def equivalent(truth, motor):
 
 
 def test_identify_recovers_the_bench_machine(clean_bench):
-    from mechanism.lumped import MotorConstants
+    from mechanism.dynamics.lumped import MotorConstants
 
     csv, truth = clean_bench
     result = identify(read_recording(csv))
@@ -89,7 +89,7 @@ def test_free_motor_constant_is_fitted(clean_bench):
 
 
 def test_steady_state_fit_is_exact_on_synthetic_points():
-    from mechanism.lumped import MotorConstants
+    from mechanism.dynamics.lumped import MotorConstants
 
     motor = MotorConstants.datasheet()
     d, fc = 3e-5, 0.2

@@ -4,7 +4,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mechanism.models import DEFAULT_MODEL
+from mechanism.machine.models import DEFAULT_MODEL
 
 pytestmark = pytest.mark.skipif(not DEFAULT_MODEL.exists(), reason="the shipped sewing machine MJCF is not in assets/mjcf")
 
@@ -13,22 +13,22 @@ RPM = 600.0
 
 @pytest.fixture(scope="module")
 def needle():
-    from mechanism.needle import needle_motion
+    from mechanism.inspection.needle import needle_motion
 
     return needle_motion(samples=360)
 
 
 @pytest.fixture(scope="module")
 def model():
-    from mechanism.models import load_model
+    from mechanism.machine.models import load_model
 
     return load_model()
 
 
 def test_needle_tip_probe_reproduces_the_needle_inspection(needle):
-    from mechanism.machine import needle_plate_top_z
-    from mechanism.models import load_spec
-    from mechanism.probes import Probe, probe_cycle
+    from mechanism.machine.machine import needle_plate_top_z
+    from mechanism.machine.models import load_spec
+    from mechanism.inspection.probes import Probe, probe_cycle
 
     probes = [Probe("needle_tip", "position"), Probe("needle_tip", "velocity"), Probe("needle_tip", "acceleration")]
     columns = probe_cycle(load_spec(), probes, speed_rpm=RPM, resolution_deg=1.0).columns
@@ -47,8 +47,8 @@ def test_needle_tip_probe_reproduces_the_needle_inspection(needle):
 def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(model, needle):
     """Two independent measurements: the needle inspection's hook point (a site) to the
     needle mesh, and the clearance checker's exact part-to-part distance, at the passage."""
-    from mechanism.clearance import ClearanceSweep, Pair
-    from mechanism.kinematics import sweep as pose_sweep
+    from mechanism.inspection.clearance import ClearanceSweep, Pair
+    from mechanism.kinematics.pose import sweep as pose_sweep
 
     sweep = ClearanceSweep(model, [Pair("needle", "hook")])
     result = sweep.run(full_curve=True)[0]
@@ -62,7 +62,7 @@ def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(m
 
 
 def test_shipped_machine_passes_at_nominal_dimensions(model):
-    from mechanism.clearance import check_clearance, parse_pairs
+    from mechanism.inspection.clearance import check_clearance, parse_pairs
 
     report = check_clearance(model, parse_pairs("needle:hook,needle:needle_plate", model))
     hook, plate = report.results
@@ -73,9 +73,9 @@ def test_shipped_machine_passes_at_nominal_dimensions(model):
 
 
 def test_mistimed_hook_collides_with_the_needle(model):
-    from mechanism.clearance import Pair
-    from mechanism.inspection import MISTIMED_HOOK_DEG
-    from mechanism.variants import VariantSet, parameter, run_variants
+    from mechanism.inspection.clearance import Pair
+    from mechanism.inspection.steps import MISTIMED_HOOK_DEG
+    from mechanism.inspection.variants import VariantSet, parameter, run_variants
 
     variants = VariantSet([parameter("hook_timing_deg")], ["nominal", "early hook"], np.array([[0.0], [MISTIMED_HOOK_DEG]]))
     batch = run_variants(model, variants, [Pair("needle", "hook")], progress=False)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mechanism.errors import UserError
-from mechanism.kinematics import PoseError, solve_pose, sweep, velocity_ratios
+from mechanism.kinematics.pose import PoseError, solve_pose, sweep, velocity_ratios
 
 R, L = 0.0165, 0.05  # crank radius and rod length [m]
 

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.lumped import (Drive, LumpedBaseline, MotorConstants, Segments, Signals, lagged_voltage,
+from mechanism.dynamics.lumped import (Drive, LumpedBaseline, MotorConstants, Segments, Signals, lagged_voltage,
                               simulate, simulate_numpy)
-from mechanism.reference import thesis
+from mechanism.data.reference import thesis
 
 DT = 1e-3
 

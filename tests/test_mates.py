@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from converters import convert, read
+from mechanism.converters import convert, read
 from exports import (gen2_export, gen2_instance, gen2_mate, gen2_part, gen2_transform, gen2_unknown, mate_side,
                      pin_mates, rotation)
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from mechanism.motor import DCMotor, Thermal, motor_current
+from mechanism.physics.motor import DCMotor, Thermal, motor_current
 
 R, KT, KE = 1.1, 0.017, 0.021
 LOCKED = """<mujoco><option timestep="0.0001" integrator="implicitfast"/><worldbody><body>

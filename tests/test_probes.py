@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import mechanisms as M
-from mechanism.cycle import cycle_angles, kinematic_cycle, set_state
+from mechanism.kinematics.cycle import cycle_angles, kinematic_cycle, set_state
 from mechanism.errors import UserError
-from mechanism.probes import Probe, probe_cycle
+from mechanism.inspection.probes import Probe, probe_cycle
 
 RPM = 600.0
 OMEGA = RPM * 2 * np.pi / 60
@@ -110,7 +110,7 @@ def test_dynamic_probes_obey_newtons_law_on_the_needle_bar():
     """Probes along a dynamic simulation (motor, friction): bushing + rod + weight = m a."""
     from pathlib import Path
 
-    from mechanism.probes import probe_simulation
+    from mechanism.inspection.probes import probe_simulation
 
     toy = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
     probes = [

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from converters import convert, read
+from mechanism.converters import convert, read
 
 FILES = {  # folder/file below $MECHANISM_REAL_EXPORTS, as docs/real_exports.md lays them out
     "fourbar": "proe-fourbar-firstgen/ASM0001.xml",

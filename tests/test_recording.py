@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mechanism.errors import UserError
-from mechanism.recording import (ENCODER_STEP_RAD, check_excitation, make_recording, read_recording,
+from mechanism.sysid.recording import (ENCODER_STEP_RAD, check_excitation, make_recording, read_recording,
                                  smoothed_velocity)
 
 FS = 1000.0

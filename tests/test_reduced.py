@@ -7,11 +7,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from mechanism.inputs import VoltageProfile
-from mechanism.kinematics import solve_pose, velocity_ratios
-from mechanism.machine import Machine
-from mechanism.reduced import ReducedModel, compute_tables, periodic_derivative
-from mechanism.simulation import simulate
+from mechanism.physics.inputs import VoltageProfile
+from mechanism.kinematics.pose import solve_pose, velocity_ratios
+from mechanism.machine.machine import Machine
+from mechanism.dynamics.reduced import ReducedModel
+from mechanism.kinematics.linkage import compute_tables, periodic_derivative
+from mechanism.dynamics.simulation import simulate
 
 TOY = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
 
@@ -24,7 +25,7 @@ def model():
 
 
 def test_tables_agree_with_mujoco_energies(model):
-    tables = compute_tables(model, n=360)
+    tables = compute_tables(model, "arm_shaft", "needle_tip", n=360)
     data = mujoco.MjData(model)
     potential = []
     for angle, inertia in zip(tables.angle_rad[::15], tables.inertia_kgm2[::15]):

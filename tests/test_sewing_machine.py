@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from mechanism.kinematics import solve_pose
-from mechanism.models import DEFAULT_MODEL, load_model
-from mechanism.needle import needle_motion
-from mechanism.reduced import compute_tables
-from mechanism.reference import thesis
+from mechanism.kinematics.pose import solve_pose
+from mechanism.machine.models import DEFAULT_MODEL, load_model
+from mechanism.inspection.needle import needle_motion
+from mechanism.kinematics.linkage import compute_tables
+from mechanism.data.reference import thesis
 
 REPO = Path(__file__).resolve().parent.parent
 CAD = REPO / "assets" / "cad"
@@ -117,7 +117,7 @@ def test_export_names_the_frames_the_tools_rely_on():
 # --------------------------------------------------------------------------- the MJCF
 
 def test_committed_mjcf_is_what_the_converter_makes_of_the_committed_export(tmp_path):
-    from converters import convert
+    from mechanism.converters import convert
 
     convert(EXPORT / "sewing_machine.xml", tmp_path / "mjcf", mesh_dir=tmp_path / "meshes")
     assert (tmp_path / "mjcf" / "sewing_machine.xml").read_text() == DEFAULT_MODEL.read_text()
@@ -263,7 +263,7 @@ def test_ten_arm_turns_turn_the_motor_80_the_lower_shaft_10_and_the_hook_20_time
 
 
 def test_gravity_holding_torque_is_largest_after_bdc_and_smallest_on_the_way_down(model, motion):
-    tables = compute_tables(model, n=360)
+    tables = compute_tables(model, "arm_shaft", "needle_tip", n=360)
     torque = tables.gravity_torque_Nm  # what the arm must supply to hold the machine still
     angle = np.degrees(tables.angle_rad)
     bdc = motion.bdc_angle_deg
@@ -315,7 +315,7 @@ def test_no_two_parts_interpenetrate_over_a_revolution(model):
     """Exact mesh triangles (not MuJoCo's convex hulls) of every pair of bodies, at every
     2 degrees of arm angle: pins run in their bores with clearance, the hook point passes
     the needle's scarf, the take-up lever leaves the head through its slot."""
-    from mechanism.kinematics import sweep
+    from mechanism.kinematics.pose import sweep
 
     manager = trimesh.collision.CollisionManager()
     data = mujoco.MjData(model)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mechanism import step_profiles
+from mechanism.steppers import step_profiles
 from mechanism.errors import UserError
 
 

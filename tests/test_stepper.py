@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from mechanism import step_profiles, stepper
+from mechanism.steppers import step_profiles, stepper
 from mechanism.errors import UserError
-from mechanism.reference import thesis
+from mechanism.data.reference import thesis
 
 KINDS = ("circuit", "physical")
 

@@ -16,8 +16,8 @@ import pytest
 from scipy.optimize import curve_fit
 
 from mechanism.errors import UserError
-from mechanism.reference import thesis
-from mechanism.tables import check_increasing, read_table
+from mechanism.data.reference import thesis
+from mechanism.files.tables import check_increasing, read_table
 from mechanism.testbench import ANGLE_STEP_RAD, EFFECTS, make_recording, write_recording
 
 from conftest import REPO_ROOT
@@ -414,7 +414,7 @@ def test_every_effect_changes_the_arm_speed_visibly_somewhere():
 
 # --- separation from the diagnosis side, CLI and shipped recordings -------------------------------
 
-FORBIDDEN = ("mechanism.identification", "mechanism.diagnosis", "mechanism.lumped", "mechanism.effects")
+FORBIDDEN = ("mechanism.sysid.identification", "mechanism.sysid.diagnosis", "mechanism.dynamics.lumped", "mechanism.sysid.effects")
 
 
 def _testbench_sources():

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import mechanisms as M
-from mechanism.clearance import Pair
+from mechanism.inspection.clearance import Pair
 from mechanism.errors import UserError
-from mechanism.kinematics import solve_pose, sweep
-from mechanism.variants import apply_parameter, parameter, read_variants, run_variants
+from mechanism.kinematics.pose import solve_pose, sweep
+from mechanism.inspection.variants import apply_parameter, parameter, read_variants, run_variants
 
 
 @pytest.fixture(scope="module")

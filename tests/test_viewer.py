@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import mechanisms as M
-from mechanism.viewer import _color, cycle_motion, recording_motion, view
+from mechanism.inspection.viewer import _color, cycle_motion, recording_motion, view
 
 CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from mechanism import zigzag
+from mechanism.steppers import zigzag
 from mechanism.errors import UserError
 
 CRANK, ROD, TDC = 16.5, 50.0, 21.0

@@ -319,7 +319,7 @@ class Case:
             np.savetxt(f, np.column_stack(data), fmt=fmt)
 
     def recording(self):
-        from mechanism.recording import make_recording
+        from mechanism.sysid.recording import make_recording
 
         return make_recording(self.time_s, self.voltage_V, self.arm_angle_rad, self.current_A,
                               source=f"variants:{self.variant.name}:{'+'.join(self.effects) or 'none'}:{self.seed}")
@@ -580,7 +580,7 @@ def detectability(sensed_a: np.ndarray, sensed_b: np.ndarray, window_s: float = 
     """RMS difference [rad/s] of the speed the sensor reports (noise-free, unquantised,
     through the tool's differentiator) between two recordings of the same seed, over the most
     affected ``window_s`` (use 0.2 s for the belt's ringing after steps)."""
-    from mechanism.recording import smoothed_velocity
+    from mechanism.sysid.recording import smoothed_velocity
 
     diff = smoothed_velocity(sensed_a, 1 / FS) - smoothed_velocity(sensed_b, 1 / FS)
     k = max(1, int(window_s * FS))

@@ -36,7 +36,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import firstgen  # noqa: E402
 
-from mechanism.outputs import atomic_dir  # noqa: E402  (the project's own atomic folder replace)
+from mechanism.files.outputs import atomic_dir  # noqa: E402  (the project's own atomic folder replace)
 
 DEFAULT_PARAMS = HERE / "sewing_machine.params.json"
 DEFAULT_OUT = HERE / "export"

@@ -95,7 +95,7 @@ def describe(exc: BaseException) -> str:
     from mechanism.errors import UserError
 
     try:
-        from converters.errors import ExportError
+        from mechanism.converters.errors import ExportError
     except ImportError:  # pragma: no cover - converters is part of the package
         ExportError = UserError
     text = " ".join(str(exc).split()) or exc.__class__.__name__

@@ -48,16 +48,16 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism.clearance import all_pairs, check_clearance, parse_pairs, write_json, write_rows
+    from mechanism.inspection.clearance import all_pairs, check_clearance, parse_pairs, write_json, write_rows
     from mechanism.errors import UserError
-    from mechanism.models import load_model
+    from mechanism.machine.models import load_model
 
     if args.workers != 1 and not args.variants:
         raise UserError("--workers applies to --variants")
     model = load_model(args.model)
     pairs = all_pairs(model) if args.all_pairs else parse_pairs(args.pairs, model)
     if args.variants:
-        from mechanism.variants import read_variants, run_variants
+        from mechanism.inspection.variants import read_variants, run_variants
 
         variants = read_variants(args.variants)
         batch = run_variants(model, variants, pairs, args.required, args.driver, args.cycle, args.resolution,

@@ -55,9 +55,9 @@ def drive_lines(report) -> list[str]:
     import mujoco
     import numpy as np
 
-    from mechanism.kinematics import PoseError
-    from mechanism.models import load_model
-    from mechanism.reduced import compute_tables
+    from mechanism.kinematics.pose import PoseError
+    from mechanism.machine.models import load_model
+    from mechanism.kinematics.linkage import compute_tables
 
     try:
         model = load_model(report.mjcf_path)
@@ -72,7 +72,7 @@ def drive_lines(report) -> list[str]:
     if driver is None:
         return lines
     try:
-        tables = compute_tables(model, n=180, driver=driver)
+        tables = compute_tables(model, driver, n=180)
     except PoseError as exc:
         return lines + [f"reflected inertia: not computed ({exc})"]
     except Exception as exc:  # noqa: BLE001 - numerical trouble in an odd export only loses this line
@@ -89,7 +89,7 @@ def drive_lines(report) -> list[str]:
 
 
 def run(args) -> int:
-    from converters import convert
+    from mechanism.converters import convert
 
     report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up)
     print("\n".join(summary_lines(report, extra=drive_lines(report))))

@@ -33,10 +33,10 @@ def run(args) -> int:
     import sys
 
     from mechanism.cli.identify import progress_bar, write_outputs
-    from mechanism.diagnosis import diagnose, not_identifiable_json
-    from mechanism.effects import effect
-    from mechanism.identification import NotIdentifiable
-    from mechanism.recording import read_recording
+    from mechanism.sysid.diagnosis import diagnose, not_identifiable_json
+    from mechanism.sysid.effects import effect
+    from mechanism.sysid.identification import NotIdentifiable
+    from mechanism.sysid.recording import read_recording
 
     candidates = None
     if args.effects:
@@ -51,7 +51,7 @@ def run(args) -> int:
         write_outputs(args, not_identifiable_json(rec.source, str(exc)))
         sys.stderr.write(f"error: recording {rec.source}: not identifiable: {exc}\n")
         return 2
-    from mechanism.diagnosis_report import diagnosis_report
+    from mechanism.sysid.report import diagnosis_report
 
     data = result.to_json()
     write_outputs(args, data, lambda folder: diagnosis_report(result, folder))

@@ -47,7 +47,7 @@ def write_outputs(args, data: dict, report=None) -> None:
     """The JSON (atomically) and, with --report, the HTML report, for identify and diagnose."""
     import json
 
-    from mechanism.outputs import atomic_file
+    from mechanism.files.outputs import atomic_file
 
     if getattr(args, "json", None):
         with atomic_file(args.json) as handle:
@@ -74,8 +74,8 @@ def progress_bar(description: str):
 
 def run(args) -> int:
     from mechanism.errors import UserError
-    from mechanism.identification import identify
-    from mechanism.recording import read_recording
+    from mechanism.sysid.identification import identify
+    from mechanism.sysid.recording import read_recording
 
     if args.table2:
         return run_table2(args)
@@ -86,7 +86,7 @@ def run(args) -> int:
     bar, tick = progress_bar("identify")
     with bar:
         result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model)
-    from mechanism.diagnosis_report import identification_report
+    from mechanism.sysid.report import identification_report
 
     write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))
     for name, value in result.params.items():
@@ -97,7 +97,7 @@ def run(args) -> int:
 
 
 def run_table2(args) -> int:
-    from mechanism.steady_state import thesis_table2
+    from mechanism.sysid.steady_state import thesis_table2
 
     columns = thesis_table2()
     write_outputs(args, {name: col.to_json() for name, col in columns.items()})

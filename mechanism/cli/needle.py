@@ -44,7 +44,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism.needle import needle_motion, plot, write_csv
+    from mechanism.inspection.needle import needle_motion, plot, write_csv
 
     motion = needle_motion(args.model, samples=args.samples, speed_rpm=args.speed)
     write_csv(motion, args.csv)

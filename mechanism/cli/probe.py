@@ -50,7 +50,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from mechanism.errors import UserError
-    from mechanism.probes import parse_probes, run_probes
+    from mechanism.inspection.probes import parse_probes, run_probes
 
     if args.voltage is not None and args.duration is None:
         raise UserError("--voltage needs --duration (simulated time in seconds)")

@@ -58,11 +58,11 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from mechanism.errors import UserError
-    from mechanism.inputs import VoltageProfile
-    from mechanism.machine import Machine, MachineConfig
-    from mechanism.motor import DCMotor, Thermal
-    from mechanism.simulation import simulate
-    from mechanism.tables import write_table
+    from mechanism.physics.inputs import VoltageProfile
+    from mechanism.machine.machine import Machine, MachineConfig
+    from mechanism.physics.motor import DCMotor, Thermal
+    from mechanism.dynamics.simulation import simulate
+    from mechanism.files.tables import write_table
 
     if not (args.csv or args.plot or args.summary):
         raise UserError("nothing to output: give --csv, --plot and/or --summary")
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     machine = Machine(args.model, config)
     start = float(np.deg2rad(args.start_angle))
     if args.reduced:
-        from mechanism.reduced import ReducedModel
+        from mechanism.dynamics.reduced import ReducedModel
 
         result = ReducedModel(machine).simulate(voltage, duration, start_angle_rad=start, sample_rate_hz=args.rate)
     else:
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
 def plot_run(result, path) -> None:
     import numpy as np
 
-    from mechanism.plotting import plt, save_figure
+    from mechanism.files.plotting import plt, save_figure
 
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     axes[0].plot(result.time_s, result.arm_velocity_rad_s * 60 / (2 * np.pi), lw=0.8)

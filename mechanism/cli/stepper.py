@@ -88,10 +88,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism import step_profiles, stepper
+    from mechanism.steppers import step_profiles, stepper
     from mechanism.errors import UserError
-    from mechanism.outputs import atomic_file
-    from mechanism.tables import write_table
+    from mechanism.files.outputs import atomic_file
+    from mechanism.files.tables import write_table
 
     mode = stepper.drive_mode(args.mode)
     if args.rate is not None and not (args.rate > 0 and args.rate != float("inf")):

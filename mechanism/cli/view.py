@@ -36,7 +36,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from mechanism.errors import UserError
-    from mechanism.viewer import view
+    from mechanism.inspection.viewer import view
 
     if not args.html and not args.serve:
         raise UserError("nothing to do: give --html OUT.html and/or --serve")

@@ -84,10 +84,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism import zigzag
+    from mechanism.steppers import zigzag
     from mechanism.errors import UserError
-    from mechanism.outputs import atomic_file
-    from mechanism.tables import write_table
+    from mechanism.files.outputs import atomic_file
+    from mechanism.files.tables import write_table
 
     for name in ("spm", "width_mm", "rate", "crank_mm", "rod_mm", "tolerance_mm"):
         value = getattr(args, name)

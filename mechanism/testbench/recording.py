@@ -11,8 +11,8 @@ import numpy as np
 
 from mechanism import __version__
 from mechanism.errors import UserError, close_matches
-from mechanism.outputs import atomic_file
-from mechanism.tables import write_table
+from mechanism.files.outputs import atomic_file
+from mechanism.files.tables import write_table
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
     ANGLE_STEP_RAD,

@@ -15,7 +15,7 @@ from typing import Callable
 import numpy as np
 
 from mechanism.errors import UserError, close_matches
-from mechanism.reference import thesis
+from mechanism.data.reference import thesis
 
 TWO_PI = 2.0 * math.pi
 GRAVITY_M_S2 = 9.81

@@ -1,0 +1,197 @@
+"""Export file in, MJCF model and meshes out: the whole conversion behind ``mechanism convert``."""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mechanism.converters import inertia, mjcf, tree
+from mechanism.converters.errors import ExportError
+from mechanism.converters.geometry import load_meshes
+from mechanism.converters.load import read
+from mechanism.converters.names import sanitize
+
+
+@dataclass
+class ConversionReport:
+    """What a conversion produced; the CLI prints it, tests and notebooks read it."""
+
+    mjcf_path: Path
+    mesh_dir: Path
+    model_name: str
+    source: Path
+    export_format: str
+    n_parts: int
+    n_bodies: int
+    joints_by_type: dict[str, int]
+    n_loop_closures: int
+    n_couplings: int
+    n_meshes: int
+    degrees_of_freedom: int  # joint DOF minus independent loop and coupling constraints, at the assembly pose
+    total_mass_kg: float  # of the compiled model (export masses plus any repair, see warnings)
+    export_mass_kg: float  # sum of the part masses as the export states them
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_joints(self) -> int:
+        return sum(self.joints_by_type.values())
+
+
+def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z") -> ConversionReport:
+    """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).
+
+    ``name`` defaults to the export's file stem. ``up`` is the export's world axis that points up
+    (``x``, ``y``, ``z``, ``-x``, ...): gravity acts against it; the export's frame is kept, since
+    exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). The MJCF refers to the meshes by a path
+    relative to ``outdir``. Nothing is written unless the whole conversion succeeds; other
+    files already in ``outdir`` and ``mesh_dir`` are left alone.
+    """
+    export_path = Path(export_path)
+    outdir = Path(outdir)
+    mesh_dir = Path(mesh_dir) if mesh_dir is not None else outdir / "meshes"
+    model_name = sanitize(name or export_path.stem)
+    gravity = mjcf.gravity_along(up)
+    if outdir.exists() and not outdir.is_dir():
+        raise ExportError(f"output {outdir}: exists and is not a folder")
+
+    assembly = read(export_path)
+    meshes = load_meshes(assembly)
+    inertia.repair_parts(assembly, meshes)
+    plan = tree.plan(assembly)
+    meshdir = os.path.relpath(mesh_dir.resolve(), outdir.resolve()).replace(os.sep, "/")
+    built = mjcf.build(assembly, plan, meshes, model_name=model_name, meshdir=meshdir, gravity=gravity)
+    used = {m.name: m for m in meshes.values() if m is not None}
+
+    mjcf_path = outdir / f"{model_name}.xml"
+    dof = locked = None
+    with _staging(outdir, meshdir) as (stage_model, stage_meshes):
+        for mesh in used.values():
+            (stage_meshes / mesh.filename).write_bytes(mesh.data)
+        built.spec.modelfiledir = str(stage_model)
+        try:
+            model = built.spec.compile()
+            built.spec.compiler.savecompiled = False
+            xml = built.spec.to_xml()
+            dof, locked = mobility(model)
+        except Exception as exc:  # MuJoCo reports model errors as ValueError with several lines
+            raise ExportError(f"export {export_path.name}: MuJoCo rejects the converted model: {' '.join(str(exc).split())}") from None
+        (stage_model / mjcf_path.name).write_text(xml, encoding="utf-8")
+        _publish(stage_model / mjcf_path.name, mjcf_path, [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()])
+
+    return ConversionReport(
+        mjcf_path=mjcf_path, mesh_dir=mesh_dir, model_name=model_name, source=export_path,
+        export_format=assembly.format, n_parts=len(assembly.real_parts), n_bodies=built.n_bodies,
+        joints_by_type=dict(built.joints_by_type), n_loop_closures=built.n_closures, n_couplings=built.n_couplings,
+        n_meshes=len(used), degrees_of_freedom=dof, total_mass_kg=float(model.body_mass.sum()), export_mass_kg=assembly.total_mass,
+        warnings=assembly.warnings + plan.warnings + built.warnings + _locked_warning(locked),
+    )
+
+
+def _locked_warning(locked: list[str]) -> list[str]:
+    if not locked:
+        return []
+    shown = ", ".join(locked[:10]) + (f" and {len(locked) - 10} more" if len(locked) > 10 else "")
+    return [f"{len(locked)} joint(s) cannot move at the assembly pose because closed loops lock them: {shown} "
+            f"(check the export for welds or joints that over-constrain the mechanism)"]
+
+
+# Relative singular value below which a loop equation counts as dependent. Exports print 6 to 9
+# digits: axes that are parallel in the CAD model come out parallel to ~1e-6 rad, so a loop that
+# over-constrains a real motion (a pin mated to a plane and a bore) leaves a singular value near
+# 1e-8 where that motion should be, while genuine constraints give 1e-3 and more.
+RANK_TOLERANCE = 1e-6
+
+
+def mobility(model) -> tuple[int, list[str]]:
+    """Degrees of freedom the equality constraints leave at the assembly pose (``nv - rank(J_eq)``)
+    and the joints they lock completely.
+
+    A joint that is only instantaneously immobile at a dead centre (a slider-crank's slider at
+    top dead centre) is not locked: the check also looks at poses a small step away along
+    the allowed motions, and a joint counts as locked only if it cannot move at any of them."""
+    import mujoco
+    import numpy as np
+
+    model = copy.copy(model)
+    model.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
+    data = mujoco.MjData(model)
+
+    def allowed_motions(qpos):
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        jacobian = data.efc_J[: data.nefc * model.nv].reshape(data.nefc, model.nv)[rows]
+        if jacobian.size == 0:
+            return 0, np.eye(model.nv)
+        _, singular, vt = np.linalg.svd(jacobian)
+        rank = int(np.sum(singular > RANK_TOLERANCE * max(singular.max(), 1e-300)))
+        return rank, vt[rank:].T  # columns span the motions the constraints allow
+
+    if model.nv == 0:
+        return 0, []
+    rank, free_motions = allowed_motions(model.qpos0)
+    movable = np.zeros(model.nv, bool)
+    probes = [None] + [np.random.default_rng(k).normal(size=free_motions.shape[1]) for k in range(3)]
+    for direction in probes:
+        qpos = model.qpos0.copy()
+        if direction is not None:
+            if not free_motions.size:
+                break
+            step = free_motions @ direction
+            mujoco.mj_integratePos(model, qpos, 0.02 * step / max(np.abs(step).max(), 1e-300), 1.0)
+        _, motions = allowed_motions(qpos)
+        if motions.size:
+            movable |= np.linalg.norm(motions, axis=1) > 1e-6
+    locked = []
+    for joint in range(model.njnt):
+        start = model.jnt_dofadr[joint]
+        width = {0: 6, 1: 3}.get(int(model.jnt_type[joint]), 1)
+        if not movable[start:start + width].any():
+            locked.append(model.joint(joint).name)
+    return int(model.nv - rank), locked
+
+
+@contextlib.contextmanager
+def _staging(outdir: Path, meshdir: str):
+    """A scratch tree mirroring ``outdir`` and its mesh folder, removed afterwards."""
+    ups = sum(1 for piece in Path(meshdir).parts if piece == "..")
+    root = Path(tempfile.mkdtemp(prefix=".mechanism-convert-"))
+    try:
+        model_dir = root.joinpath(*[f"d{i}" for i in range(ups)], "model")
+        mesh_stage = Path(os.path.normpath(model_dir / meshdir))
+        model_dir.mkdir(parents=True)
+        mesh_stage.mkdir(parents=True, exist_ok=True)
+        yield model_dir, mesh_stage
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def _publish(model_file: Path, target: Path, meshes: list[tuple[Path, Path]]) -> None:
+    """Move the finished files into place, each by an atomic rename; undo everything on failure."""
+    created_dirs = set()
+    for folder in {target.parent, *(dst.parent for _, dst in meshes)}:
+        while not folder.exists():
+            created_dirs.add(folder)
+            folder = folder.parent
+    done: list[Path] = []
+    try:
+        for folder in sorted(created_dirs, key=lambda p: len(p.parts)):
+            folder.mkdir(parents=True, exist_ok=True)
+        for source, destination in [*meshes, (model_file, target)]:
+            temporary = destination.with_name(f".{destination.name}.tmp{os.getpid()}")
+            shutil.copyfile(source, temporary)
+            os.replace(temporary, destination)
+            done.append(destination)
+    except BaseException:
+        for path in done:
+            with contextlib.suppress(OSError):
+                path.unlink()
+        for folder in sorted(created_dirs, key=lambda p: -len(p.parts)):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise

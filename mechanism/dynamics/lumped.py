@@ -1,0 +1,452 @@
+"""The lumped drive model of the thesis (eq. 15-16), simulated fast over many segments.
+
+Equation (arm side: the encoder is on the arm shaft, so every state and torque here is
+expressed on the arm shaft; n = 8 is the motor-to-arm belt ratio)::
+
+    J w' = n Kt/R (U - Ke n w) - n^2 d w - Fc sgn(w) - (loads)
+
+with the thesis's motor-side numbers mapped as J = n^2 J_motor, viscous n^2 d_motor, and
+Fc the arm-side Coulomb friction (0.18 Nm in the thesis). The baseline reports its
+parameters in the thesis's own conventions (``inertia_motor_side_kgm2``,
+``viscous_motor_side_Nm_s_per_rad``, ``coulomb_arm_Nm``) so that they compare directly
+with Table 3. Motor constants (R, Kt, Ke) are the datasheet values unless freed.
+
+Stick-slip: a shaft at rest stays at rest while the driving torque is within the static
+friction level (Coulomb, plus a Stribeck excess when that effect is present); a velocity
+that would cross zero inside a step stops at zero (Karnopp). Linear damping (back-emf and
+viscous) is integrated exactly over each step.
+
+Position-dependent torques are driven by the *measured* arm angle inside short segments
+that restart from the measured velocity (multiple shooting): a free 60 s simulation would
+drift in phase against the recording, and every periodic residual would then be a phase
+error rather than missing physics.
+
+The hot loop is a small C kernel (``mechanism/native/lumped.c``, through
+:mod:`mechanism.native`); :func:`simulate_numpy` is the same equations vectorised over
+segments, used where no C compiler exists and to check the kernel.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import math
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mechanism.sysid.parameters import Parameter
+from mechanism.data.reference import thesis
+
+
+@dataclass(frozen=True)
+class MotorConstants:
+    resistance_ohm: float
+    torque_constant_Nm_per_A: float
+    back_emf_V_s_per_rad: float
+    ratio: float  # motor turns per arm turn
+
+    @classmethod
+    def datasheet(cls) -> "MotorConstants":
+        ref = thesis()
+        motor = ref["main_motor"]
+        return cls(
+            motor["resistance_ohm"],
+            motor["torque_constant_Nm_per_A"],
+            motor["back_emf_constant_V_s_per_rad"],
+            float(ref["mechanism"]["motor_to_arm_ratio"]),
+        )
+
+    @property
+    def gain_arm(self) -> float:
+        """Arm-side stall torque per volt, n Kt / R [Nm/V]."""
+        return self.ratio * self.torque_constant_Nm_per_A / self.resistance_ohm
+
+    @property
+    def emf_damping_arm(self) -> float:
+        """Arm-side back-emf damping n^2 Kt Ke / R [Nm s/rad]."""
+        return self.ratio**2 * self.torque_constant_Nm_per_A * self.back_emf_V_s_per_rad / self.resistance_ohm
+
+
+MOTOR_PARAMETER_NAMES = {
+    "R": "resistance_ohm",
+    "Kt": "torque_constant_Nm_per_A",
+    "Ke": "back_emf_V_s_per_rad",
+}
+
+
+def motor_parameters(free: tuple[str, ...] = ()) -> list[Parameter]:
+    """The motor constants named in ``free`` as fittable parameters (datasheet nominal, +-50 %)."""
+    motor = MotorConstants.datasheet()
+    out = []
+    for short in free:
+        key = MOTOR_PARAMETER_NAMES[short]
+        value = getattr(motor, key)
+        out.append(Parameter(f"motor_{key}", value, 0.5 * value, 1.5 * value, f"motor {short} (datasheet {value:g})", log=True))
+    return out
+
+
+@dataclass
+class Signals:
+    """The measured signals that drive the model, plus cached angle functions."""
+
+    time_s: np.ndarray
+    voltage_V: np.ndarray
+    arm_angle_rad: np.ndarray
+    velocity_rad_s: np.ndarray
+    dt: float
+    ratio: float
+    _cache: dict = field(default_factory=dict, repr=False)
+    _memos: dict = field(default_factory=dict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def memo(self, kind: str, key, compute, keep: int = 16):
+        """A small per-kind LRU of derived arrays (lagged voltages, warmth curves), safe for
+        the diagnosis's parallel fits."""
+        with self._lock:
+            store = self._memos.setdefault(kind, OrderedDict())
+            if key in store:
+                store.move_to_end(key)
+                return store[key]
+        value = compute()
+        with self._lock:
+            store[key] = value
+            while len(store) > keep:
+                store.popitem(last=False)
+        return value
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    @property
+    def drive_angle_rad(self) -> np.ndarray:
+        """The arm angle in the middle of each sample interval: position-dependent torques
+        held over a step are evaluated there, which makes the step second-order accurate."""
+        if "mid" not in self._cache:
+            a = self.arm_angle_rad
+            mid = np.empty_like(a)
+            mid[:-1] = 0.5 * (a[1:] + a[:-1])
+            mid[-1] = a[-1] + 0.5 * (a[-1] - a[-2]) if len(a) > 1 else a[-1]
+            self._cache["mid"] = mid
+        return self._cache["mid"]
+
+    PERIODIC_GRID = 2048
+
+    def periodic(self, values_on_grid: np.ndarray) -> np.ndarray:
+        """A function of the arm angle given on ``periodic_grid()``, at every drive angle
+        (linear interpolation; much cheaper than evaluating trigonometry per sample)."""
+        if "phase_index" not in self._cache:
+            x = np.mod(self.drive_angle_rad, 2 * np.pi) * (self.PERIODIC_GRID / (2 * np.pi))
+            i = np.minimum(x.astype(np.int64), self.PERIODIC_GRID - 1)
+            self._cache["phase_index"] = (i, x - i)
+        i, frac = self._cache["phase_index"]
+        table = np.append(values_on_grid, values_on_grid[0])
+        return table[i] + frac * (table[i + 1] - table[i])
+
+    @classmethod
+    def periodic_grid(cls) -> np.ndarray:
+        return np.arange(cls.PERIODIC_GRID) * (2 * np.pi / cls.PERIODIC_GRID)
+
+    def harmonic(self, order: float, kind: str) -> np.ndarray:
+        """cos/sin(order * drive angle), cached (orders 8k are motor-angle harmonics)."""
+        key = (order, kind)
+        if key not in self._cache:
+            fn = np.cos if kind == "cos" else np.sin
+            self._cache[key] = fn(order * self.drive_angle_rad)
+        return self._cache[key]
+
+    @property
+    def arm_phase(self) -> np.ndarray:
+        """Arm angle modulo one revolution, in [0, 2 pi)."""
+        if "phase" not in self._cache:
+            self._cache["phase"] = np.mod(self.arm_angle_rad, 2 * np.pi)
+        return self._cache["phase"]
+
+
+@dataclass
+class Drive:
+    """Per-sample coefficients of the drive equation (arm side) and scalar options.
+
+    The baseline fills it, each torque effect adds to it, the kernel integrates it.
+    """
+
+    voltage_V: np.ndarray  # applied motor voltage
+    tau_motor_Nm: np.ndarray  # torque acting on the motor side (arm units), resisting
+    tau_arm_Nm: np.ndarray  # position-dependent torque on the arm, resisting
+    coulomb_Nm: np.ndarray  # kinetic friction level (>= 0)
+    static_excess_Nm: np.ndarray  # static minus kinetic friction (Stribeck)
+    viscous_Nm_s: np.ndarray  # viscous friction (arm side)
+    inertia_kgm2: np.ndarray  # arm-side inertia, may vary with angle
+    quadratic_Nm_s2: np.ndarray  # coefficient of w^2 (1/2 dJ/dtheta)
+    stribeck_velocity_rad_s: float = 1.0
+    stribeck_exponent: float = 1.0
+    belt_stiffness_Nm_rad: float = 0.0  # 0 = rigid belt
+    belt_damping_Nm_s: float = 0.0
+    motor_inertia_kgm2: float = 0.0  # motor-side share of the inertia (arm units), belt mode
+
+    @classmethod
+    def constant(cls, signals: Signals, voltage: np.ndarray, inertia: float, viscous: float, coulomb: float) -> "Drive":
+        n = len(signals)
+        return cls(
+            voltage_V=np.asarray(voltage, dtype=float),  # shared, never modified in place
+            tau_motor_Nm=np.zeros(n),
+            tau_arm_Nm=np.zeros(n),
+            coulomb_Nm=np.full(n, coulomb),
+            static_excess_Nm=np.zeros(n),
+            viscous_Nm_s=np.full(n, viscous),
+            inertia_kgm2=np.full(n, inertia),
+            quadratic_Nm_s2=np.zeros(n),
+        )
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Simulation windows (multiple shooting): each starts from the measured velocity at
+    ``starts`` and runs ``length`` samples; ``score`` is the slice of each window whose
+    residual counts (the windows' scored parts tile the recording)."""
+
+    starts: np.ndarray  # window start sample
+    length: int
+    score_begin: np.ndarray  # scored part, offsets inside the window
+    score_end: np.ndarray
+    is_fit: np.ndarray  # bool: fit (True) or validation (False) segment
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def subset(self, mask: np.ndarray) -> "Segments":
+        return Segments(self.starts[mask], self.length, self.score_begin[mask], self.score_end[mask], self.is_fit[mask])
+
+    def scored_indices(self) -> np.ndarray:
+        """Recording sample index of every scored sample (in segment order)."""
+        return np.concatenate([s + np.arange(b, e) for s, b, e in zip(self.starts, self.score_begin, self.score_end)])
+
+    def window_indices(self) -> np.ndarray:
+        """(n_segments, length) recording sample indices of every window sample."""
+        return self.starts[:, None] + np.arange(self.length)[None, :]
+
+
+def make_segments(n_samples: int, dt: float, segment_s: float = 1.0, burn_in_s: float = 0.25, pad: int = 10) -> Segments:
+    """Tile the recording into scored segments of ``segment_s``; each window starts
+    ``burn_in_s`` (plus the differentiator's half window ``pad``) earlier so that the
+    restart from the measured velocity has died out before scoring begins. Segments
+    alternate fit / validation in pairs (fit, val, val, fit, fit, val, ...) so that both
+    parts see every voltage level, every transient and the whole warm-up."""
+    duration = n_samples * dt
+    segment_s = min(segment_s, duration / 4)
+    score = max(int(round(segment_s / dt)), 2 * pad + 2)
+    burn = int(round(burn_in_s / dt)) + pad
+    length = min(n_samples, score + burn + pad)
+    begins = np.arange(0, n_samples, score)
+    if n_samples - begins[-1] < score // 2 and len(begins) > 1:
+        begins = begins[:-1]
+    ends = np.append(begins[1:], n_samples)
+    length = min(n_samples, max(length, int((ends - begins).max()) + burn + pad))
+    starts = np.clip(begins - burn, 0, n_samples - length)
+    pattern = np.array([True, False, False, True])
+    is_fit = pattern[np.arange(len(begins)) % 4]
+    # every scored sample has the differentiator's full support inside its window (the
+    # recording's first and last ``pad`` samples are not scored)
+    score_begin = np.maximum(begins - starts, pad)
+    score_end = np.minimum(ends - starts, length - pad)
+    return Segments(starts.astype(np.int64), int(length), score_begin.astype(np.int64), score_end.astype(np.int64), is_fit)
+
+
+class _DriveParams(ctypes.Structure):
+    _fields_ = [
+        ("gain", ctypes.c_double),
+        ("c_emf", ctypes.c_double),
+        ("ws", ctypes.c_double),
+        ("delta", ctypes.c_double),
+        ("k_belt", ctypes.c_double),
+        ("c_belt", ctypes.c_double),
+        ("j_motor", ctypes.c_double),
+        ("dt", ctypes.c_double),
+        ("substeps", ctypes.c_int),
+    ]
+
+
+@functools.lru_cache(maxsize=None)
+def _kernel():
+    from mechanism import native
+
+    lib = native.load("lumped")
+    if lib is None:
+        return None
+    fn = lib.simulate_segments
+    dp = ctypes.POINTER(ctypes.c_double)
+    ip = ctypes.POINTER(ctypes.c_int)
+    fn.argtypes = [ctypes.POINTER(_DriveParams)] + [dp] * 8 + [ctypes.c_int, ip, ip, ip, dp, dp]
+    fn.restype = None
+    return fn
+
+
+SUBSTEPS = 1  # the exponential step is exact for the linear part; more substeps change nothing measurable
+
+
+def simulate(drive: Drive, motor: MotorConstants, segments: Segments, w0: np.ndarray, dt: float,
+             substeps: int = SUBSTEPS, use_native: bool = True) -> np.ndarray:
+    """Arm velocity [rad/s] at every window sample, shape (n_segments, length)."""
+    kernel = _kernel() if use_native else None
+    if kernel is None:
+        return simulate_numpy(drive, motor, segments, w0, dt, substeps)
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (
+        drive.voltage_V, drive.tau_motor_Nm, drive.tau_arm_Nm, drive.coulomb_Nm, drive.static_excess_Nm,
+        drive.viscous_Nm_s, drive.inertia_kgm2, drive.quadratic_Nm_s2)]
+    n_seg = len(segments)
+    out = np.empty((n_seg, segments.length), dtype=np.float64)
+    starts = np.ascontiguousarray(segments.starts, dtype=np.int32)
+    lengths = np.full(n_seg, segments.length, dtype=np.int32)
+    offsets = (np.arange(n_seg, dtype=np.int32) * segments.length).astype(np.int32)
+    w0 = np.ascontiguousarray(w0, dtype=np.float64)
+    params = _DriveParams(motor.gain_arm, motor.emf_damping_arm, drive.stribeck_velocity_rad_s,
+                          drive.stribeck_exponent, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s,
+                          drive.motor_inertia_kgm2, dt, int(substeps))
+    dp = ctypes.POINTER(ctypes.c_double)
+    ip = ctypes.POINTER(ctypes.c_int)
+    kernel(ctypes.byref(params), *[a.ctypes.data_as(dp) for a in arrays], n_seg,
+           starts.ctypes.data_as(ip), lengths.ctypes.data_as(ip), offsets.ctypes.data_as(ip),
+           w0.ctypes.data_as(dp), out.ctypes.data_as(dp))
+    return out
+
+
+def _friction(fk, fx, w, drive: Drive):
+    if not np.any(fx):
+        return fk
+    return fk + fx * np.exp(-np.power(np.abs(w) / drive.stribeck_velocity_rad_s, drive.stribeck_exponent))
+
+
+def simulate_numpy(drive: Drive, motor: MotorConstants, segments: Segments, w0: np.ndarray, dt: float,
+                   substeps: int = SUBSTEPS) -> np.ndarray:
+    """The kernel's equations in numpy, vectorised over segments (the fallback)."""
+    idx = segments.window_indices()
+    n_seg, length = idx.shape
+    out = np.empty((n_seg, length))
+    gain, c_emf = motor.gain_arm, motor.emf_damping_arm
+    u, tm, ta, fk, fx, cv, jt, q = (drive.voltage_V, drive.tau_motor_Nm, drive.tau_arm_Nm, drive.coulomb_Nm,
+                                    drive.static_excess_Nm, drive.viscous_Nm_s, drive.inertia_kgm2, drive.quadratic_Nm_s2)
+    w = np.array(w0, dtype=float)
+    if drive.belt_stiffness_Nm_rad > 0:
+        return _simulate_belt_numpy(drive, motor, idx, w, dt, substeps)
+    h = dt / substeps
+    for i in range(length):
+        k = idx[:, i]
+        out[:, i] = w
+        c = c_emf + cv[k]
+        decay = np.exp(-c * h / jt[k])
+        decay_half = np.exp(-0.5 * c * h / jt[k])
+        drive_torque = gain * u[k] - tm[k] - ta[k]
+        for _ in range(substeps):
+            f = drive_torque - q[k] * w * w
+            at_rest = w == 0.0
+            stuck = at_rest & (np.abs(f) <= fk[k] + fx[k])
+            direction = np.where(at_rest, np.sign(f), np.sign(w))
+            wss = (f - _friction(fk[k], fx[k], w, drive) * direction) / c
+            wh = wss + (w - wss) * decay_half
+            wh = np.where(np.sign(wh) == -direction, 0.0, wh)
+            wss = (drive_torque - q[k] * wh * wh - _friction(fk[k], fx[k], wh, drive) * direction) / c
+            wn = wss + (w - wss) * decay
+            wn = np.where(np.sign(wn) == -direction, 0.0, wn)
+            w = np.where(stuck, 0.0, wn)
+    return out
+
+
+def _simulate_belt_numpy(drive: Drive, motor: MotorConstants, idx: np.ndarray, w: np.ndarray, dt: float, substeps: int) -> np.ndarray:
+    n_seg, length = idx.shape
+    out = np.empty((n_seg, length))
+    gain, c_emf = motor.gain_arm, motor.emf_damping_arm
+    jm, kb, cb = drive.motor_inertia_kgm2, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s
+    u, tm, ta, fk, fx, cv, jt, q = (drive.voltage_V, drive.tau_motor_Nm, drive.tau_arm_Nm, drive.coulomb_Nm,
+                                    drive.static_excess_Nm, drive.viscous_Nm_s, drive.inertia_kgm2, drive.quadratic_Nm_s2)
+    k0 = idx[:, 0]
+    wr = np.sqrt(kb * (1 / jm + 1 / (jt[k0] - jm)))
+    nsub = int(max(substeps, np.ceil(np.max(wr) * dt / 0.25)))
+    h = dt / nsub
+    wm = w.copy()
+    load = cv[k0] * w + ta[k0] + q[k0] * w * w + np.where(w != 0, fk[k0] * np.sign(w), 0.0)
+    lim = fk[k0] + fx[k0]
+    load = np.where(w == 0, np.clip(gain * u[k0] - tm[k0], -lim, lim), load)
+    x = load / kb
+    for i in range(length):
+        k = idx[:, i]
+        out[:, i] = w
+        ja = jt[k] - jm
+        for _ in range(nsub):
+            fb = kb * x + cb * (wm - w)
+            wm = wm + h * (gain * u[k] - c_emf * wm - tm[k] - fb) / jm
+            f = fb - cv[k] * w - ta[k] - q[k] * w * w
+            at_rest = w == 0.0
+            stuck = at_rest & (np.abs(f) <= fk[k] + fx[k])
+            direction = np.where(at_rest, np.sign(f), np.sign(w))
+            f = f - _friction(fk[k], fx[k], w, drive) * direction
+            wn = w + h * f / ja
+            wn = np.where(np.sign(wn) == -direction, 0.0, wn)
+            w = np.where(stuck, 0.0, wn)
+            x = x + h * (wm - w)
+    return out
+
+
+def lagged_voltage(voltage: np.ndarray, tau_s: float, dt: float) -> np.ndarray:
+    """The voltage behind a first-order lag ``tau_s`` (the winding's L/R), averaged over
+    each sample interval (the kernel holds it over the step). Exact for a voltage held
+    between samples."""
+    from scipy.signal import lfilter
+
+    if tau_s <= 0.02 * dt:
+        return voltage
+    a = math.exp(-dt / tau_s)
+    # state at the start of each interval: x[k+1] = a x[k] + (1 - a) u[k], x[0] = u[0]
+    start = lfilter([0.0, 1.0 - a], [1.0, -a], voltage - voltage[0]) + voltage[0]
+    weight = tau_s / dt * (1.0 - a)  # interval average = u + (x - u) * weight
+    return voltage + (start - voltage) * weight
+
+
+class LumpedBaseline:
+    """The thesis's lumped model without ripple: constant inertia, viscous and Coulomb
+    friction, DC motor through the 8:1 belt. Parameters in the thesis's conventions.
+
+    One addition to eq. 15-16: the winding's electrical time constant L/R. The thesis
+    neglects it (L dI/dt is small against the mechanical time constant), but at a voltage
+    step the arm accelerates at about 1000 rad/s^2, so a 1 ms current lag is a 1 rad/s
+    velocity error right after every step, larger than most effects the diagnosis looks
+    for. It also absorbs when a logged voltage sample takes effect (a half-sample timing
+    convention is a 0.5 ms lag)."""
+
+    name = "lumped"
+    linear = ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
+    meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the 8:1 belt"
+
+    def __init__(self, free: tuple[str, ...] = ()):
+        ref = thesis()["identified_parameters"]
+        self.parameters = (
+            Parameter("inertia_motor_side_kgm2", ref["total_inertia_kgm2"], 2e-6, 5e-4,
+                      "total inertia seen by the motor (thesis 2.78e-5)", log=True),
+            Parameter("viscous_motor_side_Nm_s_per_rad", ref["viscous_cold_Nm_s_per_rad"], 0.0, 4e-4,
+                      "viscous friction on the motor side (thesis 2.2e-5 cold, 1.0e-5 warm)", scale=2e-5),
+            Parameter("coulomb_arm_Nm", ref["kinetic_friction_arm_Nm"], 0.0, 2.0,
+                      "kinetic (Coulomb) friction on the arm shaft (thesis 0.18)", scale=0.2),
+            Parameter("electrical_time_constant_s", 5e-4, 1e-5, 0.03,
+                      "winding inductance over resistance, L/R (neglected in the thesis)", log=True),
+            *motor_parameters(free),
+        )
+        self.free = tuple(free)
+
+    def motor(self, values: dict[str, float]) -> MotorConstants:
+        base = MotorConstants.datasheet()
+        changes = {key: values[f"motor_{key}"] for key in MOTOR_PARAMETER_NAMES.values() if f"motor_{key}" in values}
+        return MotorConstants(**{**base.__dict__, **changes}) if changes else base
+
+    def drive(self, values: dict[str, float], signals: Signals) -> Drive:
+        n = signals.ratio
+        return Drive.constant(signals, signals.voltage_V, values["inertia_motor_side_kgm2"] * n**2,
+                              values["viscous_motor_side_Nm_s_per_rad"] * n**2, values["coulomb_arm_Nm"])
+
+    def finish(self, values: dict[str, float], signals: Signals, drive: Drive) -> None:
+        """After the effects: the winding lag acts on the voltage the motor finally sees."""
+        tau = values["electrical_time_constant_s"]
+        if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
+            drive.voltage_V = signals.memo("lagged", tau, lambda: lagged_voltage(drive.voltage_V, tau, signals.dt))
+        else:
+            drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)

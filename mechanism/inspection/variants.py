@@ -1,0 +1,616 @@
+"""Design variants: parameter edits, variant files, and batch clearance checks.
+
+A **parameter** changes one dimension of the machine by an offset from the nominal design.
+Its target says what it changes (the same grammar in JSON and as a CSV column name):
+
+``coupling:<name>:<joint>_deg``   advance ``<joint>`` (one of the two joints of the coupling
+                                  ``coupling:<name>``) by the value relative to the other:
+                                  hook timing. ``_mm`` for a slide joint.
+``joint:<name>:<axis>_mm``        move a joint on its parent side: a tree joint's child body
+                                  moves (with everything it carries) along ``x``/``y``/``z`` of
+                                  the parent body frame, or ``radial``: away from the parent's
+                                  own rotation axis (a crank pin: crank radius). A loop joint's
+                                  anchors move on its base body (the follower keeps its own).
+``body:<name>:<axis>_mm``         move a body in its parent frame (same as its tree joint).
+``part:<name>:<axis>_mm``         move one part's geoms, its site and the user frames that lie on
+                                  it within their body, along the part frame's axis (a needle set
+                                  higher in its bar).
+
+Several targets joined by ``+`` change together by the same value. Presets for the sewing
+machine (:data:`PRESETS`) name the usual ones. The edits are made on
+the compiled model's fields (``body_pos``, ``eq_data``, ``geom_pos``, ``site_pos``), which are
+exactly what the corresponding ``MjSpec`` attributes compile to. Recompiling a spec would not
+do: the compiler re-derives every ``connect``/``weld`` anchor on the second body from the
+assembly pose, i.e. it closes every loop in the export pose and silently cancels a crank
+radius or needle-bar height change. Edited in the model, the anchors keep their nominal
+local positions and the pose solver re-assembles the changed linkage.
+
+A **variants file** (JSON, or CSV with one column per parameter) lists the variants; see
+:func:`read_variants`. :func:`run_variants` checks every variant's clearances in parallel
+(processes, each compiling the model and building the fcl BVHs once) or on Ray.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import mujoco
+import numpy as np
+
+from mechanism.machine import parts
+from mechanism.inspection.clearance import ClearanceSweep, Pair
+from mechanism.errors import UserError, close_matches
+
+FORMAT = "mechanism-variants/1"
+MAX_VARIANTS = 1_000_000
+EDITED_FIELDS = ("body_pos", "eq_data", "geom_pos", "site_pos")
+
+PRESETS = {
+    # the hook advanced on its worm gear, in degrees of hook rotation
+    "hook_timing_deg": "coupling:hook_worm_gear:hook_deg",
+    # the crank pin further from the arm shaft: the link and the take-up lever both ride on it
+    "crank_radius_mm": "joint:crank_pin:radial_mm+joint:take_up_crank_pin:radial_mm",
+    # the needle bar (with its clamp and needle) set higher in its connecting stud
+    "needle_bar_height_mm": "part:needle_bar:z_mm+part:needle_clamp:z_mm+part:needle:z_mm",
+}
+
+_TARGET = re.compile(r"(coupling|joint|body|part):([^:]+):([A-Za-z0-9_.-]+?)_(deg|mm)")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One named dimension of the design, as an offset from nominal."""
+
+    name: str
+    target: str
+
+    def check(self, model: mujoco.MjModel) -> None:
+        """Raise UserError if the target does not exist in ``model``."""
+        apply_parameter(model, model, self, 0.0, check_only=True)
+
+
+def _parse_target(target: str) -> tuple[str, str, str, str]:
+    match = _TARGET.fullmatch(target.strip())
+    if not match:
+        raise UserError(
+            f"parameter target {target!r}: expected coupling:<name>:<joint>_deg, joint:<name>:<x|y|z|radial>_mm, "
+            f"body:<name>:<x|y|z>_mm or part:<name>:<x|y|z>_mm, or a preset ({', '.join(PRESETS)})"
+        )
+    return match.group(1), match.group(2), match.group(3), match.group(4)
+
+
+def parameter(name: str, target: str | None = None) -> Parameter:
+    """A parameter from a target string (several joined by ``+`` change together) or a
+    preset name."""
+    target = target or PRESETS.get(name, name)
+    for single in target.split("+"):
+        _parse_target(single)
+    return Parameter(name, target)
+
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _axis(axis: str, allowed: str) -> np.ndarray:
+    if axis not in allowed:
+        raise UserError(f"axis {axis!r}: expected one of {', '.join(allowed)}")
+    vector = np.zeros(3)
+    vector[_AXES[axis]] = 1.0
+    return vector
+
+
+def _rotate(quat, vector) -> np.ndarray:
+    out = np.zeros(3)
+    mujoco.mju_rotVecQuat(out, np.asarray(vector, dtype=float), np.asarray(quat, dtype=float))
+    return out
+
+
+def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Parameter, value: float, check_only: bool = False) -> None:
+    """Add ``value`` (deg or mm) of ``param`` to ``model``, starting from ``nominal``'s fields."""
+    for target in param.target.split("+"):
+        _apply_target(model, nominal, param.name, target, value, check_only)
+
+
+def _apply_target(model, nominal, label: str, target: str, value: float, check_only: bool) -> None:
+    kind, name, detail, unit = _parse_target(target)
+    if kind == "coupling":
+        eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
+        couplings = [n[9:] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or "" for i in range(model.neq)) if n.startswith("coupling:")]
+        if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
+            raise UserError(f"parameter {label}: no coupling named {name!r}; close matches: {close_matches(name, couplings)}")
+        joints = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj1id[eq]), mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj2id[eq])]
+        if detail not in joints:
+            raise UserError(f"parameter {label}: coupling {name!r} joins {joints[0]} and {joints[1]}, not {detail!r}")
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, detail)
+        slide = model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE
+        if unit != ("mm" if slide else "deg"):
+            raise UserError(f"parameter {label}: joint {detail!r} is a {'slide' if slide else 'hinge'}: use _{'mm' if slide else 'deg'}")
+        if np.any(nominal.eq_data[eq, 2:5]):
+            raise UserError(f"parameter {label}: coupling {name!r} is not linear; its offset cannot be shifted")
+        if check_only:
+            return
+        delta = value / 1000.0 if slide else np.radians(value)
+        # q1 = c0 + c1 q2: advancing joint1 adds to c0; advancing joint2 by d needs c0 - c1 d
+        model.eq_data[eq, 0] = nominal.eq_data[eq, 0] + (delta if detail == joints[0] else -nominal.eq_data[eq, 1] * delta)
+        return
+    if unit != "mm":
+        raise UserError(f"parameter {label}: {kind} offsets are lengths: use _mm")
+    meters = value / 1000.0
+    if kind == "part":
+        geoms = parts.part_geoms(model, name)
+        frame = parts.find_frame(model, name)
+        direction = _rotate(frame.quat, _axis(detail, "xyz"))
+        if check_only:
+            return
+        for g in geoms:
+            model.geom_pos[g] = nominal.geom_pos[g] + meters * direction
+        for s in _part_sites(nominal, name, frame.body):
+            model.site_pos[s] = nominal.site_pos[s] + meters * direction
+        return
+    if kind == "body":
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if body <= 0:
+            names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) or "" for i in range(1, model.nbody)]
+            raise UserError(f"parameter {label}: no body named {name!r}; close matches: {close_matches(name, names)}")
+        direction = _body_direction(model, body, detail)
+        if not check_only:
+            model.body_pos[body] = nominal.body_pos[body] + meters * direction
+        return
+    # joint
+    jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+    if jid >= 0:
+        body = int(model.jnt_bodyid[jid])
+        direction = _body_direction(model, body, detail, joint=jid)
+        if not check_only:
+            model.body_pos[body] = nominal.body_pos[body] + meters * direction
+        return
+    loops = parts.loop_equalities(model, name)
+    if not loops:
+        candidates = parts.joint_names(model) + parts.loop_joint_names(model)
+        raise UserError(f"parameter {label}: no joint named {name!r}; close matches: {close_matches(name, candidates)}")
+    if detail == "radial":
+        raise UserError(f"parameter {label}: radial offsets need a tree joint; {name!r} closes a loop: use x, y or z of its base body")
+    direction = _axis(detail, "xyz")
+    if check_only:
+        return
+    for eq in loops:  # connect: anchor on body2 (the base) is eq_data[3:6] in body2's frame
+        model.eq_data[eq, 3:6] = nominal.eq_data[eq, 3:6] + meters * direction
+
+
+def _body_direction(model, body: int, axis: str, joint: int | None = None) -> np.ndarray:
+    """A unit vector in the parent frame of ``body``: an axis, or radially away from the
+    parent's own hinge axis through the joint's anchor."""
+    if axis != "radial":
+        return _axis(axis, "xyz")
+    parent = int(model.body_parentid[body])
+    hinges = [j for j in range(model.njnt) if model.jnt_bodyid[j] == parent and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    if not hinges:
+        raise UserError(f"radial offset: the parent of body {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} does not rotate on a hinge")
+    axis_vec, origin = model.jnt_axis[hinges[0]], model.jnt_pos[hinges[0]]
+    anchor = model.body_pos[body] + _rotate(model.body_quat[body], model.jnt_pos[joint] if joint is not None else np.zeros(3))
+    radial = anchor - origin
+    radial -= np.dot(radial, axis_vec) * axis_vec
+    length = np.linalg.norm(radial)
+    if length < 1e-9:
+        raise UserError("radial offset: the joint lies on its parent's rotation axis")
+    return radial / length
+
+
+def _part_sites(model, part: str, body: int) -> list[int]:
+    """The part's own site and the user-named frames on it: sites of the same body that
+    lie within the part's bounding box (in the body frame). Call with the nominal model so
+    that membership does not depend on edits already made."""
+    geoms = parts.part_geoms(model, part)
+    own = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, part)
+    boxes = [(model.geom_pos[g] - model.geom_rbound[g], model.geom_pos[g] + model.geom_rbound[g]) for g in geoms]
+    found = [own] if own >= 0 else []
+    for s in range(model.nsite):
+        if s == own or model.site_bodyid[s] != body:
+            continue
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or ""
+        if name in parts.part_names(model) or name.startswith("probe:"):
+            continue
+        if any(np.all(model.site_pos[s] >= lo - 1e-6) and np.all(model.site_pos[s] <= hi + 1e-6) for lo, hi in boxes):
+            found.append(s)
+    return found
+
+
+# -- variants -------------------------------------------------------------------------------
+
+
+@dataclass
+class VariantSet:
+    parameters: list[Parameter]
+    names: list[str]
+    values: np.ndarray  # (variants, parameters), offsets from nominal
+    source: str = "<variants>"
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def check(self, model: mujoco.MjModel) -> None:
+        for p in self.parameters:
+            try:
+                p.check(model)
+            except UserError as exc:
+                raise UserError(f"{self.source}: {exc}") from None
+
+
+def read_variants(path: str | os.PathLike) -> VariantSet:
+    """A variants file.
+
+    JSON::
+
+        {"format": "mechanism-variants/1",
+         "parameters": {"timing": "coupling:hook_worm_gear:hook_deg", "crank_radius_mm": null},
+         "sweep":    {"timing": [-10, 0, 10]},                      # full factorial grid, or
+                     {"timing": {"start": -10, "stop": 10, "num": 5}},
+         "samples":  {"count": 100, "seed": 1,                      # Monte Carlo tolerances,
+                      "tolerances": {"crank_radius_mm": {"dist": "normal", "std": 0.02},
+                                     "timing": {"dist": "uniform", "low": -1, "high": 1}}},
+         "variants": [{"name": "late hook", "timing": 30}]}          # explicit variants
+
+    ``parameters`` maps each name to its target (``null`` for a preset name); every value
+    is an offset from nominal in the target's unit. Rows: the nominal design first, then
+    the explicit variants, then every grid point combined with every Monte Carlo sample
+    (grid only, samples only, or grid x samples). CSV: a header of parameter names (presets
+    or targets) and one row per variant; an optional ``name`` column labels the rows.
+    """
+    path = Path(path)
+    label = f"variants file {path}"
+    if not path.is_file():
+        raise UserError(f"{label}: no such file")
+    if path.stat().st_size > 64 * 2**20:
+        raise UserError(f"{label}: larger than 64 MiB")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise UserError(f"{label}: not UTF-8 text") from None
+    if path.suffix.lower() == ".json" or text.lstrip().startswith("{"):
+        try:
+            document = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise UserError(f"{label}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        variants = _from_json(document, label)
+    else:
+        variants = _from_csv(text, label)
+    variants.source = label
+    if len(variants) > MAX_VARIANTS:
+        raise UserError(f"{label}: {len(variants)} variants, at most {MAX_VARIANTS} allowed")
+    return variants
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise UserError(f"{where}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def _from_json(document, label: str) -> VariantSet:
+    if not isinstance(document, dict):
+        raise UserError(f"{label}: expected a JSON object")
+    if document.get("format", FORMAT) != FORMAT:
+        raise UserError(f"{label}: format {document.get('format')!r} is not {FORMAT!r}")
+    unknown = set(document) - {"format", "parameters", "sweep", "samples", "variants", "description"}
+    if unknown:
+        raise UserError(f"{label}: unknown key(s) {', '.join(sorted(unknown))}")
+    declared = document.get("parameters") or {}
+    if not isinstance(declared, dict):
+        raise UserError(f"{label}: 'parameters' must map names to targets")
+    params: dict[str, Parameter] = {}
+
+    def param(name: str, where: str) -> Parameter:
+        if name not in params:
+            target = declared.get(name)
+            if target is not None and not isinstance(target, str):
+                raise UserError(f"{label}: {where}: target of {name!r} must be a string")
+            try:
+                params[name] = parameter(name, target)
+            except UserError as exc:
+                raise UserError(f"{label}: {where}: {exc}") from None
+        return params[name]
+
+    for name in declared:
+        param(name, "parameters")
+    sweep = document.get("sweep") or {}
+    if not isinstance(sweep, dict):
+        raise UserError(f"{label}: 'sweep' must map parameter names to value lists")
+    grid_axes = []
+    for name, spec in sweep.items():
+        param(name, "sweep")
+        grid_axes.append((name, _sweep_values(spec, f"{label}: sweep {name}")))
+    samples = document.get("samples")
+    draws: list[dict[str, float]] = []
+    if samples is not None:
+        draws = _draw_samples(samples, f"{label}: samples", param)
+    explicit = document.get("variants") or []
+    if not isinstance(explicit, list):
+        raise UserError(f"{label}: 'variants' must be a list of objects")
+    rows: list[tuple[str, dict[str, float]]] = [("nominal", {})]
+    for i, item in enumerate(explicit):
+        where = f"{label}: variants[{i}]"
+        if not isinstance(item, dict):
+            raise UserError(f"{where}: expected an object")
+        name = str(item.get("name", f"variant {i + 1}"))
+        values = {}
+        for key, value in item.items():
+            if key != "name":
+                param(key, where)
+                values[key] = _number(value, f"{where}.{key}")
+        rows.append((name, values))
+    grid = [dict(zip([n for n, _ in grid_axes], combo)) for combo in itertools.product(*[v for _, v in grid_axes])] if grid_axes else []
+    if grid and draws:
+        combined = [({**g, **{k: g.get(k, 0.0) + v for k, v in d.items()}}) for g in grid for d in draws]
+    else:
+        combined = grid or draws
+    for i, values in enumerate(combined):
+        tag = "sample" if draws and not grid else "grid" if not draws else "grid+sample"
+        rows.append((f"{tag} {i + 1}", values))
+    names = list(params)
+    if not names:
+        raise UserError(f"{label}: no parameters")
+    values = np.array([[row.get(n, 0.0) for n in names] for _, row in rows], dtype=float)
+    return VariantSet([params[n] for n in names], [r[0] for r in rows], values)
+
+
+def _sweep_values(spec, where: str) -> list[float]:
+    if isinstance(spec, list):
+        if not spec:
+            raise UserError(f"{where}: empty list")
+        return [_number(v, where) for v in spec]
+    if isinstance(spec, dict) and set(spec) == {"start", "stop", "num"}:
+        num = spec["num"]
+        if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= 100_000:
+            raise UserError(f"{where}: num must be an integer between 1 and 100000")
+        return list(np.linspace(_number(spec["start"], where), _number(spec["stop"], where), num))
+    raise UserError(f"{where}: expected a list of values or {{start, stop, num}}")
+
+
+def _draw_samples(samples, where: str, param) -> list[dict[str, float]]:
+    if not isinstance(samples, dict) or set(samples) - {"count", "seed", "tolerances"}:
+        raise UserError(f"{where}: expected {{count, seed, tolerances}}")
+    count = samples.get("count")
+    if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_VARIANTS:
+        raise UserError(f"{where}: count must be an integer between 1 and {MAX_VARIANTS}")
+    seed = samples.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"{where}: seed must be a non-negative integer")
+    tolerances = samples.get("tolerances")
+    if not isinstance(tolerances, dict) or not tolerances:
+        raise UserError(f"{where}: 'tolerances' must map parameter names to distributions")
+    rng = np.random.default_rng(seed)
+    columns = {}
+    for name, dist in tolerances.items():
+        param(name, where)
+        at = f"{where}: {name}"
+        if not isinstance(dist, dict) or dist.get("dist") not in ("normal", "uniform"):
+            raise UserError(f"{at}: expected {{\"dist\": \"normal\", \"std\": ...}} or {{\"dist\": \"uniform\", \"low\": ..., \"high\": ...}}")
+        if dist["dist"] == "normal":
+            if set(dist) - {"dist", "mean", "std"} or "std" not in dist:
+                raise UserError(f"{at}: a normal distribution takes mean (default 0) and std")
+            std = _number(dist["std"], at)
+            if std < 0:
+                raise UserError(f"{at}: std must be >= 0")
+            columns[name] = rng.normal(_number(dist.get("mean", 0.0), at), std, count)
+        else:
+            if set(dist) != {"dist", "low", "high"}:
+                raise UserError(f"{at}: a uniform distribution takes low and high")
+            low, high = _number(dist["low"], at), _number(dist["high"], at)
+            if high < low:
+                raise UserError(f"{at}: high must be >= low")
+            columns[name] = rng.uniform(low, high, count)
+    return [{name: float(values[i]) for name, values in columns.items()} for i in range(count)]
+
+
+def _from_csv(text: str, label: str) -> VariantSet:
+    import csv
+    import io
+
+    from mechanism.files.tables import parse_table
+
+    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise UserError(f"{label}: empty (no header line)")
+    header = [h.strip() for h in next(csv.reader(io.StringIO(lines[0])))]
+    names = [h for h in header if h != "name"]
+    if not names:
+        raise UserError(f"{label}: the header names no parameters")
+    params = []
+    for name in names:
+        try:
+            params.append(parameter(name))
+        except UserError as exc:
+            raise UserError(f"{label}: column {name!r}: {exc}") from None
+    table = parse_table(text, required=names, label=label)
+    rows = len(table)
+    labels = [f"row {i + 1}" for i in range(rows)]
+    if "name" in header:
+        column = header.index("name")
+        body = [row for row in csv.reader(io.StringIO("\n".join(lines[1:]))) if any(c.strip() for c in row)]
+        labels = [row[column].strip() or labels[i] for i, row in enumerate(body)]
+    values = np.column_stack([table[n] for n in names])
+    return VariantSet(params, ["nominal", *labels], np.vstack([np.zeros(len(names)), values]))
+
+
+# -- batch evaluation -----------------------------------------------------------------------
+
+
+@dataclass
+class BatchConfig:
+    """Everything a worker needs to rebuild the check (picklable)."""
+
+    model: mujoco.MjModel
+    pairs: list[Pair]
+    parameters: list[Parameter]
+    driver: str = "arm_shaft"
+    revolutions: float = 1.0
+    resolution_deg: float = 0.5
+    required_mm: float = 0.0
+
+
+class VariantChecker:
+    """Compiles nothing per variant: one model copy, one set of fcl BVHs, fields edited in place."""
+
+    def __init__(self, config: BatchConfig):
+        self.config = config
+        self.nominal = config.model
+        self.model = _copy_model(config.model)
+        self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg)
+
+    def __call__(self, values: Sequence[float]) -> dict:
+        for name in EDITED_FIELDS:
+            getattr(self.model, name)[:] = getattr(self.nominal, name)
+        for param, value in zip(self.config.parameters, values):
+            apply_parameter(self.model, self.nominal, param, float(value))
+        row: dict = {}
+        passed = True
+        try:
+            results = self.sweep.run()
+        except UserError as exc:  # this variant cannot be assembled over the cycle
+            for pair in self.config.pairs:
+                row.update({f"{pair.column}_min_mm": float("nan"), f"{pair.column}_angle_deg": float("nan"), f"{pair.column}_pass": 0})
+            row["pass"] = 0
+            row["note"] = str(exc)
+            return row
+        for result in results:
+            ok = result.passes(self.config.required_mm)
+            passed &= ok
+            row[f"{result.pair.column}_min_mm"] = result.min_distance_mm
+            row[f"{result.pair.column}_angle_deg"] = result.angle_deg
+            row[f"{result.pair.column}_pass"] = int(ok)
+        row["pass"] = int(passed)
+        row["note"] = ""
+        return row
+
+
+def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    import copy
+
+    return copy.deepcopy(model)
+
+
+_WORKER: VariantChecker | None = None
+
+
+def _init_worker(config: BatchConfig) -> None:
+    global _WORKER
+    _WORKER = VariantChecker(config)
+
+
+def _work(task: tuple[int, np.ndarray]) -> tuple[int, dict]:
+    index, values = task
+    return index, _WORKER(values)
+
+
+@dataclass
+class BatchResult:
+    variants: VariantSet
+    rows: list[dict]
+    pairs: list[Pair]
+    required_mm: float
+    workers: int
+    backend: str
+    seconds: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+    def table(self) -> list[dict]:
+        out = []
+        for name, values, row in zip(self.variants.names, self.variants.values, self.rows):
+            entry = {"variant": name}
+            entry.update({p.name: float(v) for p, v in zip(self.variants.parameters, values)})
+            entry.update(row)
+            out.append(entry)
+        return out
+
+    @property
+    def failed(self) -> int:
+        return sum(1 for row in self.rows if not row["pass"])
+
+
+def run_variants(
+    model: mujoco.MjModel,
+    variants: VariantSet,
+    pairs: Sequence[Pair],
+    required_mm: float = 0.0,
+    driver: str = "arm_shaft",
+    revolutions: float = 1.0,
+    resolution_deg: float = 0.5,
+    workers: int = 1,
+    backend: str = "local",
+    progress: bool = True,
+) -> BatchResult:
+    """Check every variant's clearances; one result row per variant, in file order."""
+    import time
+
+    from tqdm import tqdm
+
+    if backend not in ("local", "ray"):
+        raise UserError(f"backend {backend!r}: expected local or ray")
+    if not 1 <= workers <= 1024:
+        raise UserError(f"workers must be between 1 and 1024, got {workers}")
+    variants.check(model)
+    config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm)
+    tasks = list(enumerate(variants.values))
+    rows: list[dict | None] = [None] * len(tasks)
+    start = time.perf_counter()
+    bar = tqdm(total=len(tasks), unit="variant", desc="variants", disable=not progress, mininterval=0.5)
+    if backend == "ray":
+        for index, row in _run_ray(config, tasks, workers):
+            rows[index] = row
+            bar.update()
+    elif workers == 1:
+        _init_worker(config)
+        for task in tasks:
+            index, row = _work(task)
+            rows[index] = row
+            bar.update()
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+
+        import multiprocessing
+
+        # fork where there is one (Linux): no re-import of the caller's main module, so a
+        # script without an ``if __name__ == "__main__"`` guard works; spawn elsewhere
+        methods = multiprocessing.get_all_start_methods()
+        context = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+        chunk = max(1, min(16, len(tasks) // (8 * workers)))
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_worker, initargs=(config,)) as pool:
+            for index, row in pool.map(_work, tasks, chunksize=chunk):
+                rows[index] = row
+                bar.update()
+    bar.close()
+    return BatchResult(variants, rows, list(pairs), required_mm, workers, backend, time.perf_counter() - start)
+
+
+def _run_ray(config: BatchConfig, tasks, workers: int):
+    try:
+        import ray
+    except ImportError:
+        raise UserError("the ray backend needs Ray: pip install 'mechanism[ray]'") from None
+    started = False
+    if not ray.is_initialized():
+        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        started = True
+    try:
+        Checker = ray.remote(_RayChecker)
+        actors = [Checker.remote(config) for _ in range(workers)]
+        pool = ray.util.ActorPool(actors)
+        yield from pool.map_unordered(lambda actor, task: actor.run.remote(task), tasks)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+class _RayChecker:
+    def __init__(self, config: BatchConfig):
+        self.checker = VariantChecker(config)
+
+    def run(self, task):
+        index, values = task
+        return index, self.checker(values)

@@ -1,0 +1,442 @@
+"""The candidate library: small physical models of what the lumped baseline leaves out.
+
+Each candidate :class:`Effect` has a name (the JSON contract), a physical meaning, typed
+parameters with bounds and nominal values, and says how it enters the model: as a torque
+on the machine (it adds to the per-sample :class:`~mechanism.dynamics.lumped.Drive` coefficients),
+as a change of the applied voltage, as an elastic belt, or as an error of the angle sensor
+(:meth:`Effect.measure`). The diagnosis loop is generic over this list.
+
+Position-dependent terms use the measured arm angle (0 = needle top dead centre, the
+encoder index; bottom dead centre at pi); the motor angle is 8x the arm angle plus an
+unknown offset, which the cos/sin pairs absorb.
+
+Signatures a mechanism engineer would look for (they are *not* used as a decision tree;
+the validation fit decides):
+
+- ``torque_ripple``: torque periodic in the motor angle (8, 16, 96 per arm revolution);
+  its velocity ripple falls with speed because the inertia filters it.
+- ``linkage_dynamics``: gravity of the needle bar (once per revolution, speed independent)
+  plus the varying inertia of the slider-crank (twice per revolution, its torque
+  1/2 J'(theta) w^2 grows with the square of the speed).
+- ``position_friction``: the Coulomb level varies once per revolution (a free phase),
+  independent of speed.
+- ``stribeck``: friction above the Coulomb level at low speed: starts and stops.
+- ``thermal_drift``: friction falls with time as the bearings warm up.
+- ``needle_penetration``: a resisting load in a window of arm angle around needle-down.
+- ``belt_compliance``: motor and arm joined by an elastic belt: a resonance, ringing after
+  voltage steps.
+- ``voltage_nonlinearity``: the applied voltage is a nonlinear function of the logged one.
+- ``encoder_eccentricity``: the sensor reports theta + e cos(theta - psi): a velocity error
+  once per revolution proportional to speed, with no effect on the machine.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+import numpy as np
+
+from mechanism.dynamics.lumped import Drive, Signals
+from mechanism.sysid.parameters import Parameter
+
+PI = math.pi
+
+
+@dataclass(frozen=True)
+class Located:
+    """What the locate step found in the baseline residual, for starting guesses."""
+
+    resonance_hz: tuple[float, ...] = ()
+    residual_rms: float = 0.0
+
+
+class Effect:
+    """A candidate missing effect. Subclasses set the class attributes and ``apply`` or
+    ``measure``; ``starts`` gives initial guesses (several for non-convex parameters)."""
+
+    name: str = ""
+    meaning: str = ""
+    enters: str = ""  # "torque", "friction", "voltage", "belt", "measurement"
+    parameters: tuple[Parameter, ...] = ()
+    sentence: str = ""
+    feature: str = ""  # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
+
+    def apply(self, v: dict[str, float], s: Signals, drive: Drive) -> None:
+        """Add this effect to the drive coefficients (torque, friction, voltage, belt)."""
+
+    def measure(self, v: dict[str, float], s: Signals, angle: np.ndarray) -> np.ndarray:
+        """The angle the sensor reports for the true ``angle`` (measurement effects)."""
+        return angle
+
+    # Parameters in which the effect's torque is linear (amplitudes). For such effects the
+    # diagnosis starts from an equation-error fit: the torque the current model misses at
+    # the measured velocity and acceleration is regressed on these amplitudes, for each
+    # point of ``grid`` (the other parameters). None: no torque form (belt, sensor).
+    linear: tuple[str, ...] | None = None
+
+    def grid(self, s: Signals, located: Located) -> list[dict[str, float]]:
+        """Values of the non-linear parameters to try in the equation-error start."""
+        return [{}]
+
+    def starts(self, s: Signals, located: Located) -> list[dict[str, float]]:
+        """Initial guesses for effects without an equation-error start."""
+        return [{p.name: p.nominal for p in self.parameters}]
+
+    def summary(self, v: dict[str, float], s: Signals | None = None) -> dict[str, float]:
+        """Derived engineering quantities for the evidence sentence."""
+        return {}
+
+    @property
+    def is_measurement(self) -> bool:
+        return self.enters == "measurement"
+
+    def __repr__(self) -> str:
+        return f"<effect {self.name}>"
+
+
+def _amplitude(v: dict, cos_key: str, sin_key: str) -> tuple[float, float]:
+    a, b = v[cos_key], v[sin_key]
+    return math.hypot(a, b), math.atan2(b, a)
+
+
+def _harmonic_pair(prefix: str, unit: str, bound: float, what: str, scale: float) -> tuple[Parameter, Parameter]:
+    return (
+        Parameter(f"{prefix}_cos_{unit}", 0.0, -bound, bound, f"{what}, cosine part", scale=scale),
+        Parameter(f"{prefix}_sin_{unit}", 0.0, -bound, bound, f"{what}, sine part", scale=scale),
+    )
+
+
+class TorqueRipple(Effect):
+    name = "torque_ripple"
+    meaning = "motor-angle-periodic torque: shaft distortion (once and twice per motor revolution) and cogging of the 12-pole motor (12 and 24 per revolution)"
+    enters = "torque"
+    MOTOR_ORDERS = (1, 2, 12, 24)  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
+    parameters = tuple(
+        p for k in MOTOR_ORDERS
+        for p in _harmonic_pair(f"ripple_motor_order{k}", "Nm", 0.05, f"motor-side torque {k}x per motor revolution", 0.005)
+    )
+    linear = tuple(p.name for p in parameters)
+    feature = "motor_profile"
+    sentence = ("a torque ripple of {amp_Nm:.2g} Nm at the motor, {orders} times per arm revolution (cogging, shaft "
+                "distortion), explains the residual that repeats with the motor angle")
+
+    def apply(self, v, s, drive):
+        torque = np.zeros(len(s))
+        for k in self.MOTOR_ORDERS:
+            order = k * s.ratio
+            torque += v[f"ripple_motor_order{k}_cos_Nm"] * s.harmonic(order, "cos")
+            torque += v[f"ripple_motor_order{k}_sin_Nm"] * s.harmonic(order, "sin")
+        drive.tau_motor_Nm += s.ratio * torque
+
+    def summary(self, v, s=None):
+        amps = {k: _amplitude(v, f"ripple_motor_order{k}_cos_Nm", f"ripple_motor_order{k}_sin_Nm")[0] for k in self.MOTOR_ORDERS}
+        main = max(amps, key=amps.get)
+        orders = " and ".join(f"{int(k * 8)}" for k in self.MOTOR_ORDERS if amps[k] > 0.2 * amps[main])
+        return {"amp_Nm": amps[main], "orders": orders}
+
+
+class LinkageDynamics(Effect):
+    name = "linkage_dynamics"
+    meaning = ("position-dependent inertia and gravity of the needle-bar linkage: a slider-crank (needle-bar mass m, "
+               "crank radius r, crank/rod ratio lambda, top dead centre at arm angle 0 + offset) with J(theta) = m x'^2, "
+               "G(theta) = m g x', and the 1/2 J'(theta) w^2 torque")
+    enters = "torque"
+    parameters = (
+        Parameter("needle_bar_mass_kg", 0.05, 0.0, 3.0, "equivalent reciprocating mass of the needle bar", scale=0.1),
+        Parameter("crank_radius_m", 0.015, 0.003, 0.05, "crank radius (half the needle stroke)", scale=0.015),
+        Parameter("crank_rod_ratio", 0.3, 0.0, 0.7, "crank radius over connecting-rod length", scale=0.3),
+        Parameter("top_dead_centre_offset_rad", 0.0, -0.6, 0.6, "arm angle of the linkage's top dead centre (0 by the encoder index)", scale=0.2),
+    )
+    linear = ("needle_bar_mass_kg",)
+    feature = "order2_by_speed"
+    sentence = ("the needle-bar linkage's varying inertia ({inertia_kgm2:.2g} kg m^2 at the arm, a {mass_kg:.2g} kg bar on "
+                "a {radius_mm:.3g} mm crank, whose 1/2 J' w^2 torque grows with the square of speed) and its gravity "
+                "({gravity_Nm:.2g} Nm) explain the residual that is periodic in the arm angle")
+
+    @staticmethod
+    def kinematics(v, theta):
+        """dx/dtheta and d2x/dtheta2 of the needle-bar height for the slider-crank."""
+        r, lam = v["crank_radius_m"], v["crank_rod_ratio"]
+        a = theta - v["top_dead_centre_offset_rad"]
+        sa, ca = np.sin(a), np.cos(a)
+        root = np.sqrt(1.0 - (lam * sa) ** 2)
+        dx = -r * sa * (1.0 + lam * ca / root)
+        ddx = -r * ca * (1.0 + lam * ca / root) + r * lam * sa * sa * (1.0 - lam * lam) / root**3
+        return dx, ddx
+
+    def apply(self, v, s, drive):
+        m = v["needle_bar_mass_kg"]
+        if m == 0.0:
+            return
+        grid_dx, grid_ddx = self.kinematics(v, Signals.periodic_grid())
+        inertia = grid_dx * grid_dx
+        drive.inertia_kgm2 += m * s.periodic(inertia - inertia.mean())  # the revolution mean is the baseline's J
+        drive.quadratic_Nm_s2 += m * s.periodic(grid_dx * grid_ddx)  # 1/2 dJ/dtheta
+        drive.tau_arm_Nm += m * 9.81 * s.periodic(grid_dx)  # potential energy m g x, resisting when the bar rises
+
+    def grid(self, s, located):
+        return [{"crank_radius_m": r, "crank_rod_ratio": lam, "top_dead_centre_offset_rad": 0.0}
+                for r in (0.008, 0.016, 0.03) for lam in (0.1, 0.3, 0.5)]
+
+    def summary(self, v, s=None):
+        theta = np.linspace(0, 2 * PI, 360, endpoint=False)
+        dx, _ = self.kinematics(v, theta)
+        m = v["needle_bar_mass_kg"]
+        return {"mass_kg": m, "radius_mm": 1e3 * v["crank_radius_m"], "inertia_kgm2": float(np.ptp(m * dx * dx)),
+                "gravity_Nm": float(np.max(np.abs(m * 9.81 * dx)))}
+
+
+class PositionFriction(Effect):
+    name = "position_friction"
+    meaning = ("the Coulomb friction level varies over the arm revolution (bearing loads change with the crank "
+               "position): once-, twice- and three-times-per-revolution terms, independent of speed")
+    enters = "friction"
+    # the bearing loads come from the slider-crank and the cams and levers off the arm shaft:
+    # a single cosine (thesis 5.2.2), a broad bump or a lobed profile all need the third order
+    ORDERS = (1, 2, 3)
+    parameters = tuple(p for k in ORDERS for p in _harmonic_pair(
+        f"coulomb_order{k}", "Nm", 0.5, f"{k}x-per-revolution variation of the Coulomb level", 0.02))
+    linear = tuple(p.name for p in parameters)
+    feature = "arm_profile"
+    sentence = ("a Coulomb friction that varies by +-{amp_Nm:.2g} Nm over the arm revolution, highest {peak_deg:.0f} deg "
+                "after needle top and the same at every speed, explains the residual that is periodic in the arm angle")
+
+    def variation(self, v, theta):
+        return sum(v[f"coulomb_order{k}_cos_Nm"] * np.cos(k * theta) + v[f"coulomb_order{k}_sin_Nm"] * np.sin(k * theta)
+                   for k in self.ORDERS)
+
+    def apply(self, v, s, drive):
+        drive.coulomb_Nm += sum(v[f"coulomb_order{k}_cos_Nm"] * s.harmonic(k, "cos") + v[f"coulomb_order{k}_sin_Nm"] * s.harmonic(k, "sin")
+                                for k in self.ORDERS)
+        np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
+
+    def summary(self, v, s=None):
+        theta = np.linspace(0, 2 * PI, 720, endpoint=False)
+        shape = self.variation(v, theta)
+        return {"amp_Nm": 0.5 * float(np.ptp(shape)), "peak_deg": math.degrees(theta[int(np.argmax(shape))])}
+
+
+class Stribeck(Effect):
+    name = "stribeck"
+    meaning = "static friction above the kinetic level, decaying with speed (Tustin: Fc + Fx exp(-(|w|/ws)^delta))"
+    enters = "friction"
+    parameters = (
+        Parameter("static_excess_arm_Nm", 0.05, 0.0, 1.5, "static minus kinetic friction on the arm", scale=0.05),
+        Parameter("stribeck_velocity_arm_rad_s", 2.0, 0.02, 40.0, "speed at which the excess has decayed to 1/e", log=True),
+        Parameter("stribeck_exponent", 1.0, 0.4, 3.0, "shape exponent delta (Tustin 0.5-2)", scale=1.0),
+    )
+    feature = "low_speed"
+    sentence = ("static friction {excess_Nm:.2g} Nm above the kinetic level, fading over {ws:.2g} rad/s of arm speed, "
+                "explains the residual at starts, stops and low speed")
+
+    def apply(self, v, s, drive):
+        drive.static_excess_Nm += v["static_excess_arm_Nm"]
+        drive.stribeck_velocity_rad_s = v["stribeck_velocity_arm_rad_s"]
+        drive.stribeck_exponent = v["stribeck_exponent"]
+
+    linear = ("static_excess_arm_Nm",)
+
+    def grid(self, s, located):
+        return [{"stribeck_velocity_arm_rad_s": ws, "stribeck_exponent": delta}
+                for ws in (0.3, 1.0, 3.0, 10.0) for delta in (1.0, 2.0)]
+
+    def summary(self, v, s=None):
+        return {"excess_Nm": v["static_excess_arm_Nm"], "ws": v["stribeck_velocity_arm_rad_s"]}
+
+
+class ThermalDrift(Effect):
+    name = "thermal_drift"
+    meaning = ("friction falls as the sintered bearings warm up during the run: Coulomb and viscous scaled by "
+               "1 - a x(t), the warmth x a first-order lag (time constant tau) of a heating that is partly constant "
+               "(ambient, motor) and partly proportional to the shaft speed (bearing friction), cold at the start")
+    enters = "friction"
+    parameters = (
+        Parameter("coulomb_drop_fraction", 0.0, -0.5, 0.95, "fraction of the Coulomb friction lost when warm", scale=0.2),
+        Parameter("viscous_drop_fraction", 0.0, -2.0, 0.95, "fraction of the viscous friction lost when warm", scale=0.5),
+        Parameter("warmup_time_constant_s", 60.0, 3.0, 3000.0, "warm-up time constant", log=True),
+        Parameter("speed_heating_share", 0.5, 0.0, 1.0, "share of the heating that follows the shaft speed (0: warms with time alone)", scale=1.0),
+    )
+    linear = ("coulomb_drop_fraction", "viscous_drop_fraction")
+    feature = "drift"
+    sentence = ("friction that falls as the bearings warm up ({coulomb_pct:.0f}% Coulomb, {viscous_pct:.0f}% viscous by the end "
+                "of the recording) explains a residual that drifts with time at repeated voltage levels")
+
+    def warmth(self, v, s):
+        """x' = (heating - x) / tau, x(0) = 0; heating = 1 - b + b |w| / mean |w| (measured speed)."""
+        from scipy.signal import lfilter
+
+        tau, b = v["warmup_time_constant_s"], v["speed_heating_share"]
+
+        def compute():
+            speed = np.abs(s.velocity_rad_s)
+            heating = 1.0 - b + b * speed / max(float(speed.mean()), 1e-9)
+            a = math.exp(-s.dt / tau)
+            return lfilter([0.0, 1.0 - a], [1.0, -a], heating)
+
+        return s.memo("warmth", (tau, b), compute)
+
+    def apply(self, v, s, drive):
+        w = self.warmth(v, s)
+        drive.coulomb_Nm *= 1.0 - v["coulomb_drop_fraction"] * w
+        drive.viscous_Nm_s *= 1.0 - v["viscous_drop_fraction"] * w
+        np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
+        np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
+
+    def grid(self, s, located):
+        return [{"warmup_time_constant_s": tau, "speed_heating_share": b}
+                for tau in (8.0, 25.0, 80.0, 250.0, 1000.0) for b in (0.0, 0.5, 1.0)]
+
+    def summary(self, v, s=None):
+        w = float(self.warmth(v, s)[-1]) if s is not None else 1 - math.exp(-60.0 / v["warmup_time_constant_s"])
+        return {"coulomb_pct": 100 * v["coulomb_drop_fraction"] * w, "viscous_pct": 100 * v["viscous_drop_fraction"] * w}
+
+
+class NeedlePenetration(Effect):
+    name = "needle_penetration"
+    meaning = ("fabric load while the needle is below the fabric surface, a window of arm angle around needle-down "
+               "(bottom dead centre): the force on the needle acts through the needle bar's velocity ratio |dx/dtheta| "
+               "(friction on the way down and up, a piercing peak as the point enters), plus a smooth load bump")
+    enters = "friction"
+    CRANK_ROD_RATIO = 0.3  # typical needle-bar slider-crank; only shapes |dx/dtheta|
+    EDGE_RAD = 0.03
+    PIERCE_RAD = 0.15  # the piercing peak decays over ~9 deg of arm angle after the needle enters
+    parameters = (
+        Parameter("penetration_down_arm_Nm", 0.05, 0.0, 3.0, "arm torque per unit velocity ratio while the needle goes down through the fabric (force x crank radius)", scale=0.1),
+        Parameter("penetration_up_arm_Nm", 0.05, 0.0, 3.0, "the same while the needle comes up out of the fabric", scale=0.1),
+        Parameter("penetration_bump_arm_Nm", 0.0, 0.0, 3.0, "peak of a smooth (cos^2) load over the window", scale=0.1),
+        Parameter("piercing_arm_Nm", 0.0, 0.0, 3.0, "extra load as the point pierces the fabric, decaying over PIERCE_RAD after entry", scale=0.1),
+        Parameter("penetration_half_width_rad", 1.0, 0.15, 1.75, "half the arm angle the needle spends in the fabric", scale=0.5),
+        Parameter("penetration_centre_offset_rad", 0.0, -0.8, 0.8, "window centre relative to bottom dead centre (pi)", scale=0.3),
+    )
+    feature = "arm_profile"
+    sentence = ("a fabric load of up to {load_Nm:.2g} Nm at the arm while the needle is in the fabric ({width_deg:.0f} deg of "
+                "arm angle around needle-down at {centre_deg:.0f} deg) explains the once-per-revolution drop in speed")
+
+    def shape(self, v, theta):
+        """Arm torque over the arm angle (>= 0, resisting)."""
+        centre = PI + v["penetration_centre_offset_rad"]
+        hw = v["penetration_half_width_rad"]
+        rel = np.mod(theta - centre + PI, 2 * PI) - PI  # angle from the window centre
+        # the needle enters the fabric over a few degrees (a smooth edge keeps the fit differentiable)
+        inside = 0.5 * (1.0 + np.tanh((hw - np.abs(rel)) / self.EDGE_RAD))
+        lam = self.CRANK_ROD_RATIO
+        a = theta - v["penetration_centre_offset_rad"]
+        sa, ca = np.sin(a), np.cos(a)
+        ratio = np.abs(sa * (1.0 + lam * ca / np.sqrt(1.0 - (lam * sa) ** 2)))  # |dx/dtheta| / r
+        lobes = np.where(rel < 0, v["penetration_down_arm_Nm"], v["penetration_up_arm_Nm"]) * ratio
+        bump = v["penetration_bump_arm_Nm"] * np.cos(0.5 * PI * rel / hw) ** 2
+        bump = np.where(np.abs(rel) < hw, bump, 0.0)
+        since_entry = np.clip(rel + hw, 0.0, None)
+        pierce = v["piercing_arm_Nm"] * ratio * np.exp(-since_entry / self.PIERCE_RAD) * inside
+        return inside * lobes + bump + pierce
+
+    def apply(self, v, s, drive):
+        drive.coulomb_Nm += s.periodic(self.shape(v, Signals.periodic_grid()))
+
+    linear = ("penetration_down_arm_Nm", "penetration_up_arm_Nm", "penetration_bump_arm_Nm", "piercing_arm_Nm")
+
+    def grid(self, s, located):
+        return [{"penetration_half_width_rad": hw, "penetration_centre_offset_rad": off}
+                for hw in (0.35, 0.6, 0.9, 1.2, 1.45, 1.7) for off in (-0.5, -0.25, 0.0, 0.25, 0.5)]
+
+    def summary(self, v, s=None):
+        theta = np.linspace(0, 2 * PI, 720, endpoint=False)
+        load = self.shape(v, theta)
+        return {"load_Nm": float(load.max()), "centre_deg": math.degrees(PI + v["penetration_centre_offset_rad"]),
+                "width_deg": 2 * math.degrees(v["penetration_half_width_rad"])}
+
+
+class BeltCompliance(Effect):
+    name = "belt_compliance"
+    meaning = "elastic belt between motor and arm: two inertias on a spring-damper, a resonance excited by steps and ripple"
+    enters = "belt"
+    parameters = (
+        Parameter("belt_resonance_Hz", 30.0, 2.0, 250.0, "resonance frequency of motor against arm on the belt", log=True),
+        Parameter("belt_damping_ratio", 0.1, 0.003, 2.0, "damping ratio of the belt mode", log=True),
+        Parameter("motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia (thesis: 8.6e-6 of 2.78e-5)", scale=1.0),
+    )
+    feature = "transient"
+    sentence = ("an elastic belt between motor and arm (resonance {f:.3g} Hz, damping ratio {zeta:.2g}, unrelated to the "
+                "shaft rates) explains the ringing after voltage steps")
+
+    def apply(self, v, s, drive):
+        total = float(np.median(drive.inertia_kgm2))
+        jm = v["motor_inertia_fraction"] * total
+        ja = total - jm
+        wr = 2 * PI * v["belt_resonance_Hz"]
+        stiffness = wr**2 / (1 / jm + 1 / ja)
+        reduced = jm * ja / total
+        drive.belt_stiffness_Nm_rad = stiffness
+        drive.belt_damping_Nm_s = 2 * v["belt_damping_ratio"] * math.sqrt(stiffness * reduced)
+        drive.motor_inertia_kgm2 = jm
+
+    def starts(self, s, located):
+        nyquist = 0.5 / s.dt
+        freqs = [f for f in located.resonance_hz if 2.0 < f < min(250.0, 0.9 * nyquist)][:3] or [8.0, 25.0, 60.0]
+        return [{"belt_resonance_Hz": f, "belt_damping_ratio": z, "motor_inertia_fraction": 0.31} for f in freqs for z in (0.03, 0.2)]
+
+    def summary(self, v, s=None):
+        return {"f": v["belt_resonance_Hz"], "zeta": v["belt_damping_ratio"]}
+
+
+class VoltageNonlinearity(Effect):
+    name = "voltage_nonlinearity"
+    meaning = ("the voltage reaching the motor is a nonlinear function of the logged one (the thesis's PWM power "
+               "switch): U + s(U) (c0 + c1 x + c2 x^2 + c3 x^3), x = U / 24 V, s ramping from 0 at 0 V to 1 at 0.5 V")
+    enters = "voltage"
+    U_REF = 24.0
+    U_RAMP = 0.5
+    parameters = (
+        Parameter("supply_offset_V", 0.0, -3.0, 3.0, "voltage offset of the switch (c0)", scale=0.3),
+        Parameter("supply_linear_V", 0.0, -12.0, 12.0, "linear term c1", scale=0.5),
+        Parameter("supply_quadratic_V", 0.0, -30.0, 30.0, "quadratic term c2", scale=1.0),
+        Parameter("supply_cubic_V", 0.0, -30.0, 30.0, "cubic term c3", scale=1.0),
+    )
+    linear = tuple(p.name for p in parameters)
+    feature = "steady"
+    sentence = ("a supply that gives the motor {lo:+.2g} V at {ulo:.3g} V logged, {mid:+.2g} V at {umid:.3g} V and {hi:+.2g} V "
+                "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
+                "while the coast-downs at 0 V already fit")
+
+    def applied(self, v, u):
+        x = u / self.U_REF
+        ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
+        poly = v["supply_offset_V"] + x * (v["supply_linear_V"] + x * (v["supply_quadratic_V"] + x * v["supply_cubic_V"]))
+        # a switch between supply and motor can lose voltage (a dead band) but never reverse it
+        return np.where(u >= 0, np.maximum(u + ramp * poly, 0.0), np.minimum(u + ramp * poly, 0.0))
+
+    def apply(self, v, s, drive):
+        drive.voltage_V = self.applied(v, drive.voltage_V)
+
+    def summary(self, v, s=None, levels=(5.0, 12.0, 20.0)):
+        lo, mid, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
+        return {"lo": lo, "mid": mid, "hi": hi, "ulo": levels[0], "umid": levels[1], "uhi": levels[2]}
+
+
+class EncoderEccentricity(Effect):
+    name = "encoder_eccentricity"
+    meaning = "the encoder (adapter) is eccentric: it reports theta + e cos(theta - psi); a measurement error, not a torque"
+    enters = "measurement"
+    parameters = _harmonic_pair("encoder_order1", "rad", 0.05, "once-per-revolution angle error of the sensor", 0.002)
+    feature = "order1_by_speed"
+    sentence = ("an eccentric encoder reading {amp_mrad:.2g} mrad off once per revolution explains a once-per-revolution "
+                "error that grows with speed, which a torque cannot do (the inertia filters it)")
+
+    def measure(self, v, s, angle):
+        return angle + v["encoder_order1_cos_rad"] * np.cos(angle) + v["encoder_order1_sin_rad"] * np.sin(angle)
+
+    def summary(self, v, s=None):
+        return {"amp_mrad": 1e3 * _amplitude(v, "encoder_order1_cos_rad", "encoder_order1_sin_rad")[0]}
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    TorqueRipple(), LinkageDynamics(), PositionFriction(), Stribeck(), ThermalDrift(), NeedlePenetration(),
+    BeltCompliance(), VoltageNonlinearity(), EncoderEccentricity())}
+
+
+def effect(name: str) -> Effect:
+    from mechanism.errors import UserError, close_matches
+
+    if name not in EFFECTS:
+        raise UserError(f"unknown effect {name!r}; known: {close_matches(name, EFFECTS)}")
+    return EFFECTS[name]
