@@ -1,10 +1,43 @@
 """mechanism: CAD assembly export -> MuJoCo simulation you can trust, inspect and correct.
 
-The library is organised one noun per module (simulation, friction, probes, clearance,
-identification, diagnosis, ...); the CLI in :mod:`mechanism.cli` is a thin shell over it.
+    import mechanism
+    machine = mechanism.load_machine()                      # or load_machine("my_machine.toml")
+    run = mechanism.simulate(machine, voltage_V=12, duration_s=2)
+    print(run.mean_speed_rpm)
+
+The public API is the names in ``__all__`` (docs/api.md has one example each); the
+subpackages group the rest by concern: converters, kinematics, physics, machine, dynamics,
+inspection, sysid, steppers, testbench. Names are imported on first use, so the command
+line starts fast.
 """
+
+from __future__ import annotations
+
+import importlib
 
 from mechanism.errors import UserError
 
-__all__ = ["UserError"]
-__version__ = "0.1.0"
+__version__ = "0.2.0"
+
+_LAZY = {
+    "Machine": "mechanism.machine.machine",
+    "MachineConfig": "mechanism.machine.machine",
+    "load_machine": "mechanism.machine.machine",
+    "read_description": "mechanism.machine.description",
+    "SimulationResult": "mechanism.dynamics.simulation",
+    "VoltageProfile": "mechanism.physics.inputs",
+    "simulate": "mechanism.api",
+    "convert": "mechanism.api",
+}
+
+__all__ = ["UserError", "__version__", *sorted(_LAZY)]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'mechanism' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -23,9 +23,9 @@ from mechanism.data.reference import thesis
 
 REPO = Path(__file__).resolve().parent.parent
 CAD = REPO / "assets" / "cad"
-EXPORT = CAD / "export"
+EXPORT = REPO / "mechanism" / "models" / "sapphire870" / "cad"
 PARAMS = json.loads((CAD / "sewing_machine.params.json").read_text())
-MESHES = REPO / "assets" / "meshes"
+MESHES = REPO / "mechanism" / "models" / "sapphire870" / "meshes"
 
 
 def param(section, name):
@@ -119,12 +119,12 @@ def test_export_names_the_frames_the_tools_rely_on():
 def test_committed_mjcf_is_what_the_converter_makes_of_the_committed_export(tmp_path):
     from mechanism.converters import convert
 
-    convert(EXPORT / "sewing_machine.xml", tmp_path / "mjcf", mesh_dir=tmp_path / "meshes")
+    convert(EXPORT / "sewing_machine.xml", tmp_path / "mjcf", mesh_dir=tmp_path / "mjcf" / "meshes")
     assert (tmp_path / "mjcf" / "sewing_machine.xml").read_text() == DEFAULT_MODEL.read_text()
-    fresh = sorted(p.name for p in (tmp_path / "meshes").iterdir())
+    fresh = sorted(p.name for p in (tmp_path / "mjcf" / "meshes").iterdir())
     assert fresh == sorted(p.name for p in MESHES.iterdir())
     for name in fresh:
-        assert (tmp_path / "meshes" / name).read_bytes() == (MESHES / name).read_bytes(), name
+        assert (tmp_path / "mjcf" / "meshes" / name).read_bytes() == (MESHES / name).read_bytes(), name
 
 
 @pytest.fixture(scope="module")

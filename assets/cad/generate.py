@@ -39,7 +39,7 @@ import firstgen  # noqa: E402
 from mechanism.files.outputs import atomic_dir  # noqa: E402  (the project's own atomic folder replace)
 
 DEFAULT_PARAMS = HERE / "sewing_machine.params.json"
-DEFAULT_OUT = HERE / "export"
+DEFAULT_OUT = HERE.parent.parent / "mechanism" / "models" / "sapphire870" / "cad"
 EXPORT_NAME = "sewing_machine"
 PARAMS_FORMAT = "mechanism-cad-params/1"
 

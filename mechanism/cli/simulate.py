@@ -1,75 +1,94 @@
-"""mechanism simulate: run the sewing machine under a motor voltage."""
+"""mechanism simulate: run a described machine under a motor voltage."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from mechanism.cli._machine import add_machine_arguments, description_from_args
+
 ORDER = 30
+WARM_DEFAULT_S = 120.0  # the thesis's warm column: after 2 minutes of running
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "simulate",
-        help="run the machine under a motor voltage (DC motor, belts, friction, fabric)",
+        help="run the machine under a motor voltage (DC motor, couplings, friction, loads)",
         description=(
-            "Simulate the sewing machine in MuJoCo from rest: native <dcmotor> on the motor joint (thesis "
-            "Domel 482.501: R 1.1 ohm, Kt 0.017 N m/A, Ke 0.021 V s/rad), belts 8:1 and 1:1, hook 2:1, "
-            "thesis friction (Coulomb 0.18 N m on the arm shaft, viscous 2.2e-5 cold / 1.0e-5 warm N m s/rad "
-            "on the motor, static friction 33 %% above kinetic, position-dependent friction), optional fabric. "
-            "Writes a CSV with units in every column name."
+            "Simulate a described machine in MuJoCo from rest: the motor as a native <dcmotor> on the described "
+            "motor joint (Kt != Ke kept exactly), the model's couplings and loops, the described friction per "
+            "joint (Coulomb, viscous, Stribeck, position-dependent), optional fabric on the tool. Default machine: "
+            "the shipped Sapphire 870 (Domel motor R 1.1 ohm, Kt 0.017 N m/A, Ke 0.021 V s/rad, belt 8:1). "
+            "Writes a CSV with units in every column name; 'arm' columns are the described shaft."
         ),
         epilog="example: mechanism simulate --voltage 12.49 --duration 3 --csv out/run.csv --summary",
     )
-    parser.add_argument("--model", help="MJCF file (default: the shipped sewing machine)")
+    add_machine_arguments(parser)
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--voltage", type=float, metavar="V", help="constant motor terminal voltage [V], 0-30")
     source.add_argument("--profile", metavar="FILE",
                         help="voltage profile CSV with columns time_s (or time) and voltage_V (or voltage); "
                              "each voltage holds until the next time (zero-order hold)")
     source.add_argument("--duty", type=float, metavar="PCT",
-                        help="PWM duty cycle [%%] of the thesis's 24 V power switch; converted to motor voltage "
-                             "with Table 2's measured (non-linear) conversion")
+                        help="PWM duty cycle [%%] of the described supply; converted to motor voltage with its "
+                             "measured (non-linear) map ([supply] in the description)")
     parser.add_argument("--duration", type=float, metavar="S",
                         help="simulated time [s] (default with --profile: the profile's last time)")
-    parser.add_argument("--warm", action="store_true", help="warm machine: thesis viscous friction 1.0e-5 instead of 2.2e-5")
-    parser.add_argument("--layers", type=int, default=0, metavar="N", help="fabric layers under the needle (default 0)")
-    parser.add_argument("--no-needle", action="store_true", help="needle removed: no fabric penetration load")
-    parser.add_argument("--feeding", action="store_true", help="feed mechanism engaged (extra friction on the lower shaft)")
+    warm = parser.add_mutually_exclusive_group()
+    warm.add_argument("--warm-s", type=float, default=0.0, metavar="S",
+                      help="the machine after S seconds of running: friction warmed as the description's [warm] says")
+    warm.add_argument("--warm", action="store_const", const=WARM_DEFAULT_S, dest="warm_s",
+                      help=f"shortcut for --warm-s {WARM_DEFAULT_S:g} (the thesis's warm column)")
+    parser.add_argument("--layers", type=int, default=0, metavar="N", help="fabric layers under the tool (default 0)")
+    parser.add_argument("--no-needle", action="store_true", help="tool removed: no fabric penetration load")
+    parser.add_argument("--feeding", action="store_true", help="feed mechanism engaged (the description's [loads] feeding)")
     parser.add_argument("--belt-tension", choices=["low", "normal", "hard"], default="normal",
-                        help="motor belt tension setting (thesis fig. 15; default normal)")
+                        help="belt tension setting (the description's [loads]; default normal)")
     parser.add_argument("--start-angle", type=float, default=0.0, metavar="DEG",
-                        help="arm angle at rest at the start [deg], 0 = needle top dead centre")
-    parser.add_argument("--inductance", type=float, default=0.0, metavar="H", help="motor winding inductance [H] (default 0: quasi-static current)")
-    parser.add_argument("--cogging", type=float, default=0.0, metavar="NM", help="motor cogging torque amplitude [N m], 12 per motor revolution")
+                        help="shaft angle at rest at the start [deg], 0 = the described zero")
+    parser.add_argument("--inductance", type=float, metavar="H", help="motor winding inductance [H] (default: the description's)")
+    parser.add_argument("--cogging", type=float, metavar="NM", help="motor cogging torque amplitude [N m] (periods per turn: the description's)")
     parser.add_argument("--thermal", action="store_true", help="winding resistance rises with temperature")
-    parser.add_argument("--timestep", type=float, default=0.5, metavar="MS",
-                        help="simulation time step [ms] (default 0.5); loops and belts stiffen with it: at ~1000 rpm "
-                             "the needle-bar loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms")
+    parser.add_argument("--timestep", type=float, metavar="MS",
+                        help="simulation time step [ms] (default: the description's, else 0.5); loops and belts stiffen "
+                             "with it: at ~1000 rpm the Sapphire's needle-bar loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms")
     parser.add_argument("--reduced", action="store_true", help="use the fast reduced 1-DOF model instead of the full multibody model")
     parser.add_argument("--rate", type=float, default=1000.0, metavar="HZ", help="output sample rate [Hz] (default 1000)")
     parser.add_argument("--csv", metavar="OUT.csv", help="write the time series")
-    parser.add_argument("--plot", metavar="OUT.png", help="plot speed, current and needle height over time")
-    parser.add_argument("--summary", action="store_true", help="print mean/min/max arm speed [rpm] over the last second")
+    parser.add_argument("--plot", metavar="OUT.png", help="plot speed, current and tool height over time")
+    parser.add_argument("--summary", action="store_true", help="print mean/min/max shaft speed [rpm] over the last second")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     import numpy as np
 
-    from mechanism.errors import UserError
-    from mechanism.physics.inputs import VoltageProfile
-    from mechanism.machine.machine import Machine, MachineConfig
-    from mechanism.physics.motor import DCMotor, Thermal
     from mechanism.dynamics.simulation import simulate
+    from mechanism.errors import UserError
     from mechanism.files.tables import write_table
+    from mechanism.machine.machine import Machine, MachineConfig, motor_from_description
+    from mechanism.physics.inputs import VoltageProfile
+    from mechanism.physics.motor import Thermal
 
     if not (args.csv or args.plot or args.summary):
         raise UserError("nothing to output: give --csv, --plot and/or --summary")
+    description = description_from_args(args)
+    motor = motor_from_description(description.motor)
+    options = {"inductance_H": args.inductance, "cogging_Nm": args.cogging}
+    motor = replace(motor, **{k: v for k, v in options.items() if v is not None})
+    if args.thermal and motor.thermal is None:
+        motor = replace(motor, thermal=Thermal())
+    config = MachineConfig(warm_s=args.warm_s, layers=args.layers, needle=not args.no_needle, feeding=args.feeding,
+                           belt_tension=args.belt_tension, motor=motor,
+                           timestep_s=None if args.timestep is None else args.timestep * 1e-3)
+    machine = Machine(description, config)
     if args.voltage is not None:
         voltage = VoltageProfile.constant(args.voltage)
     elif args.duty is not None:
-        voltage = VoltageProfile.from_duty(args.duty)
+        voltage = VoltageProfile.from_duty(args.duty, machine.duty_map())
     else:
         voltage = VoltageProfile.from_csv(args.profile)
     duration = args.duration
@@ -77,11 +96,6 @@ def run(args: argparse.Namespace) -> int:
         if args.profile is None or voltage.end_s <= 0:
             raise UserError("--duration is required (simulated time in seconds)")
         duration = voltage.end_s
-    motor = DCMotor.from_thesis(inductance_H=args.inductance, cogging_Nm=args.cogging,
-                                thermal=Thermal() if args.thermal else None)
-    config = MachineConfig(warm=args.warm, layers=args.layers, needle=not args.no_needle, feeding=args.feeding,
-                           belt_tension=args.belt_tension, motor=motor, timestep_s=args.timestep * 1e-3)
-    machine = Machine(args.model, config)
     start = float(np.deg2rad(args.start_angle))
     if args.reduced:
         from mechanism.dynamics.reduced import ReducedModel
@@ -91,8 +105,8 @@ def run(args: argparse.Namespace) -> int:
         result = simulate(voltage, duration, machine=machine, start_angle_rad=start, sample_rate_hz=args.rate,
                           progress=True)
     if args.csv:
-        comments = [f"mechanism simulate: model {args.model or 'shipped sewing machine'}",
-                    f"warm: {args.warm}; layers: {args.layers}; needle: {not args.no_needle}; feeding: {args.feeding}; "
+        comments = [f"mechanism simulate: machine {machine.name} ({machine.model_path.name}); shaft {machine.shaft_joint}",
+                    f"warm_s: {args.warm_s:g}; layers: {args.layers}; needle: {not args.no_needle}; feeding: {args.feeding}; "
                     f"belt tension: {args.belt_tension}; model: {'reduced' if args.reduced else 'full multibody'}"]
         write_table(args.csv, result.columns(), comments=comments)
     if args.plot:
@@ -100,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     if args.summary:
         last = min(1.0, duration)
         s = result.speed_summary(last)
-        print(f"arm speed over the last {last:g} s: mean {s['mean_rpm']:.1f} rpm, "
+        print(f"shaft speed over the last {last:g} s: mean {s['mean_rpm']:.1f} rpm, "
               f"min {s['min_rpm']:.1f} rpm, max {s['max_rpm']:.1f} rpm")
     sys.stdout.flush()
     return 0
@@ -113,7 +127,7 @@ def plot_run(result, path) -> None:
 
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     axes[0].plot(result.time_s, result.arm_velocity_rad_s * 60 / (2 * np.pi), lw=0.8)
-    axes[0].set_ylabel("arm speed [rpm]")
+    axes[0].set_ylabel("shaft speed [rpm]")
     axes[1].plot(result.time_s, result.current_A, lw=0.8, color="tab:red")
     axes[1].set_ylabel("current [A]")
     ax_v = axes[1].twinx()
@@ -121,7 +135,7 @@ def plot_run(result, path) -> None:
     ax_v.set_ylabel("voltage [V]")
     axes[2].plot(result.time_s, result.needle_z_mm, lw=0.8, color="tab:green")
     axes[2].axhline(0.0, color="k", lw=0.5)
-    axes[2].set_ylabel("needle above plate [mm]")
+    axes[2].set_ylabel("tool above plate [mm]")
     axes[2].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)

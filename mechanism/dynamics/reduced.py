@@ -8,7 +8,7 @@ the arm angle θ. Lagrange's equation projected on θ is exact:
 with J(θ) = vᵀ M(q) v the effective inertia (v = dq/dθ, motor through the belt included),
 G(θ) = vᵀ g(q) the gravity torque (positive = resisting forward rotation), and Q the
 generalised motor, friction and fabric forces, each joint's force times its ratio v_j.
-:func:`linkage_tables` tabulates these over one revolution with MuJoCo's mass matrix,
+:func:`mechanism.kinematics.linkage.compute_tables` tabulates these over one revolution with MuJoCo's mass matrix,
 gravity bias and the constraint Jacobians (mechanism.kinematics.pose); :class:`ReducedModel`
 integrates the equation (RK4, Karnopp stick-slip) in C, thousands of times faster than
 the full model, for identification.
@@ -29,7 +29,7 @@ from mechanism.errors import UserError
 from mechanism.physics.friction import STRIBECK_LAWS, FrictionLaw
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_interp
-from mechanism.machine.machine import ARM, MOTOR, NEEDLE_SITE, Machine, MachineConfig
+from mechanism.machine.machine import Machine, MachineConfig
 from mechanism.dynamics.simulation import MAX_DURATION_S, SimulationResult
 
 class _Tables(ctypes.Structure):
@@ -58,9 +58,11 @@ class ReducedModel:
         if motor.inductance_H:
             raise UserError("the reduced model uses the quasi-static motor current (no inductance)")
         n = self.n if not motor.cogging_Nm else max(self.n, 4096)
-        self.tables = compute_tables(self.machine.model, ARM, NEEDLE_SITE, n)
+        self.tables = self.machine.tables if n == 720 else compute_tables(
+            self.machine.model, self.machine.shaft_joint, self.machine.tool_site, n,
+            self.machine.frame.zero_rad, self.machine.frame.direction)
         t = self.tables
-        self._motor_ratio = t.ratios[MOTOR]
+        self._motor_ratio = t.ratios[self.machine.motor_joint]
         self._friction = []
         self._static_scales = []
         viscous = np.zeros(n)
@@ -76,7 +78,7 @@ class ReducedModel:
         cog = np.zeros(n)
         if motor.cogging_Nm:
             cog = self._motor_ratio * motor.cogging_Nm * np.sin(
-                motor.cogging_poles * t.positions[MOTOR] + motor.cogging_phase_rad)
+                motor.cogging_poles * t.positions[self.machine.motor_joint] + motor.cogging_phase_rad)
         self._cogging = cog
         fabric = self.machine.fabric
         if fabric.layers:
@@ -132,7 +134,7 @@ class ReducedModel:
         current = (sample_volts - motor.back_emf_V_s_rad * rm * velocity) / motor.resistance_ohm
         needle = np.full(nsample, np.nan)
         if t.tool_z_m is not None:
-            needle = self.machine.needle_z_mm(t.at("tool_z_m", angle))
+            needle = self.machine.tool_height_mm(t.at("tool_z_m", angle))
         return SimulationResult(
             time_s=np.arange(1, nsample + 1) / sample_rate_hz,
             voltage_V=sample_volts,
@@ -208,5 +210,5 @@ class ReducedModel:
             out[k] = theta, omega, (omega - start) / (dt * substeps)
 
 
-def reduced_model(model_path=None, config: MachineConfig | None = None, n: int = 720) -> ReducedModel:
-    return ReducedModel(Machine(model_path, config), n)
+def reduced_model(description=None, config: MachineConfig | None = None, n: int = 720) -> ReducedModel:
+    return ReducedModel(Machine(description, config), n)

@@ -1,4 +1,4 @@
-"""Simulate the sewing machine under a motor voltage.
+"""Simulate a machine under a motor voltage.
 
 The voltage is known in advance (constant, profile or duty cycle), so a whole run is one
 ``mujoco.rollout`` call: MuJoCo steps the model in C with the compiled friction/load
@@ -17,7 +17,7 @@ import numpy as np
 
 from mechanism.errors import UserError
 from mechanism.physics.inputs import VoltageProfile
-from mechanism.machine.machine import Machine, MachineConfig
+from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig
 
 MAX_DURATION_S = 3600.0
 
@@ -81,6 +81,11 @@ class SimulationResult:
         start = np.searchsorted(self.time_s, self.time_s[-1] - last_s)
         return slice(int(start), None)
 
+    @property
+    def mean_speed_rpm(self) -> float:
+        """Mean shaft speed [rpm] over the last second (the last half of shorter runs)."""
+        return self.speed_summary(min(1.0, 0.5 * float(self.time_s[-1])))["mean_rpm"]
+
     def speed_summary(self, last_s: float = 1.0) -> dict[str, float]:
         """Mean / min / max arm speed [rpm] over the last ``last_s`` seconds."""
         rpm = self.arm_velocity_rad_s[self.window(last_s)] * 60 / (2 * np.pi)
@@ -92,19 +97,19 @@ def simulate(
     duration_s: float,
     machine: Machine | None = None,
     config: MachineConfig | None = None,
-    model_path: str | os.PathLike | None = None,
     start_angle_rad: float = 0.0,
     sample_rate_hz: float = 1000.0,
     progress: bool = False,
 ) -> SimulationResult:
-    """Run the machine from rest at ``start_angle_rad`` for ``duration_s`` seconds."""
+    """Run the machine (default: the shipped one, under ``config``) from rest at shaft angle
+    ``start_angle_rad`` for ``duration_s`` seconds."""
     if not 0 < duration_s <= MAX_DURATION_S:
         raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
     if not 10 <= sample_rate_hz <= 100_000:
         raise UserError("sample rate must be between 10 Hz and 100 kHz")
     if not isinstance(voltage, VoltageProfile):
         voltage = VoltageProfile.constant(voltage)
-    machine = machine or Machine(model_path, config)
+    machine = machine or Machine(None, config)
     model = machine.model
     dt = model.opt.timestep
     substeps = max(1, int(round(1.0 / (sample_rate_hz * dt))))
@@ -112,7 +117,7 @@ def simulate(
     nstep = nsample * substeps
     step_times = np.arange(nstep) * dt
     control = np.zeros((1, nstep, model.nu))
-    control[0, :, model.actuator("motor").id] = voltage(step_times)
+    control[0, :, machine.actuator] = voltage(step_times)
 
     data = machine.reset(start_angle_rad)
     state, sensordata = _rollout_in_chunks(model, data, control[0], progress)
@@ -120,24 +125,21 @@ def simulate(
     # Unpack qpos/qvel from the full physics state: [time, qpos, qvel, act, ...].
     qpos = state[:, 1 : 1 + model.nq]
     qvel = state[:, 1 + model.nq : 1 + model.nq + model.nv]
-    arm_angle = qpos[:, machine.arm_qpos]
-    arm_velocity = qvel[:, machine.arm_dof]
+    arm_angle = machine.shaft_angle(qpos)
+    arm_velocity = machine.shaft_velocity(qvel)
     motor_velocity = qvel[:, machine.motor_dof]
     samples = np.arange(1, nsample + 1) * substeps - 1  # state after each sample interval
     previous = np.concatenate([[0.0], arm_velocity])[samples + 1 - substeps]
     acceleration = (arm_velocity[samples] - previous) / (substeps * dt)
 
-    torque = sensordata[:, model.sensor("motor_torque").adr[0]]
-    applied = control[0, :, model.actuator("motor").id]
+    torque = sensordata[:, model.sensor(TORQUE_SENSOR).adr[0]]
+    applied = control[0, :, machine.actuator]
     current = torque / machine.motor.torque_constant_Nm_A
     if machine.motor.cogging_Nm:  # the electromagnetic part only
         motor_angle = qpos[:, machine.motor_qpos]
         cog = machine.motor.cogging_Nm * np.sin(machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad)
         current = (torque - cog) / machine.motor.torque_constant_Nm_A
-    if machine.has_needle_site:
-        needle = machine.needle_z_mm_at(arm_angle)
-    else:
-        needle = np.full(nstep, np.nan)
+    needle = machine.tool_height_mm_at(arm_angle)
     return SimulationResult(
         time_s=(samples + 1) * dt,
         voltage_V=applied[samples],

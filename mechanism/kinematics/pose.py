@@ -24,6 +24,12 @@ import numpy as np
 from mechanism.errors import UserError, close_matches
 
 POSITION_TOLERANCE = 1e-10  # m or rad: far below any clearance or kinematic accuracy we report
+RELATIVE_POSITION_TOLERANCE = 1e-8  # of the model's size: a CAD export's rounding leaves ~1e-9 of it
+
+
+def position_tolerance(model: mujoco.MjModel) -> float:
+    """Assembly tolerance scaled to the model (the loops of a 1 m machine close to 10 nm)."""
+    return max(POSITION_TOLERANCE, RELATIVE_POSITION_TOLERANCE * float(model.stat.extent))
 
 
 class PoseError(UserError):
@@ -64,7 +70,7 @@ def solve_pose(
     model: mujoco.MjModel,
     data: mujoco.MjData,
     fixed: Mapping[str, float],
-    tolerance: float = POSITION_TOLERANCE,
+    tolerance: float | None = None,
     max_iterations: int = 60,
 ) -> float:
     """Set ``data.qpos`` so that every active equality constraint holds, with the joints in
@@ -74,6 +80,7 @@ def solve_pose(
     Returns the final residual norm; raises :class:`PoseError` if it does not converge.
     Velocities are left untouched; derived quantities (xpos, site_xpos, ...) are up to date.
     """
+    tolerance = position_tolerance(model) if tolerance is None else tolerance
     addresses = {name: joint_dof(model, name) for name in fixed}
     free = np.ones(model.nv, dtype=bool)
     for name, (qadr, dadr) in addresses.items():
@@ -128,7 +135,7 @@ def velocity_ratios(model: mujoco.MjModel, data: mujoco.MjData, driver: str) -> 
 def sweep(
     model: mujoco.MjModel,
     angles: Iterable[float],
-    driver: str = "arm_shaft",
+    driver: str,
     data: mujoco.MjData | None = None,
 ) -> np.ndarray:
     """Poses (n, nq) of the mechanism with ``driver`` at each of ``angles`` (rad), each

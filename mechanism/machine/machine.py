@@ -1,107 +1,185 @@
-"""The dynamic sewing machine: the converted MJCF plus motor, friction and loads.
+"""The machine: a described, converted CAD model with its motor, friction and loads.
 
-The MJCF from the CAD export carries geometry, masses, joints, loop closures and belt/gear
-couplings only. :class:`Machine` adds, through ``MjSpec``:
+:func:`load_machine` reads a machine description (mechanism.machine.description), loads
+its model (converting a CAD export on first use), checks every name against the model and
+builds one compiled MuJoCo model through ``MjSpec``:
 
-- the main motor as a native ``<dcmotor>`` on the ``motor`` joint (mechanism.physics.motor);
-- friction per joint (mechanism.physics.friction), thesis values by default: viscous on the motor
-  (cold 2.2e-5 / warm 1.0e-5 N m s/rad), Coulomb 0.18 N m on the arm shaft, static friction
-  with a Tustin decay, and position-dependent levels over the arm revolution calibrated on the
-  thesis's break-away torques and speed ripple (mechanism.sysid.calibration);
-- loads (mechanism.physics.loads): fabric layers on the needle, belt tension, feeding;
-- a sensor for the motor torque (the current); the needle height comes from the exact kinematics.
+- the motor as a native ``<dcmotor>`` on the described motor joint (mechanism.physics.motor);
+- friction per joint from the description, cold or partly warm (mechanism.physics.friction);
+- loads (mechanism.physics.loads): fabric on the tool, belt tension, feeding;
+- a sensor for the motor torque (the current).
+
+The :class:`Machine` carries the roles every verb needs (motor joint, shaft joint, the
+shaft's zero and direction, tool site and plate) and the linkage tables over one shaft
+revolution, so no module looks a joint up by a literal name. The shaft angle is
+``direction * (q_shaft - zero)``: 0 where the zero site is highest against gravity,
+increasing when the motor turns forward (positive voltage).
 """
 
 from __future__ import annotations
 
+import functools
+import math
 import os
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from mechanism import native
-from mechanism.errors import UserError
+from mechanism.errors import UserError, close_matches
+from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_interp, up_axis
+from mechanism.kinematics.pose import joint_dof, solve_pose, velocity_ratios
+from mechanism.machine import parts
+from mechanism.machine.description import MachineDescription, read_description
+from mechanism.machine.models import DEFAULT_DESCRIPTION, load_spec, resolve_model
 from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
-from mechanism.kinematics.pose import joint_dof, solve_pose
-from mechanism.physics.loads import BELT_TENSION_COULOMB_NM, FEEDING_COULOMB_NM, FabricLoad, python_needle_load
-from mechanism.machine.models import load_spec
-from mechanism.physics.motor import DCMotor
-from mechanism.data.reference import thesis
+from mechanism.physics.inputs import DutyMap
+from mechanism.physics.loads import FabricLoad, python_needle_load
+from mechanism.physics.motor import DCMotor, Thermal
 
-ARM, MOTOR, LOWER = "arm_shaft", "motor", "lower_shaft"
-NEEDLE_SITE = "needle_tip"
-NEEDLE_PLATE = "needle_plate"
-
-# Position-dependent friction on the arm shaft, calibrated on the shipped model against the
-# thesis by ``python -m mechanism.sysid.calibration`` (see its docstring; rerun it after changing the
-# machine's moving parts). Running level: Fc (1 + a cos(θ - φ)), fitted to the speed ripple of
-# figs. 11-14; break-away level: Fs (1 + a_s cos(θ - φ)), so that with the CAD gravity it
-# spans the measured 0.2384 (needle going down) to 0.2771 N m (just after bottom dead centre).
-RUNNING_POSITION_AMPLITUDE = 0.174
-POSITION_PHASE_RAD = float(np.deg2rad(177.7))
-STATIC_FRICTION_ARM_NM = 0.2564
-STATIC_POSITION_AMPLITUDE = 0.0719
-STRIBECK_VELOCITY_ARM_RAD_S = 0.5  # Tustin decay speed; the thesis gives none, typical of lubricated bearings
-
-
-def thesis_friction(warm: bool = False) -> dict[str, FrictionLaw]:
-    """Friction laws per joint from the thesis's identified values."""
-    ident = thesis()["identified_parameters"]
-    return {
-        MOTOR: FrictionLaw(viscous=ident["viscous_warm_Nm_s_per_rad" if warm else "viscous_cold_Nm_s_per_rad"]),
-        ARM: FrictionLaw(
-            coulomb=ident["kinetic_friction_arm_Nm"],
-            static=STATIC_FRICTION_ARM_NM,
-            stribeck="tustin",
-            stribeck_velocity=STRIBECK_VELOCITY_ARM_RAD_S,
-            position_amplitude=RUNNING_POSITION_AMPLITUDE,
-            static_position_amplitude=STATIC_POSITION_AMPLITUDE,
-            position_phase_rad=POSITION_PHASE_RAD,
-        ),
-    }
+ACTUATOR = "drive_motor"  # the actuator the machine adds (its own name, not a CAD name)
+TORQUE_SENSOR = "drive_motor_torque"
+DEFAULT_TIMESTEP_S = 0.0005
+ZERO_SEARCH_SAMPLES = 180
+ZERO_SNAP_RAD = 1e-9  # a zero this close to the assembly pose is the pose (solver precision)
+BELT_TENSIONS = ("low", "normal", "hard")
 
 
 @dataclass
 class MachineConfig:
-    warm: bool = False
+    """Operating conditions of one run (what changes between runs of one machine)."""
+
+    warm_s: float = 0.0  # seconds of running before this run (0: cold)
     layers: int = 0
-    needle: bool = True
+    needle: bool = True  # the tool engages the fabric
     feeding: bool = False
     belt_tension: str = "normal"
-    motor: DCMotor = field(default_factory=DCMotor.from_thesis)
-    friction: dict[str, FrictionLaw] | None = None  # replaces the thesis laws joint by joint
-    fabric: FabricLoad | None = None  # overrides the default fabric model for ``layers``
-    timestep_s: float = 0.0005
+    motor: DCMotor | None = None  # replaces the described motor
+    friction: dict[str, FrictionLaw] | None = None  # replaces described laws joint by joint
+    fabric: FabricLoad | None = None
+    timestep_s: float | None = None  # default: the description's, else 0.5 ms
 
     def __post_init__(self):
-        if self.belt_tension not in BELT_TENSION_COULOMB_NM:
-            raise UserError(f"belt tension must be one of {', '.join(BELT_TENSION_COULOMB_NM)}, got {self.belt_tension!r}")
-        if not 1e-5 <= self.timestep_s <= 2e-3:
+        if self.belt_tension not in BELT_TENSIONS:
+            raise UserError(f"belt tension must be one of {', '.join(BELT_TENSIONS)}, got {self.belt_tension!r}")
+        if self.timestep_s is not None and not 1e-5 <= self.timestep_s <= 2e-3:
             raise UserError("time step must be between 0.01 ms and 2 ms")
+        if not (math.isfinite(self.warm_s) and 0 <= self.warm_s <= 1e6):
+            raise UserError(f"warm-up time must be between 0 and 1e6 s, got {self.warm_s:g}")
 
-    def friction_laws(self) -> dict[str, FrictionLaw]:
-        laws = thesis_friction(self.warm)
-        laws.update(self.friction or {})
-        extra_arm = BELT_TENSION_COULOMB_NM[self.belt_tension]
-        if extra_arm:
-            laws[ARM] = laws.get(ARM, FrictionLaw()).add(coulomb=extra_arm)
-        if self.feeding:
-            laws[LOWER] = laws.get(LOWER, FrictionLaw()).add(coulomb=FEEDING_COULOMB_NM)
-        return laws
 
-    def fabric_load(self) -> FabricLoad:
-        if not self.needle:
-            return FabricLoad(layers=0)
-        return self.fabric or FabricLoad(layers=self.layers)
+def friction_law(values: dict, motor_joint: str | None = None) -> FrictionLaw:
+    """A friction law from a description table (FRICTION_KEYS)."""
+    static = values.get("static_Nm")
+    return FrictionLaw(
+        coulomb=values.get("coulomb_Nm", 0.0),
+        static=static,
+        viscous=values.get("viscous_Nm_s_per_rad", 0.0),
+        stribeck=values.get("stribeck", "tustin" if static is not None and values.get("stribeck_velocity_rad_s") else "none"),
+        stribeck_velocity=values.get("stribeck_velocity_rad_s", 0.0),
+        tustin_exponent=values.get("tustin_exponent", 1.0),
+        position_amplitude=values.get("position_amplitude", 0.0),
+        static_position_amplitude=values.get("static_position_amplitude"),
+        position_phase_rad=math.radians(values.get("position_phase_deg", 0.0)),
+        position_harmonic=values.get("position_harmonic", 1.0),
+        position_joint=values.get("position_joint"),
+    )
+
+
+def warmed(cold: dict, warm: dict, fraction: float) -> dict:
+    """Friction table after warming: each warm value reached by ``fraction`` (0 cold, 1 warm)."""
+    out = dict(cold)
+    for key, value in warm.items():
+        if isinstance(value, float) and isinstance(cold.get(key, 0.0), float):
+            out[key] = cold.get(key, 0.0) + (value - cold.get(key, 0.0)) * fraction
+        else:
+            out[key] = value
+    if "static_Nm" in out and "coulomb_Nm" in out and out["static_Nm"] < out["coulomb_Nm"]:
+        out["static_Nm"] = out["coulomb_Nm"]
+    return out
+
+
+def motor_from_description(motor: dict) -> DCMotor:
+    thermal = None
+    if "thermal_resistance_K_per_W" in motor or "thermal_time_constant_s" in motor:
+        thermal = Thermal(resistance_K_W=motor.get("thermal_resistance_K_per_W", Thermal.resistance_K_W),
+                          time_constant_s=motor.get("thermal_time_constant_s", Thermal.time_constant_s))
+    return DCMotor(
+        resistance_ohm=motor["resistance_ohm"],
+        torque_constant_Nm_A=motor["torque_constant_Nm_per_A"],
+        back_emf_V_s_rad=motor["back_emf_V_s_per_rad"],
+        inductance_H=motor.get("inductance_H", 0.0),
+        cogging_Nm=motor.get("cogging_Nm", 0.0),
+        cogging_poles=motor.get("cogging_per_rev", DCMotor.cogging_poles),
+        thermal=thermal,
+    )
+
+
+def fabric_from_description(tool: dict, layers: int) -> FabricLoad:
+    keys = ("layer_thickness_mm", "piercing_force_per_layer_N", "drag_fraction", "point_taper_mm")
+    return FabricLoad(layers=layers, **{k: tool[k] for k in keys if k in tool})
+
+
+def _require(kind: str, name: str, names: list[str], description: MachineDescription, section: str, key: str) -> None:
+    if name not in names:
+        raise UserError(f"machine description {description.where(section, key)}: the model has no {kind} {name!r}; "
+                        f"close matches: {close_matches(name, names)}")
+
+
+def _names(spec_items) -> list[str]:
+    return [item.name for item in spec_items if item.name]
+
+
+def check_names(description: MachineDescription, spec: mujoco.MjSpec) -> None:
+    """Every joint, site and part the description names exists in the model."""
+    joints, sites = _names(spec.joints), _names(spec.sites)
+    geoms = _names(spec.geoms)
+    _require("joint", description.motor_joint, joints, description, "drive", "motor_joint")
+    _require("joint", description.shaft_joint, joints, description, "drive", "shaft_joint")
+    _require("site", description.zero_site, sites, description, "drive", "zero_site")
+    for table in ("friction", "warm_friction"):
+        for joint, law in getattr(description, table).items():
+            _require("joint", joint, joints, description, f'{table}."{joint}"', None)
+            if "position_joint" in law:
+                _require("joint", law["position_joint"], joints, description, f'{table}."{joint}"', "position_joint")
+    tool, hook, loads = description.section("tool"), description.section("hook"), description.section("loads")
+    for key in ("site", "eye_site"):
+        if key in tool:
+            _require("site", tool[key], sites, description, "tool", key)
+    for key in ("plate", "part"):
+        if key in tool and not any(g == tool[key] or g.startswith(tool[key] + "_") for g in geoms):
+            _require("part", tool[key], sorted({g.removesuffix("_visual") for g in geoms}), description, "tool", key)
+    if "joint" in hook:
+        _require("joint", hook["joint"], joints, description, "hook", "joint")
+    if "site" in hook:
+        _require("site", hook["site"], sites, description, "hook", "site")
+    if "feeding_joint" in loads:
+        _require("joint", loads["feeding_joint"], joints, description, "loads", "feeding_joint")
+
+
+def plate_top(model: mujoco.MjModel, data: mujoco.MjData, part: str) -> float:
+    """Height [m] against gravity of a part's top surface (its highest mesh vertex)."""
+    up = up_axis(model)
+    tops = []
+    for gid in parts.part_geoms(model, part):
+        mesh = model.geom_dataid[gid]
+        if model.geom_type[gid] != mujoco.mjtGeom.mjGEOM_MESH or mesh < 0:
+            tops.append(float(up @ data.geom_xpos[gid]))
+            continue
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        world = model.mesh_vert[start : start + count] @ data.geom_xmat[gid].reshape(3, 3).T + data.geom_xpos[gid]
+        tops.append(float((world @ up).max()))
+    return max(tops)
 
 
 _CALLBACK_INSTALLED = False
 
 
 def install_callbacks() -> bool:
-    """Install the machine's passive-force callback once per process (C if possible).
-    Returns True for the compiled version. Models without our numerics are untouched."""
+    """Install the passive-force callback once per process (C if possible); True when
+    compiled. Models without our numerics are untouched."""
     global _CALLBACK_INSTALLED
     library = native.load("machine")
     if not _CALLBACK_INSTALLED:
@@ -117,50 +195,89 @@ def install_callbacks() -> bool:
     return library is not None
 
 
-def needle_plate_top_z(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """World height [m] of the needle plate's top surface (max z of its geometry)."""
-    tops = []
-    for gid in range(model.ngeom):
-        if model.geom(gid).name.split("_")[:2] != ["needle", "plate"]:
-            continue
-        mesh = model.geom_dataid[gid]
-        if model.geom_type[gid] != mujoco.mjtGeom.mjGEOM_MESH or mesh < 0:
-            continue
-        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
-        vertices = model.mesh_vert[start : start + count]
-        world = vertices @ data.geom_xmat[gid].reshape(3, 3).T + data.geom_xpos[gid]
-        tops.append(world[:, 2].max())
-    if not tops:
-        raise UserError(f"the model has no '{NEEDLE_PLATE}' part: cannot place fabric on the needle plate")
-    return float(max(tops))
+def resolve_description(description: MachineDescription | str | os.PathLike | None) -> MachineDescription:
+    if isinstance(description, MachineDescription):
+        return description
+    return read_description(DEFAULT_DESCRIPTION if description is None else description)
+
+
+@dataclass(frozen=True)
+class ShaftFrame:
+    """Where the shaft angle starts and which way it counts, in the shaft joint's coordinate."""
+
+    zero_rad: float
+    direction: float
+
+
+def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription) -> ShaftFrame:
+    """The shaft's zero (zero site highest against gravity) and its forward direction (the
+    way the shaft turns when the motor turns positive)."""
+    shaft, motor = description.shaft_joint, description.motor_joint
+    coarse = compute_tables(model, shaft, description.zero_site, n=ZERO_SEARCH_SAMPLES)
+    motor_ratio = float(np.mean(coarse.ratios[motor])) if motor in coarse.ratios else 0.0
+    if not abs(motor_ratio) > 1e-9:
+        raise UserError(f"machine description {description.where('drive', 'motor_joint')}: the motor joint {motor!r} "
+                        f"does not move when the shaft {shaft!r} turns (no coupling between them)")
+    height = coarse.tool_z_m
+    if np.ptp(height) <= 1e-9 * max(float(model.stat.extent), 1e-3):
+        raise UserError(f"machine description {description.where('drive', 'zero_site')}: the site {description.zero_site!r} "
+                        f"does not rise and fall as the shaft turns, so the shaft has no zero")
+    data = mujoco.MjData(model)
+    up = up_axis(model)
+    jac = np.zeros((3, model.nv))
+    site = model.site(description.zero_site).id
+    best = int(np.argmax(height))
+    step = 2 * np.pi / ZERO_SEARCH_SAMPLES
+
+    def slope(angle: float) -> float:
+        solve_pose(model, data, {shaft: angle})
+        mujoco.mj_jacSite(model, data, jac, None, site)
+        return float(up @ jac @ velocity_ratios(model, data, shaft))
+
+    from scipy.optimize import brentq
+
+    low, high = coarse.angle_rad[best] - step, coarse.angle_rad[best] + step
+    try:
+        zero = brentq(slope, low, high, xtol=1e-13) if slope(low) > 0 > slope(high) else float(coarse.angle_rad[best])
+    except ValueError:
+        zero = float(coarse.angle_rad[best])
+    zero = math.remainder(zero, 2 * np.pi)
+    return ShaftFrame(zero_rad=0.0 if abs(zero) < ZERO_SNAP_RAD else zero, direction=1.0 if motor_ratio > 0 else -1.0)
 
 
 class Machine:
     """A compiled, ready-to-simulate machine. ``machine.model`` / ``machine.data`` are plain
     MuJoCo objects; everything added is visible in ``mujoco.mj_saveLastXML``."""
 
-    def __init__(self, model_path: str | os.PathLike | None = None, config: MachineConfig | None = None, extend=None):
-        """``extend(spec)``, if given, adds to the spec before it is compiled (probe sites
-        and sensors, mechanism.inspection.probes); it must not add joints or actuators."""
+    def __init__(self, description: MachineDescription | str | os.PathLike | None = None,
+                 config: MachineConfig | None = None, extend=None):
+        """``description``: a description, its TOML path, or None for the shipped machine.
+        ``extend(spec)``, if given, adds to the spec before it is compiled (probe sites and
+        sensors, mechanism.inspection.probes); it must not add joints or actuators."""
+        self.description = resolve_description(description)
         self.config = config or MachineConfig()
-        spec = load_spec(model_path)
-        self.model_path = model_path
-        spec.option.timestep = self.config.timestep_s  # before friction: its stiffness follows it
+        self.model_path = resolve_model(self.description)
+        self._extend = extend
+        spec = load_spec(self.model_path)
+        check_names(self.description, spec)
+        self.timestep_s = self.config.timestep_s or self.description.timestep_s or DEFAULT_TIMESTEP_S
+        spec.option.timestep = self.timestep_s  # before friction: its stiffness follows it
         for equality in spec.equalities:  # loops and belts as stiff as the step allows (2 steps)
-            equality.solref = [2 * self.config.timestep_s, 1.0]
-        joints = {j.name for j in spec.joints}
-        for required in (MOTOR, ARM):
-            if required not in joints:
-                raise UserError(f"the model has no '{required}' joint; a sewing machine model needs '{MOTOR}' and '{ARM}'")
-        self.motor = self.config.motor
-        self.motor.add_to_spec(spec, joint=MOTOR)
-        self.friction = FrictionSet(self.config.friction_laws())
+            equality.solref = [2 * self.timestep_s, 1.0]
+        self.motor = self.config.motor or motor_from_description(self.description.motor)
+        self.motor.add_to_spec(spec, joint=self.motor_joint, name=ACTUATOR)
+        self.friction = FrictionSet(self.friction_laws())
         self.friction.apply_to_spec(spec)
-        self.fabric = self.config.fabric_load()
+        tool = self.description.section("tool")
+        self.fabric = self.config.fabric or fabric_from_description(tool, self.config.layers if self.config.needle else 0)
+        if not self.config.needle:
+            self.fabric = FabricLoad(layers=0)
+        if self.fabric.layers and not (self.tool_site and self.plate_part):
+            raise UserError(f"fabric layers need a tool site and a plate: set [tool] site and plate in "
+                            f"{self.description.path or 'the machine description'}")
         self.fabric.apply_to_spec(spec)
-        self.has_needle_site = any(s.name == NEEDLE_SITE for s in spec.sites)
-        spec.add_sensor(name="motor_torque", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname="motor")
+        spec.add_sensor(name=TORQUE_SENSOR, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=ACTUATOR)
         if extend is not None:
             extend(spec)
         try:
@@ -171,45 +288,143 @@ class Machine:
         self.data = mujoco.MjData(self.model)
         self.friction.bind(self.model)
         self.native = install_callbacks()
-        self.arm_qpos, self.arm_dof = joint_dof(self.model, ARM)
-        self.motor_qpos, self.motor_dof = joint_dof(self.model, MOTOR)
+        self.shaft_qpos, self.shaft_dof = joint_dof(self.model, self.shaft_joint)
+        self.motor_qpos, self.motor_dof = joint_dof(self.model, self.motor_joint)
+        self.frame = shaft_frame(self.model_path, self.description, self.model)
         self.plate_top_z = None
-        self._needle_table = None
-        if self.has_needle_site:
+        if self.plate_part:
             self.reset(0.0)
-            try:
-                self.plate_top_z = needle_plate_top_z(self.model, self.data)
-            except UserError:
-                if self.fabric.layers:
-                    raise
+            self.plate_top_z = plate_top(self.model, self.data, self.plate_part)
         if self.fabric.layers:
-            if not self.has_needle_site:
-                raise UserError(f"fabric layers need a '{NEEDLE_SITE}' site on the needle")
-            self.fabric.bind(self.model, NEEDLE_SITE, self.plate_top_z)
+            self.fabric.bind(self.model, self.tool_site, self.plate_top_z)
 
-    def reset(self, arm_angle_rad: float = 0.0) -> mujoco.MjData:
-        """Machine at rest with the arm shaft at ``arm_angle_rad`` (0 = needle TDC)."""
+    # -- roles, all from the description --
+    @property
+    def name(self) -> str:
+        return self.description.name
+
+    @property
+    def motor_joint(self) -> str:
+        return self.description.motor_joint
+
+    @property
+    def shaft_joint(self) -> str:
+        return self.description.shaft_joint
+
+    @property
+    def zero_site(self) -> str:
+        return self.description.zero_site
+
+    @property
+    def tool_site(self) -> str | None:
+        return self.description.tool_site
+
+    @property
+    def plate_part(self) -> str | None:
+        return self.description.section("tool").get("plate")
+
+    @property
+    def actuator(self) -> int:
+        return self.model.actuator(ACTUATOR).id
+
+    # arm_* names are kept for the code that predates descriptions: the arm is the shaft.
+    arm_qpos = property(lambda self: self.shaft_qpos)
+    arm_dof = property(lambda self: self.shaft_dof)
+
+    def friction_laws(self) -> dict[str, FrictionLaw]:
+        description, config = self.description, self.config
+        tau = description.section("warm").get("time_constant_s")
+        fraction = 0.0 if not config.warm_s else (1.0 if not tau else 1.0 - math.exp(-config.warm_s / tau))
+        tables = {joint: dict(values) for joint, values in description.friction.items()}
+        for joint, warm in description.warm_friction.items():
+            tables[joint] = warmed(tables.get(joint, {}), warm, fraction)
+        laws = {joint: friction_law(values) for joint, values in tables.items()}
+        laws.update(config.friction or {})
+        loads = description.section("loads")
+        extra = {"low": loads.get("belt_tension_low_Nm", 0.0), "normal": 0.0,
+                 "hard": loads.get("belt_tension_hard_Nm", 0.0)}[config.belt_tension]
+        if extra:
+            laws[self.shaft_joint] = laws.get(self.shaft_joint, FrictionLaw()).add(coulomb=extra)
+        if config.feeding:
+            if "feeding_joint" not in loads:
+                raise UserError("this machine describes no feed mechanism ([loads] feeding_joint)")
+            joint = loads["feeding_joint"]
+            laws[joint] = laws.get(joint, FrictionLaw()).add(coulomb=loads.get("feeding_coulomb_Nm", 0.0))
+        return laws
+
+    def duty_map(self) -> DutyMap:
+        supply = self.description.section("supply")
+        if "duty_percent" not in supply:
+            raise UserError(f"this machine describes no PWM supply ([supply] duty_percent and motor_voltage_V in "
+                            f"{self.description.path or 'its description'})")
+        return DutyMap(np.array(supply["duty_percent"]), np.array(supply["motor_voltage_V"]))
+
+    # -- the shaft angle --
+    def shaft_angle(self, qpos) -> np.ndarray:
+        """Shaft angle [rad] from joint positions (any leading shape, last axis nq)."""
+        q = np.asarray(qpos)[..., self.shaft_qpos]
+        return self.frame.direction * (q - self.frame.zero_rad)
+
+    def shaft_velocity(self, qvel) -> np.ndarray:
+        return self.frame.direction * np.asarray(qvel)[..., self.shaft_dof]
+
+    def joint_position(self, shaft_angle_rad: float) -> float:
+        return self.frame.zero_rad + self.frame.direction * float(shaft_angle_rad)
+
+    def reset(self, shaft_angle_rad: float = 0.0) -> mujoco.MjData:
+        """Machine at rest with the shaft at ``shaft_angle_rad`` (0 = the described zero)."""
         mujoco.mj_resetData(self.model, self.data)
-        solve_pose(self.model, self.data, {ARM: float(arm_angle_rad)})
+        solve_pose(self.model, self.data, {self.shaft_joint: self.joint_position(shaft_angle_rad)})
         self.data.qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
         return self.data
 
-    def needle_z_mm(self, needle_world_z) -> np.ndarray:
-        """Needle point height above the needle-plate top [mm] from world z [m]."""
+    @functools.cached_property
+    def tables(self) -> LinkageTables:
+        """J(θ), J'(θ), G(θ), joint ratios and the tool height over one shaft revolution."""
+        return compute_tables(self.model, self.shaft_joint, self.tool_site, n=720,
+                              zero_rad=self.frame.zero_rad, direction=self.frame.direction)
+
+    def ratio(self, joint: str) -> float:
+        """Mean dq_joint/dθ over a revolution (turns of ``joint`` per shaft turn for a coupled shaft)."""
+        if joint not in self.tables.ratios:
+            raise UserError(f"no one-degree-of-freedom joint {joint!r}; close matches: {close_matches(joint, self.tables.ratios)}")
+        return float(np.mean(self.tables.ratios[joint]))
+
+    @property
+    def motor_ratio(self) -> float:
+        return self.ratio(self.motor_joint)
+
+    def tool_height_mm(self, tool_world_z) -> np.ndarray:
+        """Tool height above the plate top [mm] from its height against gravity [m]."""
         reference = self.plate_top_z if self.plate_top_z is not None else 0.0
-        return (np.asarray(needle_world_z) - reference) * 1e3
+        return (np.asarray(tool_world_z) - reference) * 1e3
 
-    def needle_z_mm_at(self, arm_angle_rad) -> np.ndarray:
-        """Needle point height above the needle plate [mm] of the rigid mechanism at arm
-        angles, from the exact pose solution (tabulated once per machine). Dynamic site
-        positions differ from it by the loop closures' compliance (about 0.1 mm at 1000 rpm
-        with a 0.5 ms step), which this reading leaves out."""
-        from mechanism.kinematics.linkage import compute_tables, periodic_interp
-
-        if self._needle_table is None:
-            self._needle_table = compute_tables(self.model, ARM, NEEDLE_SITE, n=720).tool_z_m  # 0.5 deg: < 2e-4 mm
-        return self.needle_z_mm(periodic_interp(self._needle_table, arm_angle_rad))
+    def tool_height_mm_at(self, shaft_angle_rad) -> np.ndarray:
+        """Tool height above the plate [mm] of the rigid mechanism at shaft angles (exact
+        kinematics; dynamic site positions differ by the loops' compliance)."""
+        if self.tables.tool_z_m is None:
+            return np.full(np.shape(shaft_angle_rad), np.nan)
+        return self.tool_height_mm(periodic_interp(self.tables.tool_z_m, shaft_angle_rad))
 
     def with_config(self, **changes) -> "Machine":
-        return Machine(self.model_path, replace(self.config, **changes))
+        return Machine(self.description, replace(self.config, **changes), self._extend)
+
+
+_FRAMES: dict[tuple, ShaftFrame] = {}
+
+
+def shaft_frame(model_path: Path, description: MachineDescription, model: mujoco.MjModel) -> ShaftFrame:
+    """The shaft frame, found once per model file and roles (it costs a revolution of poses)."""
+    stat = Path(model_path).stat()
+    key = (str(Path(model_path).resolve()), stat.st_mtime_ns, stat.st_size,
+           description.shaft_joint, description.motor_joint, description.zero_site)
+    if key not in _FRAMES:
+        _FRAMES[key] = find_shaft_frame(model, description)
+    return _FRAMES[key]
+
+
+def load_machine(path: str | os.PathLike | MachineDescription | None = None, **config) -> Machine:
+    """The machine of a description file (None: the shipped Sapphire 870), with operating
+    conditions from ``config`` (MachineConfig fields: warm_s, layers, belt_tension, ...)."""
+    return Machine(path, MachineConfig(**config))

@@ -1,25 +1,89 @@
-"""Where models live and how they are loaded (every load error is a UserError)."""
+"""Where models live and how they are loaded (every load error is a UserError).
+
+Shipped machines are package data, one folder each (menagerie style): ``models/<name>/``
+holds ``<name>.toml`` (the machine description), the MJCF, ``scene.xml``, meshes and a
+README with provenance. A description's ``model`` may also name a CAD export: it is
+converted on first use into a cache folder keyed by the export's content hash.
+"""
 
 from __future__ import annotations
 
+import hashlib
 import os
+from importlib import resources
 from pathlib import Path
 
 from mechanism.errors import UserError
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-ASSETS = REPO_ROOT / "assets"
-DEFAULT_MODEL = ASSETS / "mjcf" / "sewing_machine.xml"
+MODELS = Path(str(resources.files("mechanism.models")))
+DEFAULT_MACHINE = "sapphire870"
+DEFAULT_DESCRIPTION = MODELS / DEFAULT_MACHINE / f"{DEFAULT_MACHINE}.toml"
+DEFAULT_MODEL = MODELS / DEFAULT_MACHINE / "sewing_machine.xml"
+MAX_EXPORT_FOLDER_BYTES = 1 << 30
+
+
+def shipped_machines() -> list[str]:
+    return sorted(p.name for p in MODELS.iterdir() if (p / f"{p.name}.toml").is_file())
 
 
 def model_path(path: str | os.PathLike | None = None) -> Path:
-    """The MJCF to use: the given one, or the shipped sewing machine."""
+    """The MJCF to use: the given one, or the shipped machine's."""
     path = Path(path) if path else DEFAULT_MODEL
     if not path.exists():
         raise UserError(f"model {path}: no such file")
     if path.is_dir():
         raise UserError(f"model {path}: is a directory, expected an MJCF file")
     return path
+
+
+def is_mjcf(path: Path) -> bool:
+    with open(path, "rb") as handle:
+        head = handle.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n")
+    while head.startswith(b"<?") or head.startswith(b"<!--"):
+        end = head.find(b"?>" if head.startswith(b"<?") else b"-->")
+        if end < 0:
+            break
+        head = head[end + (2 if head.startswith(b"<?") else 3):].lstrip()
+    return head.startswith(b"<mujoco")
+
+
+def cache_root() -> Path:
+    return Path(os.environ.get("MECHANISM_CACHE") or Path.home() / ".cache" / "mechanism")
+
+
+def export_digest(export: Path) -> str:
+    """Hash of the export and every file beside it (geometry, couplings side-car)."""
+    digest = hashlib.sha256()
+    total = 0
+    for path in sorted(p for p in export.parent.rglob("*") if p.is_file()):
+        total += path.stat().st_size
+        if total > MAX_EXPORT_FOLDER_BYTES:
+            raise UserError(f"CAD export folder {export.parent}: larger than {MAX_EXPORT_FOLDER_BYTES >> 30} GiB")
+        digest.update(str(path.relative_to(export.parent)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:20]
+
+
+def converted_model(export: Path) -> Path:
+    """The MJCF of a CAD export, converted once per content and cached."""
+    from mechanism.converters import ExportError, convert
+
+    folder = cache_root() / f"{export.stem}-{export_digest(export)}"
+    target = folder / f"{export.stem}.xml"
+    if not target.is_file():
+        try:
+            convert(export, folder, name=export.stem)
+        except ExportError as exc:
+            raise UserError(str(exc)) from None
+    return target
+
+
+def resolve_model(description) -> Path:
+    """The MJCF behind a description (converting a CAD export when needed)."""
+    path = Path(description.model)
+    if not path.is_file():
+        raise UserError(f"machine description {description.where('machine', 'model')}: no such file {path}")
+    return path if is_mjcf(path) else converted_model(path)
 
 
 def load_spec(path: str | os.PathLike | None = None):

@@ -1,11 +1,9 @@
 """The main motor as MuJoCo 4's native ``<dcmotor>`` actuator (voltage input).
 
-Thesis data (Domel 482.501): R = 1.1 ohm, Kt = 0.017 N m/A, Ke = 0.021 V s/rad
-(Table 3 prints 0.0021; the text and Table 2 speeds say 0.021, see the reference JSON).
-
-``<dcmotor>`` has one motor constant K = sqrt(Kt·Ke) and would compute torque
-K/R·(V - K·ω): with the thesis's constants that is 11 % too strong and 10 % too weak in
-back-EMF, and the Table 2 speeds come out 17 % fast. We keep Kt != Ke exactly by giving
+The datasheet (R, Kt, Ke) comes from the machine description. ``<dcmotor>`` has one motor
+constant K = sqrt(Kt·Ke) and would compute torque K/R·(V - K·ω): with the Sapphire 870's
+Kt = 0.017, Ke = 0.021 that is 11 % too strong and 10 % too weak in back-EMF, and the
+thesis's Table 2 speeds come out 17 % fast. We keep Kt != Ke exactly by giving
 ``<dcmotor>`` motorconst = Ke and resistance R' = R·Ke/Kt:
 
     torque = Ke/R'·(V - Ke·ω) = Kt/R·(V - Ke·ω)          (exact thesis eq. 5)
@@ -24,7 +22,6 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
-from mechanism.data.reference import thesis
 
 COPPER_TEMPCOEF_PER_K = 0.00393
 
@@ -50,15 +47,8 @@ class DCMotor:
     cogging_phase_rad: float = 0.0
     thermal: Thermal | None = None
 
-    @classmethod
-    def from_thesis(cls, **overrides) -> "DCMotor":
-        data = thesis()["main_motor"]
-        motor = cls(
-            resistance_ohm=data["resistance_ohm"],
-            torque_constant_Nm_A=data["torque_constant_Nm_per_A"],
-            back_emf_V_s_rad=data["back_emf_constant_V_s_per_rad"],
-        )
-        return replace(motor, **overrides)
+    def with_options(self, **overrides) -> "DCMotor":
+        return replace(self, **overrides)
 
     def __post_init__(self):
         if min(self.resistance_ohm, self.torque_constant_Nm_A, self.back_emf_V_s_rad) <= 0:
@@ -70,7 +60,7 @@ class DCMotor:
     def _ratio(self) -> float:
         return self.back_emf_V_s_rad / self.torque_constant_Nm_A
 
-    def add_to_spec(self, spec: mujoco.MjSpec, joint: str = "motor", name: str = "motor") -> None:
+    def add_to_spec(self, spec: mujoco.MjSpec, joint: str, name: str) -> None:
         """Add the ``<dcmotor>`` (ctrl = terminal voltage in V) driving ``joint``."""
         ratio = self._ratio
         thermal = [0.0] * 6
@@ -92,7 +82,7 @@ class DCMotor:
         return self.torque_constant_Nm_A / resistance * (np.asarray(voltage) - self.back_emf_V_s_rad * np.asarray(motor_velocity))
 
 
-def motor_current(model: mujoco.MjModel, data: mujoco.MjData, motor: DCMotor, actuator: str = "motor") -> float:
+def motor_current(model: mujoco.MjModel, data: mujoco.MjData, motor: DCMotor, actuator: str) -> float:
     """The real armature current [A] (see the module note on the Kt != Ke mapping)."""
     aid = model.actuator(actuator).id
     torque = data.actuator_force[aid]

@@ -1,0 +1,35 @@
+"""The options every machine verb shares: which machine (``--machine``) and which model."""
+
+from __future__ import annotations
+
+import argparse
+
+MACHINE_HELP = ("machine description (TOML: the motor and shaft joints, the shaft's zero, motor datasheet, "
+                "friction, tool); default: the shipped Sapphire 870 sewing machine")
+
+
+def add_machine_arguments(parser: argparse.ArgumentParser, model: bool = True) -> None:
+    parser.add_argument("--machine", metavar="FILE.toml", help=MACHINE_HELP)
+    if model:
+        parser.add_argument("--model", metavar="FILE.xml",
+                            help="use this MJCF instead of the description's model (same joint and site names)")
+
+
+def description_from_args(args: argparse.Namespace):
+    """The description named by ``--machine`` (default: shipped), with ``--model`` applied."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from mechanism.machine.machine import resolve_description
+
+    description = resolve_description(getattr(args, "machine", None))
+    if getattr(args, "model", None):
+        description = replace(description, model=Path(args.model))
+    return description
+
+
+def machine_from_args(args: argparse.Namespace, extend=None, **config):
+    """The Machine of ``--machine``/``--model`` under the operating conditions ``config``."""
+    from mechanism.machine.machine import Machine, MachineConfig
+
+    return Machine(description_from_args(args), MachineConfig(**config), extend=extend)

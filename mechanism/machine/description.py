@@ -1,0 +1,300 @@
+"""The machine description: what a CAD export cannot say, written once in a TOML file.
+
+A CAD export carries parts, joints, masses and couplings. It does not say which joint the
+motor turns, which shaft the recordings and the cycle refer to, where that shaft's zero
+is, the motor's datasheet or the friction. The description does, and every verb reads it::
+
+    [machine]
+    name = "press"
+    model = "press.xml"                 # converted MJCF, or a CAD export (converted on first use)
+    [drive]
+    motor_joint = "MOTOR-1--FRAME-1"    # the joint the motor turns
+    shaft_joint = "CRANK-1--FRAME-1"    # main shaft: recordings' angle, the cycle's driver
+    zero_site = "RAM_TIP"               # shaft angle 0 where this site is highest against gravity
+    [motor]
+    type = "dc"
+    resistance_ohm = 2.4
+    torque_constant_Nm_per_A = 0.045
+    back_emf_V_s_per_rad = 0.045
+    [friction."CRANK-1--FRAME-1"]
+    coulomb_Nm = 0.3
+    viscous_Nm_s_per_rad = 1e-3
+    [tool]
+    site = "RAM_TIP"
+    plate = "DIE-1"
+
+Units are in every key name. Unknown keys and sections are errors with a did-you-mean;
+every value is checked for type and physical range. Names are checked against the model
+by :mod:`mechanism.machine.machine` (it needs the model). :data:`SCHEMA` is the one list of
+keys; docs/machine.md is generated from the same table by a test.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mechanism.errors import UserError, close_matches
+
+MAX_DESCRIPTION_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the description: its type, its physical range and what it means."""
+
+    kind: type | tuple[type, ...]
+    doc: str
+    required: bool = False
+    low: float | None = None  # inclusive unless ``open_low``
+    high: float | None = None
+    open_low: bool = False
+    choices: tuple[str, ...] = ()
+    item: type | None = None  # element type of a list
+
+
+def _positive(doc: str, required: bool = False, high: float | None = None) -> Key:
+    return Key(float, doc, required, low=0.0, open_low=True, high=high)
+
+
+def _non_negative(doc: str, high: float | None = None) -> Key:
+    return Key(float, doc, low=0.0, high=high)
+
+
+def _name(doc: str, required: bool = False) -> Key:
+    return Key(str, doc, required)
+
+
+FRICTION_KEYS = {
+    "coulomb_Nm": _non_negative("kinetic Coulomb level [N m] (N on a slide)", 1e4),
+    "viscous_Nm_s_per_rad": _non_negative("viscous coefficient [N m s/rad] (N s/m on a slide)", 1e4),
+    "static_Nm": _non_negative("break-away level [N m], at least coulomb_Nm (default: equal)", 1e4),
+    "stribeck": Key(str, "decay from static to Coulomb level with speed", choices=("none", "tustin", "hess-soom")),
+    "stribeck_velocity_rad_s": _non_negative("Stribeck decay speed [rad/s]", 1e4),
+    "tustin_exponent": Key(float, "Tustin exponent", low=0.1, high=5.0),
+    "position_amplitude": Key(float, "running level varies as 1 + a cos(k q - phase) over the position joint", low=0.0, high=0.99),
+    "static_position_amplitude": Key(float, "the same for the break-away level (default: position_amplitude)", low=0.0, high=0.99),
+    "position_phase_deg": Key(float, "phase of the position dependence [deg]", low=-360.0, high=360.0),
+    "position_harmonic": Key(float, "k: cycles per turn of the position joint", low=0.0, high=100.0),
+    "position_joint": _name("joint whose angle sets the position dependence (default: its own)"),
+}
+
+SCHEMA: dict[str, dict[str, Key]] = {
+    "machine": {
+        "name": _name("a name for reports", required=True),
+        "model": _name("converted MJCF or CAD export, relative to this file", required=True),
+        "timestep_ms": Key(float, "simulation time step [ms]; loops and belts stiffen with it", low=0.01, high=2.0),
+    },
+    "drive": {
+        "motor_joint": _name("the joint the motor turns", required=True),
+        "shaft_joint": _name("the main shaft: recordings' angle and the cycle's driver", required=True),
+        "zero_site": _name("the shaft angle is 0 where this site is highest against gravity", required=True),
+    },
+    "motor": {
+        "type": Key(str, "motor kind", required=True, choices=("dc",)),
+        "resistance_ohm": _positive("armature resistance [ohm]", required=True, high=1e4),
+        "torque_constant_Nm_per_A": _positive("torque constant Kt [N m/A]", required=True, high=100.0),
+        "back_emf_V_s_per_rad": _positive("back-EMF constant Ke [V s/rad]", required=True, high=100.0),
+        "inductance_H": _non_negative("winding inductance [H] (0: quasi-static current)", 10.0),
+        "cogging_Nm": _non_negative("cogging torque amplitude [N m]", 100.0),
+        "cogging_per_rev": Key(int, "cogging periods per motor turn", low=1, high=1000),
+        "thermal_resistance_K_per_W": _positive("winding-to-ambient thermal resistance [K/W]", high=1e3),
+        "thermal_time_constant_s": _positive("winding thermal time constant [s]", high=1e6),
+    },
+    "supply": {
+        "voltage_V": _positive("supply voltage of the PWM switch [V]", high=1e3),
+        "duty_percent": Key(list, "PWM duty points [%] of the measured duty -> motor voltage map", item=float),
+        "motor_voltage_V": Key(list, "motor terminal voltage [V] at each duty point", item=float),
+    },
+    "warm": {
+        "time_constant_s": _positive("warming time constant [s]: level(t) = warm + (cold - warm) exp(-t/tau)", high=1e6),
+    },
+    "loads": {
+        "belt_tension_low_Nm": Key(float, "extra shaft Coulomb friction at low belt tension [N m]", low=-1e3, high=1e3),
+        "belt_tension_hard_Nm": Key(float, "extra shaft Coulomb friction at hard belt tension [N m]", low=-1e3, high=1e3),
+        "feeding_joint": _name("joint the feed mechanism loads when engaged"),
+        "feeding_coulomb_Nm": _non_negative("extra Coulomb friction on feeding_joint [N m]", 1e3),
+    },
+    "tool": {
+        "site": _name("the tool's working point (a needle tip, a ram tip)"),
+        "plate": _name("the part the tool works against; heights are measured from its top"),
+        "eye_site": _name("a second point on the tool's axis (a needle eye), for hook timing"),
+        "part": _name("the tool's own part, for clearance to the hook"),
+        "layer_thickness_mm": _positive("fabric layer thickness [mm]", high=50.0),
+        "piercing_force_per_layer_N": _non_negative("force to pierce one layer [N]", 1e3),
+        "drag_fraction": Key(float, "withdrawal drag as a fraction of the piercing force", low=0.0, high=1.0),
+        "point_taper_mm": _positive("length over which the piercing force builds up [mm]", high=50.0),
+    },
+    "hook": {
+        "joint": _name("the rotary hook's joint"),
+        "site": _name("the hook's point"),
+    },
+    "inspect": {
+        "probes": Key(list, "probes of the demo, 'point_or_joint:quantity'", item=str),
+        "clearance_pairs": Key(list, "part pairs the demo checks, 'A:B'", item=str),
+        "required_clearance_mm": _non_negative("smallest acceptable clearance [mm]", 1e3),
+        "probe_speed_rpm": _positive("shaft speed of the demo's probe cycle [rpm]", high=1e5),
+        "mistimed_variant": _name("the demo's faulty design variant, 'parameter=offset'"),
+    },
+}
+# Sections keyed by joint name; their keys are FRICTION_KEYS.
+JOINT_TABLES = {"friction": FRICTION_KEYS, "warm_friction": FRICTION_KEYS}
+# Named variant-parameter targets (mechanism-variants/1 syntax) the machine offers.
+PRESET_TABLE = "variant_presets"
+
+
+@dataclass(frozen=True)
+class MachineDescription:
+    """A validated description. ``path`` is the TOML file (None when built in code)."""
+
+    name: str
+    model: Path
+    motor_joint: str
+    shaft_joint: str
+    zero_site: str
+    motor: dict[str, Any]
+    friction: dict[str, dict[str, Any]] = field(default_factory=dict)
+    warm_friction: dict[str, dict[str, Any]] = field(default_factory=dict)
+    sections: dict[str, dict[str, Any]] = field(default_factory=dict)  # the optional sections as written
+    variant_presets: dict[str, str] = field(default_factory=dict)
+    path: Path | None = None
+
+    def section(self, name: str) -> dict[str, Any]:
+        return self.sections.get(name, {})
+
+    @property
+    def tool_site(self) -> str | None:
+        return self.section("tool").get("site")
+
+    @property
+    def timestep_s(self) -> float | None:
+        value = self.section("machine").get("timestep_ms")
+        return None if value is None else value * 1e-3
+
+    def where(self, section: str, key: str | None = None) -> str:
+        """'file: [section] key' for error messages."""
+        place = f"[{section}]" + (f" {key}" if key else "")
+        return f"{self.path}: {place}" if self.path else place
+
+
+def _fail(source: str, section: str, key: str | None, reason: str) -> UserError:
+    place = f"[{section}]" + (f" {key}" if key else "")
+    return UserError(f"machine description {source}: {place}: {reason}")
+
+
+def _check_value(source: str, section: str, name: str, key: Key, value: Any) -> Any:
+    def bad(reason: str) -> UserError:
+        return _fail(source, section, name, reason)
+
+    if key.kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if key.kind is list:
+        if not isinstance(value, list):
+            raise bad(f"expected a list, got {type(value).__name__}")
+        return [_check_value(source, section, f"{name}[{i}]", Key(key.item or str, key.doc), v) for i, v in enumerate(value)]
+    if not isinstance(value, key.kind) or isinstance(value, bool):
+        raise bad(f"expected {'a number' if key.kind in (float, int) else 'text'}, got {value!r}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise bad(f"must be a finite number, got {value}")
+    if key.choices and value not in key.choices:
+        raise bad(f"{value!r} is not one of {', '.join(key.choices)}")
+    if isinstance(value, str) and not value.strip():
+        raise bad("must not be empty")
+    if isinstance(value, (int, float)):
+        if key.low is not None and (value <= key.low if key.open_low else value < key.low):
+            raise bad(f"{value:g} is out of range: must be {'>' if key.open_low else '>='} {key.low:g} ({key.doc})")
+        if key.high is not None and value > key.high:
+            raise bad(f"{value:g} is out of range: must be <= {key.high:g} ({key.doc})")
+    return value
+
+
+def _check_table(source: str, section: str, table: Any, keys: dict[str, Key]) -> dict[str, Any]:
+    if not isinstance(table, dict):
+        raise _fail(source, section, None, "expected a table of keys")
+    out = {}
+    for name, value in table.items():
+        if name not in keys:
+            raise _fail(source, section, name, f"unknown key; did you mean {close_matches(name, keys)}?")
+        out[name] = _check_value(source, section, name, keys[name], value)
+    for name, key in keys.items():
+        if key.required and name not in out:
+            raise _fail(source, section, name, f"missing ({key.doc})")
+    return out
+
+
+def _check_friction(source: str, section: str, laws: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    out = {}
+    for joint, table in laws.items():
+        law = _check_table(source, f'{section}."{joint}"', table, FRICTION_KEYS)
+        if "static_Nm" in law and law["static_Nm"] < law.get("coulomb_Nm", 0.0):
+            raise _fail(source, f'{section}."{joint}"', "static_Nm", "the break-away level is below the Coulomb level")
+        out[joint] = law
+    return out
+
+
+def parse_description(data: dict[str, Any], source: str = "<description>", base: Path | None = None) -> MachineDescription:
+    """Validate a parsed TOML document. Relative model paths resolve against ``base``."""
+    known = [*SCHEMA, *JOINT_TABLES, PRESET_TABLE]
+    for section in data:
+        if section not in known:
+            raise _fail(source, section, None, f"unknown section; did you mean {close_matches(section, known)}?")
+    for section in ("machine", "drive", "motor"):
+        if section not in data:
+            raise _fail(source, section, None, "missing section")
+    sections = {name: _check_table(source, name, data[name], keys) for name, keys in SCHEMA.items() if name in data}
+    supply = sections.get("supply", {})
+    if len(supply.get("duty_percent", [])) != len(supply.get("motor_voltage_V", [])):
+        raise _fail(source, "supply", "motor_voltage_V", "needs one voltage per duty_percent point")
+    duties = supply.get("duty_percent", [])
+    if any(b <= a for a, b in zip(duties, duties[1:])) or any(not 0 <= d <= 100 for d in duties):
+        raise _fail(source, "supply", "duty_percent", "points must increase within 0-100 %")
+    presets = data.get(PRESET_TABLE, {})
+    if not isinstance(presets, dict) or not all(isinstance(v, str) for v in presets.values()):
+        raise _fail(source, PRESET_TABLE, None, "expected name = \"target\" pairs")
+    model = Path(sections["machine"]["model"])
+    if not model.is_absolute():
+        model = (base or Path.cwd()) / model
+    drive = sections["drive"]
+    return MachineDescription(
+        name=sections["machine"]["name"],
+        model=model,
+        motor_joint=drive["motor_joint"],
+        shaft_joint=drive["shaft_joint"],
+        zero_site=drive["zero_site"],
+        motor=sections["motor"],
+        friction=_check_friction(source, "friction", data.get("friction", {})),
+        warm_friction=_check_friction(source, "warm_friction", data.get("warm_friction", {})),
+        sections=sections,
+        variant_presets=dict(presets),
+    )
+
+
+def read_description(path: str | os.PathLike) -> MachineDescription:
+    """Read and validate a description file (bounded size, TOML, every key checked)."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            raw = handle.read(MAX_DESCRIPTION_BYTES + 1)
+    except IsADirectoryError:
+        raise UserError(f"machine description {path}: is a directory, expected a TOML file") from None
+    except OSError as exc:
+        raise UserError(f"machine description {path}: {exc.strerror or exc}") from None
+    if len(raw) > MAX_DESCRIPTION_BYTES:
+        raise UserError(f"machine description {path}: larger than {MAX_DESCRIPTION_BYTES >> 10} KiB")
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise UserError(f"machine description {path}: not valid TOML: {exc}") from None
+    resolved = path.resolve()  # a link to a shipped description resolves its model beside the real file
+    description = parse_description(data, str(path), resolved.parent)
+    return _with_path(description, path)
+
+
+def _with_path(description: MachineDescription, path: Path) -> MachineDescription:
+    from dataclasses import replace
+
+    return replace(description, path=path)
