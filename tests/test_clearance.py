@@ -19,12 +19,12 @@ def needle_model():
 
 def test_two_cylinders_minimum_distance_and_angle():
     expected_mm = (0.03 - 0.012 - 0.005 - 0.004) * 1e3
-    mesh = check_clearance(M.crank_and_post().compile(), [Pair("post", "pin")]).results[0]
+    mesh = check_clearance(M.crank_and_post().compile(), [Pair("post", "pin")], driver="arm_shaft").results[0]
     assert mesh.min_distance_mm == pytest.approx(expected_mm, abs=TOL_MM)
     assert not mesh.interferences
     # the tessellated cylinders' distance ripples by ~1e-7 m, which flattens the minimum's angle
     assert mesh.angle_deg == pytest.approx(37.3, abs=0.05)
-    exact = check_clearance(M.crank_and_post(mesh=False).compile(), [Pair("post", "pin")]).results[0]
+    exact = check_clearance(M.crank_and_post(mesh=False).compile(), [Pair("post", "pin")], driver="arm_shaft").results[0]
     assert exact.min_distance_mm == pytest.approx(expected_mm, abs=1e-6)
     assert exact.angle_deg == pytest.approx(37.3, abs=1e-3)
     # the closest points lie on the line of centres, on each surface
@@ -33,10 +33,10 @@ def test_two_cylinders_minimum_distance_and_angle():
 
 
 def test_sampled_curve_is_the_analytic_distance():
-    sweep_result = check_clearance(M.crank_and_post().compile(), [Pair("post", "pin")], resolution_deg=5).results[0]
+    sweep_result = check_clearance(M.crank_and_post().compile(), [Pair("post", "pin")], resolution_deg=5, driver="arm_shaft").results[0]
     from mechanism.inspection.clearance import ClearanceSweep
 
-    sweep = ClearanceSweep(M.crank_and_post().compile(), [Pair("post", "pin")], resolution_deg=5)
+    sweep = ClearanceSweep(M.crank_and_post().compile(), [Pair("post", "pin")], driver="arm_shaft", resolution_deg=5)
     curve = sweep.run(full_curve=True)[0]
     theta = np.radians(curve.grid_angle_deg)
     np.testing.assert_allclose(curve.grid_distance_mm, M.crank_post_distance(theta) * 1e3, atol=TOL_MM)
@@ -46,7 +46,7 @@ def test_sampled_curve_is_the_analytic_distance():
 
 def test_interfering_cylinders_depth_and_angle_range():
     P, rho, reach = 0.019, 0.012, 0.009
-    result = check_clearance(M.crank_and_post(P=P).compile(), [Pair("post", "pin")]).results[0]
+    result = check_clearance(M.crank_and_post(P=P).compile(), [Pair("post", "pin")], driver="arm_shaft").results[0]
     assert len(result.interferences) == 1
     hit = result.interferences[0]
     depth_mm = (reach - (P - rho)) * 1e3
@@ -60,13 +60,13 @@ def test_interfering_cylinders_depth_and_angle_range():
 
 
 def test_needle_through_plate_hole_is_a_clearance_not_a_hull_collision(needle_model):
-    result = check_clearance(needle_model, [Pair("needle", "needle_plate")]).results[0]
+    result = check_clearance(needle_model, [Pair("needle", "needle_plate")], driver="arm_shaft").results[0]
     expected_mm = (M.HOLE_RADIUS - M.NEEDLE_RADIUS - M.OFFSET) * 1e3
     assert result.min_distance_mm == pytest.approx(expected_mm, abs=TOL_MM)
     assert not result.interferences
     # at that angle the needle is inside the hole: MuJoCo's convex hull of the plate would collide
     data = mujoco.MjData(needle_model)
-    data.qpos[:] = sweep(needle_model, np.linspace(0, np.radians(result.angle_deg), 60))[-1]  # stay on the assembly branch
+    data.qpos[:] = sweep(needle_model, np.linspace(0, np.radians(result.angle_deg), 60), "arm_shaft")[-1]  # stay on the assembly branch
     mujoco.mj_kinematics(needle_model, data)
     tip = data.site("needle_tip").xpos[2]
     assert tip < M.PLATE_TOP
@@ -75,7 +75,7 @@ def test_needle_through_plate_hole_is_a_clearance_not_a_hull_collision(needle_mo
 
 
 def test_hook_point_passes_the_needle_scarf(needle_model):
-    result = check_clearance(needle_model, [Pair("needle", "hook")]).results[0]
+    result = check_clearance(needle_model, [Pair("needle", "hook")], driver="arm_shaft").results[0]
     assert result.min_distance_mm == pytest.approx(M.HOOK_GAP * 1e3, abs=TOL_MM)
     assert result.angle_deg == pytest.approx(M.HOOK_PASS_DEG, abs=0.1)
     assert result.passes(required_mm=0.05) and not result.passes(required_mm=0.2)
@@ -83,7 +83,7 @@ def test_hook_point_passes_the_needle_scarf(needle_model):
 
 def test_mistimed_hook_hits_the_needle():
     model = M.needle_and_plate(hook_offset_deg=-30).compile()  # passes at 210 deg: the scarf is above the hook
-    result = check_clearance(model, [Pair("needle", "hook")]).results[0]
+    result = check_clearance(model, [Pair("needle", "hook")], driver="arm_shaft").results[0]
     assert result.interferences
     assert result.min_distance_mm < 0
     # the hook point cuts into the full needle diameter: up to 0.2 mm (scarf depth minus gap)

@@ -5,11 +5,16 @@ import numpy as np
 import pytest
 
 from mechanism.sysid.calibration import ripple
-from mechanism.physics.inputs import VoltageProfile, pwm_voltage
-from mechanism.machine.machine import ARM, Machine, MachineConfig
+from mechanism.physics.inputs import VoltageProfile
+from mechanism.machine.machine import Machine, MachineConfig, duty_map_from
+
+ARM = "arm_shaft"
 from mechanism.dynamics.reduced import ReducedModel
 from mechanism.data.reference import thesis
 from mechanism.dynamics.simulation import simulate
+from support.machines import shipped_description
+
+PWM = duty_map_from(shipped_description())
 
 REF = thesis()
 KT = REF["main_motor"]["torque_constant_Nm_per_A"]
@@ -61,8 +66,8 @@ def test_break_away_spans_the_thesis_range_and_duty_cycles(bare):
     assert not BDC_DEG < np.degrees(angles[torque.argmin()]) < 360 - 20
     # The thesis's duty cycles: nothing starts at 11 % duty; everything starts at 15 %.
     lowest, highest = angles[torque.argmin()], angles[torque.argmax()]
-    assert abs(simulate(pwm_voltage(11), 1.0, machine=bare, start_angle_rad=lowest).arm_angle_rad[-1] - lowest) < 2e-3
-    assert simulate(pwm_voltage(15), 1.0, machine=bare, start_angle_rad=highest).arm_angle_rad[-1] - highest > 0.5
+    assert abs(simulate(PWM(11), 1.0, machine=bare, start_angle_rad=lowest).arm_angle_rad[-1] - lowest) < 2e-3
+    assert simulate(PWM(15), 1.0, machine=bare, start_angle_rad=highest).arm_angle_rad[-1] - highest > 0.5
 
 
 def test_speed_ripple_falls_with_speed_as_measured(bare):
@@ -92,7 +97,7 @@ def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
     loss = speed_by_angle(machine) - speed_by_angle(plain)
     # Where the needle point enters the 12-layer stack on its way down (from the kinematics).
     tables = ReducedModel(machine).tables
-    height = machine.needle_z_mm(tables.tool_z_m)
+    height = machine.tool_height_mm(tables.tool_z_m)
     stack_mm = machine.fabric.thickness_m * 1e3
     down = np.degrees(tables.angle_rad) < BDC_DEG
     entry = np.degrees(tables.angle_rad[down][np.argmax(height[down] <= stack_mm)])
@@ -117,7 +122,7 @@ def test_loops_and_belts_stiffen_with_the_time_step():
 
         machine = Machine(None, MachineConfig(timestep_s=step))
         data = machine.reset(0.0)
-        data.ctrl[machine.model.actuator("motor").id] = 19.6
+        data.ctrl[machine.actuator] = 19.6
         worst = 0.0
         for k in range(int(1.0 / step)):
             mujoco.mj_step(machine.model, data)

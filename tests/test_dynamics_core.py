@@ -12,13 +12,19 @@ import pytest
 
 from mechanism.machine import machine as machine_module
 from mechanism.physics.friction import FrictionLaw, python_friction
-from mechanism.physics.inputs import VoltageProfile, pwm_voltage
+from mechanism.physics.inputs import VoltageProfile
 from mechanism.errors import UserError
-from mechanism.machine.machine import Machine, MachineConfig
+from mechanism.machine.machine import Machine, MachineConfig, duty_map_from
 from mechanism.physics.motor import DCMotor
 from mechanism.dynamics.simulation import simulate
+from support.machines import shipped_description
+from support.machines import thesis_motor
+
+
+PWM = duty_map_from(shipped_description())
 
 TOY = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
+TOY_MACHINE = TOY.with_suffix(".toml")
 KT, KE, R, N = 0.017, 0.021, 1.1, 8
 
 
@@ -33,7 +39,7 @@ def no_position_friction():
 
 @pytest.fixture(scope="module")
 def toy():
-    return Machine(TOY, MachineConfig(friction=no_position_friction()))
+    return Machine(TOY_MACHINE, MachineConfig(friction=no_position_friction()))
 
 
 @pytest.mark.parametrize("voltage", [4.48, 12.49, 19.6])
@@ -50,7 +56,7 @@ def test_steady_speed_and_current_follow_the_thesis_motor_equations(toy, voltage
 def test_dcmotor_keeps_kt_and_ke_distinct():
     # <dcmotor> alone would use K = sqrt(Kt Ke) for both: torque at stall must be Kt V / R.
     spec = mujoco.MjSpec.from_file(str(TOY))
-    DCMotor.from_thesis().add_to_spec(spec)
+    thesis_motor().add_to_spec(spec, joint="motor", name="motor")
     model = spec.compile()
     data = mujoco.MjData(model)
     data.ctrl[0] = 10.0
@@ -59,7 +65,7 @@ def test_dcmotor_keeps_kt_and_ke_distinct():
 
 
 def test_machine_sticks_below_break_away_and_starts_above():
-    no_gravity = Machine(TOY, MachineConfig(friction={"arm_shaft": FrictionLaw(coulomb=0.18, static=0.24)}))
+    no_gravity = Machine(TOY_MACHINE, MachineConfig(friction={"arm_shaft": FrictionLaw(coulomb=0.18, static=0.24)}))
     no_gravity.model.opt.gravity[:] = 0
     # Stall torque at the arm is N Kt V / R: break-away at V = 0.24 R / (N Kt).
     breakaway_V = 0.24 * R / (N * KT)
@@ -72,11 +78,11 @@ def test_machine_sticks_below_break_away_and_starts_above():
 def test_python_fallback_matches_the_compiled_callback():
     laws = {"arm_shaft": FrictionLaw(coulomb=0.18, static=0.26, stribeck="hess-soom", stribeck_velocity=2.0,
                                      position_amplitude=0.1, static_position_amplitude=0.03, position_phase_rad=1.0)}
-    compiled = Machine(TOY, MachineConfig(friction=laws))
+    compiled = Machine(TOY_MACHINE, MachineConfig(friction=laws))
     reference = simulate(VoltageProfile(np.array([0.0, 0.3]), np.array([3.0, 6.0])), 0.6, machine=compiled)
     # Same model, friction stepped in Python instead of C.
     model, data = compiled.model, compiled.reset(0.0)
-    ctrl = model.actuator("motor").id
+    ctrl = compiled.actuator
     mujoco.set_mjcb_passive(python_friction)
     try:
         velocities = []
@@ -92,15 +98,15 @@ def test_python_fallback_matches_the_compiled_callback():
 
 
 def test_pwm_duty_follows_table_2_and_rejects_out_of_range():
-    assert pwm_voltage(50) == pytest.approx(12.49)
-    assert pwm_voltage(25) == pytest.approx((4.48 + 7.0) / 2)
+    assert PWM(50) == pytest.approx(12.49)
+    assert PWM(25) == pytest.approx((4.48 + 7.0) / 2)
     # The thesis started the machine at 12-14 % duty, where the current-drive break-away
     # torques 0.2384 / 0.2771 N m need T R / (8 Kt) at the motor terminals.
-    assert pwm_voltage(12) == pytest.approx(0.2384 * R / (N * KT))
-    assert pwm_voltage(14) == pytest.approx(0.2771 * R / (N * KT))
-    assert 0 < pwm_voltage(5) < pwm_voltage(12)
+    assert PWM(12) == pytest.approx(0.2384 * R / (N * KT))
+    assert PWM(14) == pytest.approx(0.2771 * R / (N * KT))
+    assert 0 < PWM(5) < PWM(12)
     with pytest.raises(UserError):
-        pwm_voltage(120)
+        PWM(120)
 
 
 def test_bad_durations_and_voltages_are_user_errors(toy):
@@ -115,7 +121,7 @@ def test_break_away_follows_the_static_position_amplitude(rest_angle):
     # Static level 0.24 (1 + 0.1 cos θ): 0.264 N m at θ = 0, 0.216 N m at θ = π; the running
     # amplitude (0.3 here) must not change when the machine starts.
     law = FrictionLaw(coulomb=0.18, static=0.24, position_amplitude=0.3, static_position_amplitude=0.1)
-    machine = Machine(TOY, MachineConfig(friction={"arm_shaft": law}))
+    machine = Machine(TOY_MACHINE, MachineConfig(friction={"arm_shaft": law}))
     machine.model.opt.gravity[:] = 0
     breakaway_V = law.static_at(rest_angle) * R / (N * KT)
     assert law.static_at(rest_angle) == pytest.approx(0.24 * (1 + 0.1 * np.cos(rest_angle)))

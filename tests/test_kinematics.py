@@ -55,7 +55,7 @@ def model():
 
 def test_sweep_matches_analytic_slider_crank_and_belt_ratio(model):
     angles = np.linspace(0, 2 * np.pi, 361)
-    poses = sweep(model, angles)
+    poses = sweep(model, angles, "arm_shaft")
     slide = poses[:, model.joint("bushing").qposadr[0]]
     np.testing.assert_allclose(slide + R + L, slider_z(angles), atol=1e-9)
     motor = poses[:, model.joint("motor").qposadr[0]]

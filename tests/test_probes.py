@@ -17,7 +17,7 @@ OMEGA = RPM * 2 * np.pi / 60
 def needle_cycle():
     probes = [Probe("needle_tip", q) for q in ("position", "velocity", "acceleration")]
     probes.append(Probe("needle_bar", "position", point_mm=(0, 0, -M.TIP_BELOW_BAR * 1e3)))
-    return probe_cycle(M.needle_and_plate(), probes, speed_rpm=RPM, resolution_deg=2.0).columns
+    return probe_cycle(M.needle_and_plate(), probes, speed_rpm=RPM, resolution_deg=2.0, driver="arm_shaft").columns
 
 
 def test_needle_tip_position_velocity_acceleration(needle_cycle):
@@ -45,7 +45,7 @@ def _static_loads(theta, rod_mass=1e-7):
         Probe("rod_end", "force"),  # loop joint (two connects) between rod and needle bar
         Probe("arm_shaft", "torque"),
     ]
-    columns = probe_cycle(spec, probes, speed_rpm=0.0, resolution_deg=theta / 3).columns
+    columns = probe_cycle(spec, probes, speed_rpm=0.0, resolution_deg=theta / 3, driver="arm_shaft").columns
     row = {name: values[3] for name, values in columns.items()}  # the sample at theta
     model = spec.compile()
     weight = -model.opt.gravity[2] * model.body("needle_bar").subtreemass
@@ -84,7 +84,7 @@ def test_drive_torque_is_the_rate_of_change_of_energy():
     states = kinematic_cycle(model, angles, OMEGA, "arm_shaft", data)
     torque, energy = [], []
     for i in range(len(angles)):
-        torque.append(set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i]))
+        torque.append(set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i], "arm_shaft"))
         mujoco.mj_energyPos(model, data)
         mujoco.mj_energyVel(model, data)
         energy.append(data.energy.sum())
@@ -97,9 +97,9 @@ def test_drive_torque_is_the_rate_of_change_of_energy():
 
 def test_bad_probe_names_and_quantities():
     with pytest.raises(UserError, match="close matches: needle_tip"):
-        probe_cycle(M.needle_and_plate(), [Probe("needle_tpi", "position")])
+        probe_cycle(M.needle_and_plate(), [Probe("needle_tpi", "position")], driver="arm_shaft")
     with pytest.raises(UserError, match="close matches.*crank_pin"):
-        probe_cycle(M.needle_and_plate(), [Probe("crank_pn", "force")])
+        probe_cycle(M.needle_and_plate(), [Probe("crank_pn", "force")], driver="arm_shaft")
     with pytest.raises(UserError, match="unknown probe quantity"):
         Probe("needle_tip", "jerk")
     with pytest.raises(UserError, match="X,Y,Z"):
@@ -112,14 +112,14 @@ def test_dynamic_probes_obey_newtons_law_on_the_needle_bar():
 
     from mechanism.inspection.probes import probe_simulation
 
-    toy = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
+    toy = Path(__file__).parent / "models" / "toy_sewing_machine.toml"
     probes = [
         Probe("needle_bar_bushing", "force"),  # tree slide joint
         Probe("a", "force"),  # the two loop connects (loads on their body1, the crank link)
         Probe("b", "force"),
         Probe("needle_bar", "acceleration", point_mm=(0, 0, -30)),  # its centre of mass
     ]
-    columns = probe_simulation(probes, voltage=12.0, duration_s=0.3, model_path=toy).columns
+    columns = probe_simulation(probes, voltage=12.0, duration_s=0.3, description=toy).columns
     mass = 0.08
     assert np.abs(columns["needle_bar_at_0_0_-30_az_m_s2"]).max() > 5.0  # it really moves
     for axis, gravity in (("x", 0.0), ("z", -9.81)):

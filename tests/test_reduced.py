@@ -15,6 +15,7 @@ from mechanism.kinematics.linkage import compute_tables, periodic_derivative
 from mechanism.dynamics.simulation import simulate
 
 TOY = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
+TOY_MACHINE = TOY.with_suffix(".toml")
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +51,7 @@ def test_spectral_derivative_is_exact_for_harmonics():
 
 @pytest.fixture(scope="module")
 def machine():
-    return Machine(TOY)
+    return Machine(TOY_MACHINE)
 
 
 def profile():

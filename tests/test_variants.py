@@ -44,7 +44,7 @@ def test_crank_radius_changes_the_stroke(nominal):
     angles = np.linspace(0, 2 * np.pi, 361)
     tip = []
     data = mujoco.MjData(model)
-    for pose in sweep(model, angles, data=data):
+    for pose in sweep(model, angles, "arm_shaft", data=data):
         data.qpos[:] = pose
         mujoco.mj_kinematics(model, data)
         tip.append(data.site("needle_tip").xpos[2])
@@ -137,7 +137,7 @@ def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
     }
     variants = read_variants(_write(tmp_path, "v.json", doc))
     pairs = [Pair("needle", "hook")]
-    parallel = run_variants(nominal, variants, pairs, required_mm=0.05, workers=2)
+    parallel = run_variants(nominal, variants, pairs, required_mm=0.05, driver="arm_shaft", workers=2)
     assert "variants" in capsys.readouterr().err  # the progress bar
     rows = {row["variant"]: row for row in parallel.table()}
     assert rows["nominal"]["pass"] == 1
@@ -145,13 +145,13 @@ def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
     assert rows["late hook"]["pass"] == 0 and rows["late hook"]["needle_vs_hook_min_mm"] < 0
     # a timing error moves the pass angle by half of it (the hook turns at twice the arm speed)
     assert rows["grid 2"]["needle_vs_hook_angle_deg"] == pytest.approx(M.HOOK_PASS_DEG - 2, abs=0.1)
-    serial = run_variants(nominal, variants, pairs, required_mm=0.05, workers=1, progress=False)
+    serial = run_variants(nominal, variants, pairs, required_mm=0.05, driver="arm_shaft", workers=1, progress=False)
     assert [r["needle_vs_hook_min_mm"] for r in serial.rows] == pytest.approx([r["needle_vs_hook_min_mm"] for r in parallel.rows], abs=1e-9)
 
 
 def test_ray_backend(tmp_path, nominal):
     ray = pytest.importorskip("ray", reason="Ray is not installed (optional: pip install 'mechanism[ray]')")
     variants = read_variants(_write(tmp_path, "v.json", {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, 0]}}))
-    batch = run_variants(nominal, variants, [Pair("needle", "hook")], workers=2, backend="ray", progress=False)
+    batch = run_variants(nominal, variants, [Pair("needle", "hook")], driver="arm_shaft", workers=2, backend="ray", progress=False)
     assert [row["pass"] for row in batch.rows] == [1, 0, 1]
     assert not ray.is_initialized()  # the local instance it started is shut down

@@ -43,7 +43,7 @@ def model_file(tmp_path_factory):
 
 def test_html_is_self_contained(model_file, tmp_path):
     html = tmp_path / "machine.html"
-    summary = view(html, model_file, frames=12, probe_names=["needle_tip"], pairs="needle:hook")
+    summary = view(html, model_file, frames=12, probe_names=["needle_tip"], pairs="needle:hook", driver="arm_shaft")
     text = html.read_text()
     assert summary["frames"] == 12
     assert "MeshCat.Viewer" in text and "<script src" not in text and "http://" not in text.split("<script>")[0]
@@ -53,7 +53,7 @@ def test_html_is_self_contained(model_file, tmp_path):
 def test_html_renders_in_headless_chromium_with_the_requested_frames(model_file, tmp_path):
     chromium = _chromium()
     html = tmp_path / "machine.html"
-    view(html, model_file, frames=37, probe_names=["needle_tip"])
+    view(html, model_file, frames=37, probe_names=["needle_tip"], driver="arm_shaft")
     dom = _headless(chromium, "--dump-dom", html.as_uri())
     assert 'data-ready="true"' in dom.stdout, dom.stderr[-2000:]
     assert 'data-frames="37"' in dom.stdout
@@ -76,7 +76,7 @@ def test_recording_replays_the_arm_angle(model_file, tmp_path):
     rows = "\n".join(f"{t:.6f},12.0,{a:.9f}" for t, a in zip(time, angle))
     recording.write_text("time,voltage,arm_angle\n" + rows + "\n")
     model = mujoco.MjModel.from_xml_path(str(model_file))
-    motion = recording_motion(model, recording, frames=9)
+    motion = recording_motion(model, recording, frames=9, driver="arm_shaft")
     np.testing.assert_allclose(motion.time_s, np.linspace(0, 2, 9))
     np.testing.assert_allclose(motion.qpos[:, model.joint("arm_shaft").qposadr[0]], 3.0 * np.linspace(0, 2, 9) ** 2, atol=1e-9)
     tip = []
@@ -90,7 +90,7 @@ def test_recording_replays_the_arm_angle(model_file, tmp_path):
 
 def test_cycle_and_colours(model_file):
     model = mujoco.MjModel.from_xml_path(str(model_file))
-    motion = cycle_motion(model, frames=5)
+    motion = cycle_motion(model, frames=5, driver="arm_shaft")
     np.testing.assert_allclose(motion.qpos[:, model.joint("arm_shaft").qposadr[0]], np.linspace(0, 2 * np.pi, 5), atol=1e-9)
     model.geom_rgba[0] = [1.0, 0.5, 0.0, 0.25]
     assert _color(model, 0) == (0xFF8000, 0.25)
@@ -99,6 +99,6 @@ def test_cycle_and_colours(model_file):
 def test_serve_starts_a_local_meshcat_server(model_file):
     import urllib.request
 
-    summary = view(None, model_file, frames=4, serve=True)
+    summary = view(None, model_file, frames=4, serve=True, driver="arm_shaft")
     assert summary["url"].startswith("http://127.0.0.1:")
     assert b"meshcat" in urllib.request.urlopen(summary["url"], timeout=10).read().lower()

@@ -33,3 +33,24 @@ def machine_from_args(args: argparse.Namespace, extend=None, **config):
     from mechanism.machine.machine import Machine, MachineConfig
 
     return Machine(description_from_args(args), MachineConfig(**config), extend=extend)
+
+
+def inspection_target(args: argparse.Namespace):
+    """(model path, driver joint, description or None) for the kinematic verbs: ``--model``
+    alone inspects a bare MJCF (driver: ``--driver`` or the guessed shaft); otherwise the
+    described machine (driver: ``--driver`` or its shaft joint)."""
+    from mechanism.machine.models import load_model, model_path, resolve_model
+
+    if getattr(args, "model", None) and not getattr(args, "machine", None):
+        path = model_path(args.model)
+        if args.driver:
+            return path, args.driver, None
+        from mechanism.machine.roles import guess_driver
+
+        return path, guess_driver(load_model(path)), None
+    description = description_from_args(args)
+    return resolve_model(description), args.driver or description.shaft_joint, description
+
+
+DRIVER_HELP = ("the joint turned through the cycle (default: the machine's shaft joint; with --model alone, the "
+               "model's slowest fully revolving joint)")

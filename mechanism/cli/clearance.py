@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
+
 ORDER = 45
 
 
@@ -23,7 +25,7 @@ def register(subparsers) -> None:
             "mechanism clearance --pairs needle:hook --variants variants.json --workers 2 --csv variants.csv"
         ),
     )
-    parser.add_argument("--model", help="MJCF file (default: the shipped sewing machine)")
+    add_machine_arguments(parser)
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--pairs", action="append", metavar="A:B[,C:D...]", help="part pairs to check (CAD part names)")
     which.add_argument("--all-pairs", action="store_true",
@@ -40,7 +42,7 @@ def register(subparsers) -> None:
     parser.add_argument("--backend", choices=["local", "ray"], default="local",
                         help="where variants run: local processes, or Ray (pip install 'mechanism[ray]'; uses a running "
                              "cluster if ray.init() was called, else starts a local one)")
-    parser.add_argument("--driver", default="arm_shaft", metavar="JOINT", help="the joint turned through the cycle (default arm_shaft)")
+    parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="one row per pair (or per variant with --variants)")
     parser.add_argument("--json", metavar="OUT.json", help="full report: closest points, interference ranges, depths")
     parser.add_argument("--strict", action="store_true", help="exit with status 1 when any check fails")
@@ -54,12 +56,13 @@ def run(args) -> int:
 
     if args.workers != 1 and not args.variants:
         raise UserError("--workers applies to --variants")
-    model = load_model(args.model)
+    path, args.driver, description = inspection_target(args)
+    model = load_model(path)
     pairs = all_pairs(model) if args.all_pairs else parse_pairs(args.pairs, model)
     if args.variants:
         from mechanism.inspection.variants import read_variants, run_variants
 
-        variants = read_variants(args.variants)
+        variants = read_variants(args.variants, description.variant_presets if description else None)
         batch = run_variants(model, variants, pairs, args.required, args.driver, args.cycle, args.resolution,
                              args.workers, args.backend)
         table = batch.table()

@@ -49,48 +49,11 @@ def summary_lines(report, extra=()) -> list[str]:
     return lines
 
 
-def drive_lines(report) -> list[str]:
-    """Moving mass and, for a one-degree-of-freedom machine, the effective inertia reflected to
-    its driving joint over one revolution (motor through the belts included)."""
-    import mujoco
-    import numpy as np
-
-    from mechanism.kinematics.pose import PoseError
-    from mechanism.machine.models import load_model
-    from mechanism.kinematics.linkage import compute_tables
-
-    try:
-        model = load_model(report.mjcf_path)
-    except Exception as exc:  # noqa: BLE001 - the model is written; a summary extra must not end the command
-        return [f"moving mass: not computed ({' '.join(str(exc).split())[:120]})"]
-    moving = float(sum(model.body_mass[b] for b in range(1, model.nbody) if model.body_weldid[b] != 0))
-    lines = [f"moving mass: {moving:.6g} kg"]
-    if report.degrees_of_freedom != 1:
-        return lines
-    hinges = [model.joint(j).name for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
-    driver = "arm_shaft" if "arm_shaft" in hinges else (hinges[0] if hinges else None)
-    if driver is None:
-        return lines
-    try:
-        tables = compute_tables(model, driver, n=180)
-    except PoseError as exc:
-        return lines + [f"reflected inertia: not computed ({exc})"]
-    except Exception as exc:  # noqa: BLE001 - numerical trouble in an odd export only loses this line
-        return lines + [f"reflected inertia: not computed ({exc.__class__.__name__}: {' '.join(str(exc).split())[:100]})"]
-    inertia = tables.inertia_kgm2
-    lines.append(f"reflected inertia at {driver}: {inertia.mean():.4g} kg*m^2 mean over a revolution "
-                 f"({inertia.min():.4g} to {inertia.max():.4g})")
-    geared = {joint: abs(ratio[0]) for joint, ratio in tables.ratios.items()
-              if joint != driver and np.ptp(ratio) < 1e-9 and abs(ratio[0]) > 2}
-    if geared:  # the fastest geared joint, normally the motor behind its belt
-        joint = max(geared, key=geared.get)
-        lines.append(f"  = {inertia.mean() / geared[joint] ** 2:.4g} kg*m^2 referred to {joint} (ratio {geared[joint]:g}:1)")
-    return lines
-
-
 def run(args) -> int:
     from mechanism.converters import convert
 
+    from mechanism.machine.roles import drive_lines
+
     report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up)
-    print("\n".join(summary_lines(report, extra=drive_lines(report))))
+    print("\n".join(summary_lines(report, extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))))
     return 0

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from mechanism.cli._machine import add_machine_arguments, machine_from_args
+
 ORDER = 20
 
 EPILOG = """\
@@ -33,7 +35,7 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--model", metavar="MJCF", help="converted model (default: the shipped sewing machine)")
+    add_machine_arguments(parser)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="table over the revolution (units in column names)")
     parser.add_argument("--plot", metavar="OUT.png", help="position, velocity and acceleration vs arm angle (PNG, SVG or PDF)")
     parser.add_argument("--samples", type=int, default=360, metavar="N",
@@ -46,7 +48,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from mechanism.inspection.needle import needle_motion, plot, write_csv
 
-    motion = needle_motion(args.model, samples=args.samples, speed_rpm=args.speed)
+    motion = needle_motion(machine_from_args(args), samples=args.samples, speed_rpm=args.speed)
     write_csv(motion, args.csv)
     if args.plot:
         plot(motion, args.plot)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
+
 ORDER = 40
 
 
@@ -25,7 +27,7 @@ def register(subparsers) -> None:
             "--voltage 12 --duration 2 --csv loads.csv --plot loads.png"
         ),
     )
-    parser.add_argument("--model", help="MJCF file (default: the shipped sewing machine)")
+    add_machine_arguments(parser)
     parser.add_argument("--part", action="append", required=True, metavar="NAME[,NAME...]",
                         help="what to probe: a CAD part (its part frame), a user-named frame (needle_tip) or a body; "
                              "for force/torque, a joint name (joints come first), else the load a part's body receives "
@@ -42,7 +44,7 @@ def register(subparsers) -> None:
     parser.add_argument("--speed", type=float, default=600.0, metavar="RPM", help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)")
     parser.add_argument("--revolutions", type=float, default=1.0, metavar="N", help="arm revolutions for --cycle (default 1)")
     parser.add_argument("--resolution", type=float, default=0.5, metavar="DEG", help="arm angle step for --cycle [deg] (default 0.5)")
-    parser.add_argument("--driver", default="arm_shaft", metavar="JOINT", help="driving joint of the cycle (default arm_shaft)")
+    parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="write the probe table")
     parser.add_argument("--plot", metavar="OUT.png", help="plot every probe over the arm angle (cycle) or time (simulation)")
     parser.set_defaults(handler=run)
@@ -57,8 +59,10 @@ def run(args) -> int:
     if args.cycle and args.duration is not None:
         raise UserError("--duration belongs to a dynamic run (--voltage), not to --cycle")
     probes = parse_probes(args.part, args.quantity, args.point)
-    result = run_probes(probes, args.model, args.voltage, args.duration, args.speed, args.revolutions,
-                        args.resolution, args.driver, progress=args.voltage is not None)
+    path, driver, description = inspection_target(args)
+    result = run_probes(probes, path, args.voltage, args.duration, args.speed, args.revolutions,
+                        args.resolution, driver, progress=args.voltage is not None,
+                        description=description or description_from_args(args))
     result.write_csv(args.csv)
     if args.plot:
         result.plot(args.plot, probes)

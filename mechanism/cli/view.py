@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
+
 ORDER = 50
 
 
@@ -19,7 +21,7 @@ def register(subparsers) -> None:
         ),
         epilog="example: mechanism view --frames 120 --probe needle_tip --pairs needle:hook --html out/machine.html",
     )
-    parser.add_argument("--model", help="MJCF file (default: the shipped sewing machine)")
+    add_machine_arguments(parser)
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--cycle", action="store_true", help="one arm shaft revolution (the default)")
     motion.add_argument("--voltage", type=float, metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
@@ -28,7 +30,7 @@ def register(subparsers) -> None:
     parser.add_argument("--frames", type=int, default=120, metavar="N", help="animation frames (default 120)")
     parser.add_argument("--probe", action="append", default=[], metavar="NAME", help="mark a part frame or named frame (repeatable)")
     parser.add_argument("--pairs", metavar="A:B[,C:D...]", help="show the clearance minimum of these part pairs")
-    parser.add_argument("--driver", default="arm_shaft", metavar="JOINT", help="the joint turned through the cycle or the recording (default arm_shaft)")
+    parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--html", metavar="OUT.html", help="write the self-contained animation")
     parser.add_argument("--serve", action="store_true", help="start a live meshcat server on localhost and wait (Ctrl-C ends)")
     parser.set_defaults(handler=run)
@@ -44,8 +46,10 @@ def run(args) -> int:
         raise UserError("--voltage needs --duration (simulated time in seconds)")
     if args.duration is not None and args.voltage is None:
         raise UserError("--duration belongs to a simulated motion (--voltage)")
-    summary = view(args.html, args.model, args.voltage, args.duration, args.recording, args.frames,
-                   args.probe, args.pairs, serve=args.serve, driver=args.driver)
+    path, driver, description = inspection_target(args)
+    summary = view(args.html, path, args.voltage, args.duration, args.recording, args.frames,
+                   args.probe, args.pairs, serve=args.serve, driver=driver,
+                   description=description or description_from_args(args))
     for note in summary["notes"]:
         print(note)
     if args.html:

@@ -182,7 +182,7 @@ class ClearanceSweep:
         self,
         model: mujoco.MjModel,
         pairs: Sequence[Pair],
-        driver: str = "arm_shaft",
+        driver: str | None = None,
         revolutions: float = 1.0,
         resolution_deg: float = DEFAULT_RESOLUTION_DEG,
     ):
@@ -480,7 +480,7 @@ def check_clearance(
     revolutions: float = 1.0,
     resolution_deg: float = DEFAULT_RESOLUTION_DEG,
     required_mm: float = 0.0,
-    driver: str = "arm_shaft",
+    driver: str | None = None,
 ) -> ClearanceReport:
     """Minimum clearance and interferences of ``pairs`` (default: all moving pairs) over
     ``revolutions`` turns of ``driver``."""

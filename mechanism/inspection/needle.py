@@ -1,4 +1,4 @@
-"""Needle motion over one arm-shaft revolution, and where the hook point meets the needle.
+"""Tool (needle) motion over one shaft revolution, and where a hook point meets the needle.
 
 What a sewing-machine designer checks first on a new needle drive: the needle-bar stroke,
 the dead centres, the needle's velocity and acceleration per unit arm speed (the
@@ -9,15 +9,15 @@ bottom dead centre by then (the loop lift), and how close the point runs to the 
 Everything is computed on the converted MJCF by MuJoCo, with the position solver of
 :mod:`mechanism.kinematics.pose` (all loop closures and couplings hold):
 
-* needle height: site ``needle_tip`` above the needle-plate top surface;
+* tool height: the described tool site above the described plate's top surface, against gravity;
 * velocity dz/dθ: exact, from the constraint Jacobians (no finite differences);
 * acceleration d²z/dθ²: spectral derivative of the exact velocity over the revolution;
-* hook passage: the arm angle where the site ``hook_point``, seen along the ``hook`` joint
-  axis, crosses the needle axis (the line from ``needle_tip`` to ``needle_eye``), refined
+* hook passage: the shaft angle where the described hook site, seen along the hook joint's
+  axis, crosses the needle axis (the line from the tool site to its eye site), refined
   by root finding on fresh poses; the clearance is the exact distance from the hook point
   to the needle's mesh triangles.
 
-Angles are arm angles, 0 = needle top dead centre, positive = forward sewing.
+Angles are shaft angles from the described zero, positive = the motor's forward direction.
 """
 
 from __future__ import annotations
@@ -31,12 +31,6 @@ import numpy as np
 
 from mechanism.errors import UserError
 
-ARM = "arm_shaft"
-HOOK = "hook"
-NEEDLE_TIP = "needle_tip"
-NEEDLE_EYE = "needle_eye"
-HOOK_POINT = "hook_point"
-NEEDLE_GEOM = "needle"
 MIN_SAMPLES = 36
 MAX_SAMPLES = 36000
 
@@ -110,59 +104,70 @@ class NeedleMotion:
         return lines
 
 
-def needle_motion(model_path: str | os.PathLike | None = None, samples: int = 360,
-                  speed_rpm: float | None = None) -> NeedleMotion:
-    """Needle motion of a converted model (default: the shipped sewing machine) over one
-    arm revolution at ``samples`` equally spaced arm angles starting at 0 (TDC)."""
+@dataclass(frozen=True)
+class _Roles:
+    """The names the tool motion needs, from the machine description."""
+
+    tip: str
+    eye: str | None
+    part: str | None
+    hook_joint: str | None
+    hook_point: str | None
+
+
+def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = None) -> NeedleMotion:
+    """Tool (needle) motion of a machine (default: the shipped one) over one shaft revolution
+    at ``samples`` equally spaced shaft angles from the described zero, and the hook timing
+    when the description names a hook ([hook] joint and site, [tool] eye_site and part)."""
     import mujoco
 
+    from mechanism.kinematics.linkage import compute_tables, periodic_derivative, up_axis
     from mechanism.kinematics.pose import solve_pose, sweep
-    from mechanism.machine.machine import needle_plate_top_z
-    from mechanism.machine.models import load_model
-    from mechanism.kinematics.linkage import compute_tables, periodic_derivative
+    from mechanism.machine.machine import load_machine
 
     samples = _check_samples(samples)
     if speed_rpm is not None and not (math.isfinite(speed_rpm) and speed_rpm > 0):
         raise UserError(f"speed must be a positive number of rpm (got {speed_rpm})")
-    model = load_model(model_path)
-    _require(model, mujoco.mjtObj.mjOBJ_SITE, NEEDLE_TIP, "site")
-    _require(model, mujoco.mjtObj.mjOBJ_JOINT, ARM, "joint")
-
-    tables = compute_tables(model, ARM, NEEDLE_TIP, n=samples)
+    machine = machine or load_machine()
+    if not machine.tool_site:
+        raise UserError(f"machine {machine.name}: its description names no tool ([tool] site): no tool motion to compute")
+    tool, hook = machine.description.section("tool"), machine.description.section("hook")
+    roles = _Roles(machine.tool_site, tool.get("eye_site"), tool.get("part"), hook.get("joint"), hook.get("site"))
+    model, shaft = machine.model, machine.shaft_joint
+    up = up_axis(model)
+    tables = compute_tables(model, shaft, roles.tip, n=samples, zero_rad=machine.frame.zero_rad,
+                            direction=machine.frame.direction)
     data = mujoco.MjData(model)
-    solve_pose(model, data, {ARM: 0.0})
     notes: list[str] = []
-    try:
-        plate_z = needle_plate_top_z(model, data)
-        reference = "the needle-plate top surface"
-    except UserError:
-        plate_z, reference = 0.0, "the model's z = 0 (no needle_plate part)"
-        notes.append("the model has no needle_plate part: heights are world z")
+    if machine.plate_top_z is not None:
+        plate_z, reference = machine.plate_top_z, f"the top surface of {machine.plate_part}"
+    else:
+        plate_z, reference = 0.0, "the world origin (the description names no [tool] plate)"
+        notes.append("no plate part described: heights are measured from the world origin")
 
     theta = tables.angle_rad
     z = (tables.tool_z_m - plate_z) * 1000.0
     velocity = tables.tool_dz_drad * 1000.0
     acceleration = periodic_derivative(velocity)
 
-    poses = sweep(model, theta, driver=ARM, data=data)
+    poses = sweep(model, [machine.joint_position(a) for a in theta], driver=shaft, data=data)
 
     def pose_at(angle: float) -> None:
-        """Solve the pose at ``angle`` starting from the nearest sampled pose (same branch)."""
+        """Solve the pose at shaft ``angle`` starting from the nearest sampled pose (same branch)."""
         nearest = int(round((angle % (2 * math.pi)) / (2 * math.pi) * samples)) % samples
         data.qpos[:] = poses[nearest]
-        solve_pose(model, data, {ARM: angle})
+        solve_pose(model, data, {shaft: machine.joint_position(angle)})
 
     def needle_z_at(angle: float) -> float:
         pose_at(angle)
-        return (data.site(NEEDLE_TIP).xpos[2] - plate_z) * 1000.0
+        return (up @ data.site(roles.tip).xpos - plate_z) * 1000.0
 
     tdc = _velocity_zero(theta, velocity, falling=True)
     bdc = _velocity_zero(theta, velocity, falling=False)
     tdc_z, bdc_z = needle_z_at(tdc), needle_z_at(bdc)
 
-    has_hook = all(mujoco.mj_name2id(model, kind, name) >= 0 for kind, name in (
-        (mujoco.mjtObj.mjOBJ_JOINT, HOOK), (mujoco.mjtObj.mjOBJ_SITE, HOOK_POINT), (mujoco.mjtObj.mjOBJ_SITE, NEEDLE_EYE)))
-    hook_angle = np.degrees(tables.positions[HOOK]) if HOOK in tables.positions else np.full(samples, np.nan)
+    has_hook = None not in (roles.hook_joint, roles.hook_point, roles.eye)
+    hook_angle = np.degrees(tables.positions[roles.hook_joint]) if has_hook else np.full(samples, np.nan)
     motion = NeedleMotion(
         arm_angle_deg=np.degrees(theta), needle_z_mm=z, needle_velocity_mm_per_rad=velocity,
         needle_acceleration_mm_per_rad2=acceleration, hook_angle_deg=hook_angle,
@@ -170,9 +175,9 @@ def needle_motion(model_path: str | os.PathLike | None = None, samples: int = 36
         tdc_angle_deg=_signed_deg(tdc), bdc_angle_deg=math.degrees(bdc) % 360.0, tdc_z_mm=tdc_z,
         bdc_z_mm=bdc_z, plate_reference=reference, speed_rpm=speed_rpm, notes=notes)
     if not has_hook:
-        notes.append(f"no '{HOOK}' joint with '{HOOK_POINT}' and '{NEEDLE_EYE}' sites: hook timing not computed")
+        notes.append("no hook described ([hook] joint and site, [tool] eye_site): hook timing not computed")
         return motion
-    hook = _HookGeometry(model, data)
+    hook = _HookGeometry(model, data, roles)
     offsets, distances = np.zeros(samples), np.zeros(samples)
     for i, angle in enumerate(theta):
         pose_at(float(angle))
@@ -185,12 +190,12 @@ def needle_motion(model_path: str | os.PathLike | None = None, samples: int = 36
     pose_at(passage)
     _, across = hook.offset_and_distance()
     motion.hook_passage_angle_deg = math.degrees(passage) % 360.0
-    motion.needle_rise_at_passage_mm = (data.site(NEEDLE_TIP).xpos[2] - plate_z) * 1000.0 - bdc_z
+    motion.needle_rise_at_passage_mm = (up @ data.site(roles.tip).xpos - plate_z) * 1000.0 - bdc_z
     motion.hook_point_to_needle_axis_mm = across * 1000.0
-    motion.hook_point_above_eye_mm = (data.site(HOOK_POINT).xpos[2] - data.site(NEEDLE_EYE).xpos[2]) * 1000.0
+    motion.hook_point_above_eye_mm = float(up @ (data.site(roles.hook_point).xpos - data.site(roles.eye).xpos)) * 1000.0
     clearance = hook.clearance_to_needle_mesh()
     if clearance is None:
-        notes.append(f"no '{NEEDLE_GEOM}' mesh geom: clearance to the needle surface not computed")
+        notes.append("no tool part mesh described ([tool] part): clearance to the needle surface not computed")
     else:
         motion.hook_point_clearance_mm = clearance * 1000.0
     return motion
@@ -199,19 +204,19 @@ def needle_motion(model_path: str | os.PathLike | None = None, samples: int = 36
 class _HookGeometry:
     """Hook point relative to the needle axis, in the plane normal to the hook axis."""
 
-    def __init__(self, model, data):
+    def __init__(self, model, data, roles: _Roles):
         import mujoco
 
-        self.model, self.data = model, data
-        self.joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, HOOK)
-        self.geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, NEEDLE_GEOM)
+        self.model, self.data, self.roles = model, data, roles
+        self.joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, roles.hook_joint)
+        self.geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, roles.part) if roles.part else -1
 
     def _frames(self):
         d = self.data
         axis = d.xaxis[self.joint] / np.linalg.norm(d.xaxis[self.joint])
         anchor = d.xanchor[self.joint]
-        point = d.site(HOOK_POINT).xpos.copy()
-        tip, eye = d.site(NEEDLE_TIP).xpos.copy(), d.site(NEEDLE_EYE).xpos.copy()
+        point = d.site(self.roles.hook_point).xpos.copy()
+        tip, eye = d.site(self.roles.tip).xpos.copy(), d.site(self.roles.eye).xpos.copy()
         return axis, anchor, point, tip, eye
 
     def offset_and_distance(self) -> tuple[float, float]:
@@ -271,9 +276,9 @@ class _HookGeometry:
 
         if self.geom < 0 or self.model.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH:
             return None
-        needle = PartShape(self.model, NEEDLE_GEOM)
+        needle = PartShape(self.model, self.roles.part)
         needle.update(self.data)
-        return float(needle.point_distance(self.data.site(HOOK_POINT).xpos)[0])
+        return float(needle.point_distance(self.data.site(self.roles.hook_point).xpos)[0])
 
 
 def _velocity_zero(theta: np.ndarray, velocity: np.ndarray, falling: bool) -> float:
@@ -305,13 +310,6 @@ def _check_samples(samples) -> int:
     if isinstance(samples, bool) or int(samples) != samples or not MIN_SAMPLES <= samples <= MAX_SAMPLES:
         raise UserError(f"samples must be a whole number from {MIN_SAMPLES} to {MAX_SAMPLES} (got {samples})")
     return int(samples)
-
-
-def _require(model, kind, name: str, what: str) -> None:
-    import mujoco
-
-    if mujoco.mj_name2id(model, kind, name) < 0:
-        raise UserError(f"the model has no {what} named '{name}' (needed for the needle motion)")
 
 
 # ----------------------------------------------------------------------------- outputs

@@ -242,7 +242,7 @@ def probe_cycle(
     speed_rpm: float = DEFAULT_SPEED_RPM,
     revolutions: float = 1.0,
     resolution_deg: float = DEFAULT_RESOLUTION_DEG,
-    driver: str = "arm_shaft",
+    driver: str | None = None,
 ) -> ProbeResult:
     """Probe values over a kinematic cycle: ``driver`` turning at ``speed_rpm`` for
     ``revolutions`` turns sampled every ``resolution_deg``, loads by rigid inverse dynamics
@@ -279,11 +279,12 @@ def probe_simulation(
     probes: Sequence[Probe],
     voltage: float,
     duration_s: float,
-    model_path: str | os.PathLike | None = None,
+    description=None,
     progress: bool = False,
 ) -> ProbeResult:
     """Probe values along a dynamic simulation of the machine (motor, friction and loads of
-    :class:`mechanism.machine.machine.Machine`) from rest at arm angle 0 under a constant voltage.
+    :class:`mechanism.machine.machine.Machine`; ``description`` as Machine takes it) from rest at
+    shaft angle 0 under a constant voltage.
 
     The probes are added to the machine's spec before it is compiled; each 1 kHz sample
     of the simulation is replayed (``mj_setState`` + ``mj_forward``) to evaluate them."""
@@ -291,10 +292,10 @@ def probe_simulation(
     from mechanism.dynamics.simulation import simulate
 
     attached: list[AttachedProbe] = []
-    machine = Machine(model_path, extend=lambda spec: attached.extend(add_probes(spec, probes)))
+    machine = Machine(description, extend=lambda spec: attached.extend(add_probes(spec, probes)))
     result = simulate(voltage, duration_s, machine=machine, progress=progress)
     model, data = machine.model, machine.data
-    motor = model.actuator("motor").id
+    motor = machine.actuator
     rows = []
     for state, applied in zip(result.state, result.voltage_V):
         mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
@@ -302,10 +303,10 @@ def probe_simulation(
         mujoco.mj_forward(model, data)
         rows.append(read_probes(model, data, attached))
     table = np.asarray(rows).reshape(len(result.time_s), -1)
-    columns = {"time_s": result.time_s, "arm_shaft_angle_rad": result.arm_angle_rad}
+    columns = {"time_s": result.time_s, f"{machine.shaft_joint}_angle_rad": result.arm_angle_rad}
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     comments = [
-        f"dynamic simulation: {voltage:g} V for {duration_s:g} s from rest at arm angle 0",
+        f"dynamic simulation of {machine.name}: {voltage:g} V for {duration_s:g} s from rest at shaft angle 0",
         "world frame, z up; force/torque = load on the child side of the joint, with friction and loads",
     ]
     return ProbeResult(columns, comments, "time_s")
@@ -346,17 +347,19 @@ def run_probes(
     speed_rpm: float = DEFAULT_SPEED_RPM,
     revolutions: float = 1.0,
     resolution_deg: float = DEFAULT_RESOLUTION_DEG,
-    driver: str = "arm_shaft",
+    driver: str | None = None,
     progress: bool = False,
+    description=None,
 ) -> ProbeResult:
-    """Probes over a dynamic simulation (``voltage`` and ``duration_s`` given) or else a
-    kinematic cycle of the model at ``model_path`` (default: the shipped machine)."""
+    """Probes over a dynamic simulation of the described machine (``voltage`` and
+    ``duration_s`` given; default: the shipped one) or else a kinematic cycle of the model at
+    ``model_path`` turned by ``driver``."""
     from mechanism.machine.models import load_spec
 
     if (voltage is None) != (duration_s is None):
         raise UserError("a dynamic run needs both a voltage and a duration")
     if voltage is not None:
-        return probe_simulation(probes, voltage, duration_s, model_path, progress)
+        return probe_simulation(probes, voltage, duration_s, description, progress)
     return probe_cycle(load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver)
 
 

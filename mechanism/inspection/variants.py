@@ -17,7 +17,7 @@ Its target says what it changes (the same grammar in JSON and as a CSV column na
                                   higher in its bar).
 
 Several targets joined by ``+`` change together by the same value. Presets for the sewing
-machine (:data:`PRESETS`) name the usual ones. The edits are made on
+machine's description (``[variant_presets]``) names the usual ones. The edits are made on
 the compiled model's fields (``body_pos``, ``eq_data``, ``geom_pos``, ``site_pos``), which are
 exactly what the corresponding ``MjSpec`` attributes compile to. Recompiling a spec would not
 do: the compiler re-derives every ``connect``/``weld`` anchor on the second body from the
@@ -51,14 +51,6 @@ FORMAT = "mechanism-variants/1"
 MAX_VARIANTS = 1_000_000
 EDITED_FIELDS = ("body_pos", "eq_data", "geom_pos", "site_pos")
 
-PRESETS = {
-    # the hook advanced on its worm gear, in degrees of hook rotation
-    "hook_timing_deg": "coupling:hook_worm_gear:hook_deg",
-    # the crank pin further from the arm shaft: the link and the take-up lever both ride on it
-    "crank_radius_mm": "joint:crank_pin:radial_mm+joint:take_up_crank_pin:radial_mm",
-    # the needle bar (with its clamp and needle) set higher in its connecting stud
-    "needle_bar_height_mm": "part:needle_bar:z_mm+part:needle_clamp:z_mm+part:needle:z_mm",
-}
 
 _TARGET = re.compile(r"(coupling|joint|body|part):([^:]+):([A-Za-z0-9_.-]+?)_(deg|mm)")
 
@@ -80,15 +72,15 @@ def _parse_target(target: str) -> tuple[str, str, str, str]:
     if not match:
         raise UserError(
             f"parameter target {target!r}: expected coupling:<name>:<joint>_deg, joint:<name>:<x|y|z|radial>_mm, "
-            f"body:<name>:<x|y|z>_mm or part:<name>:<x|y|z>_mm, or a preset ({', '.join(PRESETS)})"
+            "body:<name>:<x|y|z>_mm or part:<name>:<x|y|z>_mm, or a preset of the machine's description"
         )
     return match.group(1), match.group(2), match.group(3), match.group(4)
 
 
-def parameter(name: str, target: str | None = None) -> Parameter:
+def parameter(name: str, target: str | None = None, presets: dict[str, str] | None = None) -> Parameter:
     """A parameter from a target string (several joined by ``+`` change together) or a
     preset name."""
-    target = target or PRESETS.get(name, name)
+    target = target or (presets or {}).get(name, name)
     for single in target.split("+"):
         _parse_target(single)
     return Parameter(name, target)
@@ -242,7 +234,7 @@ class VariantSet:
                 raise UserError(f"{self.source}: {exc}") from None
 
 
-def read_variants(path: str | os.PathLike) -> VariantSet:
+def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None) -> VariantSet:
     """A variants file.
 
     JSON::
@@ -277,9 +269,9 @@ def read_variants(path: str | os.PathLike) -> VariantSet:
             document = json.loads(text)
         except json.JSONDecodeError as exc:
             raise UserError(f"{label}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-        variants = _from_json(document, label)
+        variants = _from_json(document, label, presets)
     else:
-        variants = _from_csv(text, label)
+        variants = _from_csv(text, label, presets)
     variants.source = label
     if len(variants) > MAX_VARIANTS:
         raise UserError(f"{label}: {len(variants)} variants, at most {MAX_VARIANTS} allowed")
@@ -292,7 +284,7 @@ def _number(value, where: str) -> float:
     return float(value)
 
 
-def _from_json(document, label: str) -> VariantSet:
+def _from_json(document, label: str, presets: dict[str, str] | None = None) -> VariantSet:
     if not isinstance(document, dict):
         raise UserError(f"{label}: expected a JSON object")
     if document.get("format", FORMAT) != FORMAT:
@@ -311,7 +303,7 @@ def _from_json(document, label: str) -> VariantSet:
             if target is not None and not isinstance(target, str):
                 raise UserError(f"{label}: {where}: target of {name!r} must be a string")
             try:
-                params[name] = parameter(name, target)
+                params[name] = parameter(name, target, presets)
             except UserError as exc:
                 raise UserError(f"{label}: {where}: {exc}") from None
         return params[name]
@@ -408,7 +400,7 @@ def _draw_samples(samples, where: str, param) -> list[dict[str, float]]:
     return [{name: float(values[i]) for name, values in columns.items()} for i in range(count)]
 
 
-def _from_csv(text: str, label: str) -> VariantSet:
+def _from_csv(text: str, label: str, presets: dict[str, str] | None = None) -> VariantSet:
     import csv
     import io
 
@@ -424,7 +416,7 @@ def _from_csv(text: str, label: str) -> VariantSet:
     params = []
     for name in names:
         try:
-            params.append(parameter(name))
+            params.append(parameter(name, presets=presets))
         except UserError as exc:
             raise UserError(f"{label}: column {name!r}: {exc}") from None
     table = parse_table(text, required=names, label=label)
@@ -448,7 +440,7 @@ class BatchConfig:
     model: mujoco.MjModel
     pairs: list[Pair]
     parameters: list[Parameter]
-    driver: str = "arm_shaft"
+    driver: str | None = None
     revolutions: float = 1.0
     resolution_deg: float = 0.5
     required_mm: float = 0.0
@@ -538,7 +530,7 @@ def run_variants(
     variants: VariantSet,
     pairs: Sequence[Pair],
     required_mm: float = 0.0,
-    driver: str = "arm_shaft",
+    driver: str | None = None,
     revolutions: float = 1.0,
     resolution_deg: float = 0.5,
     workers: int = 1,

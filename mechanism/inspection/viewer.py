@@ -55,7 +55,7 @@ def _check_frames(frames: int) -> None:
         raise UserError(f"frames must be between 2 and 20000, got {frames}")
 
 
-def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str = "arm_shaft") -> Motion:
+def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str | None = None) -> Motion:
     """One revolution of ``driver`` in ``frames`` frames (the last one back at the start)."""
     from mechanism.kinematics.pose import sweep
 
@@ -64,24 +64,27 @@ def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: st
     return Motion(angles / (2 * np.pi), sweep(model, angles, driver), f"one {driver} revolution", realtime=False)
 
 
-def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int = DEFAULT_FRAMES, driver: str = "arm_shaft") -> Motion:
-    """A bench recording (``time``, ``voltage``, ``arm_angle`` [rad, 0 = needle TDC]) replayed
-    kinematically at ``frames`` evenly spaced times."""
+def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int = DEFAULT_FRAMES, driver: str | None = None,
+                     zero_rad: float = 0.0, direction: float = 1.0) -> Motion:
+    """A bench recording (``time``, ``voltage``, ``shaft_angle`` or ``arm_angle`` [rad, from the
+    shaft's zero]) replayed kinematically at ``frames`` evenly spaced times; the driver joint's
+    position is ``zero_rad + direction * angle``."""
     from mechanism.kinematics.pose import solve_pose
     from mechanism.files.tables import check_increasing, read_table
 
     _check_frames(frames)
     table = read_table(path, required=["time", "arm_angle"], optional=["voltage"],
-                       aliases={"time": ["time_s"], "arm_angle": ["arm_angle_rad"], "voltage": ["voltage_V"]},
+                       aliases={"time": ["time_s"], "arm_angle": ["arm_angle_rad", "shaft_angle", "shaft_angle_rad"],
+                                "voltage": ["voltage_V"]},
                        min_rows=2, what="recording")
     time, angle = table["time"], table["arm_angle"]
     check_increasing(time, table.source)
     times = np.linspace(time[0], time[-1], frames)
-    angles = np.interp(times, time, angle)
+    angles = zero_rad + direction * np.interp(times, time, angle)
     data = mujoco.MjData(model)
     qpos = []
     # walk from angle 0 in small steps so that the assembly stays on its branch
-    previous = 0.0
+    previous = zero_rad
     for target in angles:
         for step in np.linspace(previous, target, max(2, int(abs(target - previous) / 0.1) + 2))[1:]:
             solve_pose(model, data, {driver: float(step)})
@@ -90,13 +93,13 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
     return Motion(times - times[0], np.asarray(qpos), f"recording {os.path.basename(str(path))}")
 
 
-def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_FRAMES, model_path=None) -> tuple[mujoco.MjModel, Motion]:
+def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_FRAMES, description=None) -> tuple[mujoco.MjModel, Motion]:
     """A dynamic simulation from rest under ``voltage``: its joint positions at ``frames`` times."""
     from mechanism.machine.machine import Machine
     from mechanism.dynamics.simulation import simulate
 
     _check_frames(frames)
-    machine = Machine(model_path)
+    machine = Machine(description)
     result = simulate(voltage, duration_s, machine=machine, progress=True)
     picks = np.linspace(0, len(result.time_s) - 1, frames).round().astype(int)
     qpos = result.state[picks, 1 : 1 + machine.model.nq]
@@ -314,7 +317,7 @@ def probe_markers(model: mujoco.MjModel, names: Sequence[str], points_mm: Sequen
     return markers
 
 
-def clearance_overlays(model: mujoco.MjModel, results) -> Overlays:
+def clearance_overlays(model: mujoco.MjModel, results, driver: str) -> Overlays:
     """Markers at the closest points of each checked pair, fixed to their parts, and a
     line between them at the minimum."""
     from mechanism.kinematics.pose import sweep
@@ -323,7 +326,7 @@ def clearance_overlays(model: mujoco.MjModel, results) -> Overlays:
     data = mujoco.MjData(model)
     for k, result in enumerate(results):
         angle = np.radians(result.angle_deg)
-        data.qpos[:] = sweep(model, np.linspace(0, angle, max(2, int(abs(angle) / 0.1) + 2)))[-1]
+        data.qpos[:] = sweep(model, np.linspace(0, angle, max(2, int(abs(angle) / 0.1) + 2)), driver)[-1]
         mujoco.mj_kinematics(model, data)
         color = MARKER_COLORS[(k + 3) % len(MARKER_COLORS)]
         for part, point in ((result.pair.a, result.point_a_mm), (result.pair.b, result.point_b_mm)):
@@ -348,7 +351,8 @@ def view(
     probe_names: Sequence[str] = (),
     pairs: str | Sequence[str] | None = None,
     serve: bool = False,
-    driver: str = "arm_shaft",
+    driver: str | None = None,
+    description=None,
 ) -> dict:
     """Animate the model (cycle by default, else a simulation or a recording) and write a
     self-contained HTML file and/or serve it live. Returns a summary."""
@@ -362,20 +366,26 @@ def view(
     if voltage is not None and recording is not None:
         raise UserError("choose one motion: a simulation (voltage, duration) or a recording")
     if voltage is not None:
-        model, motion = simulation_motion(voltage, duration_s, frames, model_path)
+        model, motion = simulation_motion(voltage, duration_s, frames, description)
+    elif recording:
+        from mechanism.machine.machine import Machine
+
+        machine = Machine(description)
+        model = machine.model
+        motion = recording_motion(model, recording, frames, machine.shaft_joint, machine.frame.zero_rad, machine.frame.direction)
     else:
         model = load_model(model_path)
-        motion = recording_motion(model, recording, frames, driver) if recording else cycle_motion(model, frames, driver)
+        motion = cycle_motion(model, frames, driver)
     overlays = Overlays(markers=probe_markers(model, list(probe_names)))
     if pairs:
         from mechanism.inspection.clearance import check_clearance, parse_pairs
 
         report = check_clearance(model, parse_pairs(pairs, model), driver=driver)
-        extra = clearance_overlays(model, report.results)
+        extra = clearance_overlays(model, report.results, driver)
         overlays.markers += extra.markers
         overlays.lines += extra.lines
         overlays.notes += extra.notes
-    title = f"mechanism: {os.path.basename(str(model_path or 'sewing_machine.xml'))}, {motion.description}"
+    title = f"mechanism: {os.path.basename(str(model_path or getattr(description, 'name', 'machine')))}, {motion.description}"
     summary = {"frames": len(motion.qpos), "title": title, "notes": overlays.notes}
     if html is not None:
         vis = build_scene(model, motion, overlays)

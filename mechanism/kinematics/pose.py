@@ -28,7 +28,9 @@ RELATIVE_POSITION_TOLERANCE = 1e-8  # of the model's size: a CAD export's roundi
 
 
 def position_tolerance(model: mujoco.MjModel) -> float:
-    """Assembly tolerance scaled to the model (the loops of a 1 m machine close to 10 nm)."""
+    """The residual a pose is accepted at when Newton's method stalls above POSITION_TOLERANCE:
+    scaled to the model (a 1 m machine's loops close to 10 nm), since a CAD export's rounding
+    can leave its loops a little open everywhere."""
     return max(POSITION_TOLERANCE, RELATIVE_POSITION_TOLERANCE * float(model.stat.extent))
 
 
@@ -38,6 +40,9 @@ class PoseError(UserError):
 
 def joint_dof(model: mujoco.MjModel, joint: str) -> tuple[int, int]:
     """(qpos address, dof address) of a one-degree-of-freedom joint, by name."""
+    if not joint:
+        raise UserError("no joint given: name the joint that drives the mechanism (a machine description's "
+                        "shaft_joint, or --driver)")
     jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
     if jid < 0:
         names = [model.joint(i).name for i in range(model.njnt)]
@@ -80,7 +85,8 @@ def solve_pose(
     Returns the final residual norm; raises :class:`PoseError` if it does not converge.
     Velocities are left untouched; derived quantities (xpos, site_xpos, ...) are up to date.
     """
-    tolerance = position_tolerance(model) if tolerance is None else tolerance
+    accept = max(position_tolerance(model), tolerance or 0.0)
+    tolerance = POSITION_TOLERANCE if tolerance is None else tolerance
     addresses = {name: joint_dof(model, name) for name in fixed}
     free = np.ones(model.nv, dtype=bool)
     for name, (qadr, dadr) in addresses.items():
@@ -106,8 +112,11 @@ def solve_pose(
                 if trial < norm or trial_scale < 1e-3:
                     break
                 trial_scale *= 0.5
+            if trial < accept and trial > 0.5 * norm:
+                norm = trial
+                break  # rounding-limited: no more progress to be had, and closed well enough
             norm = trial
-        if norm >= tolerance:
+        if norm >= accept:
             raise PoseError(
                 f"cannot assemble the mechanism at {dict(fixed)}: constraint residual {norm:.3g} "
                 "(the loop cannot close there, or the fixed joints over-determine it)"

@@ -117,6 +117,15 @@ def motor_from_description(motor: dict) -> DCMotor:
     )
 
 
+def duty_map_from(description: MachineDescription) -> DutyMap:
+    """The described PWM supply's measured duty -> motor voltage map."""
+    supply = description.section("supply")
+    if "duty_percent" not in supply:
+        raise UserError(f"this machine describes no PWM supply ([supply] duty_percent and motor_voltage_V in "
+                        f"{description.path or 'its description'})")
+    return DutyMap(np.array(supply["duty_percent"]), np.array(supply["motor_voltage_V"]))
+
+
 def fabric_from_description(tool: dict, layers: int) -> FabricLoad:
     keys = ("layer_thickness_mm", "piercing_force_per_layer_N", "drag_fraction", "point_taper_mm")
     return FabricLoad(layers=layers, **{k: tool[k] for k in keys if k in tool})
@@ -353,11 +362,7 @@ class Machine:
         return laws
 
     def duty_map(self) -> DutyMap:
-        supply = self.description.section("supply")
-        if "duty_percent" not in supply:
-            raise UserError(f"this machine describes no PWM supply ([supply] duty_percent and motor_voltage_V in "
-                            f"{self.description.path or 'its description'})")
-        return DutyMap(np.array(supply["duty_percent"]), np.array(supply["motor_voltage_V"]))
+        return duty_map_from(self.description)
 
     # -- the shaft angle --
     def shaft_angle(self, qpos) -> np.ndarray:

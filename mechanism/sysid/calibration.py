@@ -11,8 +11,9 @@ how friction varies over the arm revolution. The thesis gives two kinds of evide
   at low speed. The running amplitude a and the phase φ are fitted to those observations
   (log-ratio least squares) with the reduced model.
 
-``python -m mechanism.sysid.calibration`` prints the constants; they are written into
-``mechanism/machine.py`` by hand and checked by tests/test_dynamics.py.
+``python -m mechanism.sysid.calibration`` prints the shaft's friction table for the shipped
+description (mechanism/models/sapphire870/sapphire870.toml); tests/test_dynamics.py checks
+the description against the thesis.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import dataclasses
 import numpy as np
 from scipy.optimize import brentq, least_squares
 
-from mechanism.machine.machine import ARM, Machine, MachineConfig, thesis_friction
+from mechanism.machine.machine import Machine, MachineConfig, friction_law, resolve_description
 from mechanism.dynamics.reduced import ReducedModel
 from mechanism.data.reference import thesis
 
@@ -52,36 +53,39 @@ def ripple_observations() -> list[tuple[float, float]]:
     return rows
 
 
-def _laws(amplitude, phase_rad, static=None, static_amplitude=None):
-    laws = thesis_friction()
+def _laws(amplitude, phase_rad, static=None, static_amplitude=None, description=None):
+    """The described friction with the shaft's position dependence replaced."""
+    description = resolve_description(description)
+    laws = {joint: friction_law(values) for joint, values in description.friction.items()}
     changes = dict(position_amplitude=amplitude, position_phase_rad=phase_rad)
     if static is not None:
         changes.update(static=static, static_position_amplitude=static_amplitude)
-    laws[ARM] = dataclasses.replace(laws[ARM], **changes)
+    shaft = description.shaft_joint
+    laws[shaft] = dataclasses.replace(laws.get(shaft, friction_law({})), **changes)
     return laws
 
 
-def fit_running(model_path=None, start=(0.2, np.deg2rad(160.0))) -> tuple[float, float]:
+def fit_running(description=None, start=(0.2, np.deg2rad(160.0))) -> tuple[float, float]:
     """Running amplitude and phase [rad] that best reproduce the thesis's ripple observations."""
     observations = ripple_observations()
 
     def residual(x):
-        reduced = ReducedModel(Machine(model_path, MachineConfig(friction=_laws(x[0], x[1]))))
+        reduced = ReducedModel(Machine(description, MachineConfig(friction=_laws(x[0], x[1], description=description))))
         return [np.log(ripple(reduced.simulate(v, 8.0))[0] / r) for v, r in observations]
 
     fit = least_squares(residual, start, bounds=([0.0, 0.0], [0.6, TWO_PI]), diff_step=0.02)
     return float(fit.x[0]), float(fit.x[1])
 
 
-def fit_static(amplitude, phase_rad, model_path=None) -> tuple[float, float]:
+def fit_static(amplitude, phase_rad, description=None) -> tuple[float, float]:
     """Static level Fs and amplitude a_s so that static friction + CAD gravity span the
     thesis's lowest and highest break-away torques."""
     data = thesis()["static_friction"]
     low, high = data["lowest_breakaway_arm_Nm"], data["highest_breakaway_arm_Nm"]
 
     def spread(static, static_amplitude):
-        reduced = ReducedModel(Machine(model_path, MachineConfig(
-            friction=_laws(amplitude, phase_rad, static, static_amplitude))))
+        reduced = ReducedModel(Machine(description, MachineConfig(
+            friction=_laws(amplitude, phase_rad, static, static_amplitude, description))))
         total = [reduced.static_friction(a) for a in reduced.tables.angle_rad] + reduced.tables.gravity_torque_Nm
         return float(np.min(total)), float(np.max(total))
 
@@ -96,10 +100,13 @@ def fit_static(amplitude, phase_rad, model_path=None) -> tuple[float, float]:
 def main() -> None:
     amplitude, phase = fit_running()
     static, static_amplitude = fit_static(amplitude, phase)
-    print(f"RUNNING_POSITION_AMPLITUDE = {amplitude:.3f}")
-    print(f"POSITION_PHASE_RAD = float(np.deg2rad({np.degrees(phase):.1f}))")
-    print(f"STATIC_FRICTION_ARM_NM = {static:.4f}  # {(static / thesis()['identified_parameters']['kinetic_friction_arm_Nm'] - 1) * 100:.1f} % above kinetic")
-    print(f"STATIC_POSITION_AMPLITUDE = {static_amplitude:.4f}")
+    shaft = resolve_description(None).shaft_joint
+    kinetic = thesis()["identified_parameters"]["kinetic_friction_arm_Nm"]
+    print(f'[friction."{shaft}"]   # for the shipped description')
+    print(f"static_Nm = {static:.4f}   # {(static / kinetic - 1) * 100:.1f} % above kinetic")
+    print(f"position_amplitude = {amplitude:.3f}")
+    print(f"static_position_amplitude = {static_amplitude:.4f}")
+    print(f"position_phase_deg = {np.degrees(phase):.1f}")
     reduced = ReducedModel(Machine(None, MachineConfig(friction=_laws(amplitude, phase, static, static_amplitude))))
     for v, r in ripple_observations():
         amp, where = ripple(reduced.simulate(v, 8.0))

@@ -1,0 +1,49 @@
+"""``mechanism init``: a first machine description for a CAD export or an MJCF model."""
+
+from __future__ import annotations
+
+ORDER = 12
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "init",
+        help="draft a machine description (TOML) for a CAD export: joints, guessed roles, placeholders",
+        description=(
+            "Convert a CAD export (or read an MJCF), list its joints and degrees of freedom, guess the roles "
+            "a machine description needs (the shaft: the slowest joint turning whole revolutions on the frame; "
+            "the motor: the joint turning fastest; the zero: the site that rises and falls most) and write a "
+            "commented draft with every guess marked GUESS and every placeholder TODO. Every verb accepts the "
+            "draft with --machine at once."
+        ),
+        epilog="example: mechanism init my_export/press.xml -o press.toml && mechanism simulate --machine press.toml --voltage 12 --duration 2 --summary",
+    )
+    parser.add_argument("model", metavar="EXPORT_OR_MJCF", help="a CAD export (converted once, cached) or a converted MJCF")
+    parser.add_argument("-o", "--out", required=True, metavar="MACHINE.toml", help="the draft description to write")
+    parser.add_argument("--name", metavar="NAME", help="machine name (default: the file's stem)")
+    parser.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    import os
+    from pathlib import Path
+
+    from mechanism.errors import UserError
+    from mechanism.files.outputs import atomic_file
+    from mechanism.machine.draft import draft_description
+    from mechanism.machine.models import converted_model, is_mjcf
+
+    source = Path(args.model)
+    if not source.is_file():
+        raise UserError(f"{source}: no such file")
+    out = Path(args.out)
+    if out.resolve() == source.resolve():
+        raise UserError(f"-o {out}: is the input; choose another file")
+    mjcf = source if is_mjcf(source) else converted_model(source)
+    reference = os.path.relpath(source.resolve(), out.resolve().parent)
+    text, summary = draft_description(mjcf, reference, args.name or source.stem)
+    with atomic_file(out) as handle:
+        handle.write(text)
+    print("\n".join(summary))
+    print(f"wrote {out}: check the GUESS lines and fill in the TODO lines")
+    return 0
