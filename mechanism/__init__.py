@@ -19,16 +19,12 @@ from mechanism.errors import UserError
 
 __version__ = "0.2.0"
 
-_LAZY = {
-    "Machine": "mechanism.machine.machine",
-    "MachineConfig": "mechanism.machine.machine",
-    "load_machine": "mechanism.machine.machine",
-    "read_description": "mechanism.machine.description",
-    "SimulationResult": "mechanism.dynamics.simulation",
-    "VoltageProfile": "mechanism.physics.inputs",
-    "simulate": "mechanism.api",
-    "convert": "mechanism.api",
-}
+_LAZY = {name: "mechanism.api" for name in (
+    "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
+    "conversion_summary", "convert", "diagnose", "diagnosis_report", "identify", "inspect", "load_machine",
+    "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table", "shipped_machines", "simulate",
+    "view", "write_bench_recording", "write_needle_csv", "write_table")}
+_LAZY["read_description"] = "mechanism.machine.description"
 
 __all__ = ["UserError", "__version__", *sorted(_LAZY)]
 

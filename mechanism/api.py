@@ -1,15 +1,23 @@
-"""The dozen calls a notebook user needs, lifted to ``import mechanism``.
+"""The calls a notebook user needs, lifted to ``import mechanism`` (docs/api.md: one example each).
 
-Each takes a :class:`~mechanism.machine.machine.Machine` (from :func:`load_machine`) or
-nothing for the shipped Sapphire 870, and returns a result object with unit-named fields.
+Each takes a :class:`~mechanism.machine.machine.Machine` (from :func:`load_machine`; None
+is the shipped Sapphire 870) and returns a result object with unit-named fields.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
+from typing import Sequence
 
-from mechanism.dynamics.simulation import SimulationResult
+from mechanism.dynamics.simulation import SimulationResult, plot_simulation
+from mechanism.files.outputs import atomic_dir
+from mechanism.files.tables import read_table, write_table
+from mechanism.inspection.needle import NeedleMotion, needle_motion
+from mechanism.inspection.needle import plot as plot_needle
+from mechanism.inspection.needle import write_csv as write_needle_csv
 from mechanism.machine.machine import Machine, MachineConfig, load_machine
+from mechanism.machine.models import shipped_machines
 from mechanism.physics.inputs import VoltageProfile
 
 
@@ -30,10 +38,95 @@ def simulate(machine: Machine | None = None, voltage_V: float | VoltageProfile =
 
 
 def convert(export: str | os.PathLike, out_dir: str | os.PathLike, **options):
-    """CAD export -> MJCF in ``out_dir`` (mechanism.converters.convert)."""
+    """CAD export -> MJCF in ``out_dir`` (options: name, mesh_dir, up); returns the report."""
     from mechanism.converters import convert as run
 
     return run(export, out_dir, **options)
 
 
-__all__ = ["Machine", "MachineConfig", "SimulationResult", "VoltageProfile", "convert", "load_machine", "simulate"]
+def conversion_summary(report) -> list[str]:
+    """What ``mechanism convert`` prints: the conversion, the moving mass and the reflected inertia."""
+    from mechanism.machine.roles import drive_lines
+
+    return report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))
+
+
+def probe(machine: Machine | None = None, probes: Sequence[str] = (), *, speed_rpm: float = 600.0,
+          voltage_V: float | None = None, duration_s: float | None = None):
+    """Probes ``"name:quantity"`` (position, velocity, acceleration, force, torque) over one
+    kinematic shaft revolution at ``speed_rpm``, or along a simulation under ``voltage_V``."""
+    from mechanism.inspection.probes import Probe, run_probes
+
+    machine = machine or load_machine()
+    parsed = [Probe(*text.rsplit(":", 1)) for text in probes]
+    return run_probes(parsed, machine.model_path, voltage_V, duration_s, speed_rpm, driver=machine.shaft_joint,
+                      description=machine.description)
+
+
+def clearance(machine: Machine | None = None, pairs: str | Sequence[str] = (), *, required_mm: float = 0.0,
+              resolution_deg: float = 0.5):
+    """Minimum clearance of part pairs ``"A:B"`` over a shaft revolution (exact shapes)."""
+    from mechanism.inspection.clearance import check_clearance, parse_pairs
+    from mechanism.machine.models import load_model
+
+    machine = machine or load_machine()
+    model = load_model(machine.model_path)
+    text = pairs if isinstance(pairs, str) else ",".join(pairs)
+    return check_clearance(model, parse_pairs(text, model), resolution_deg=resolution_deg, required_mm=required_mm,
+                           driver=machine.shaft_joint)
+
+
+def view(machine: Machine | None = None, html: str | os.PathLike | None = None, **options) -> dict:
+    """A self-contained meshcat animation of one shaft revolution (options: frames,
+    probe_names, pairs, voltage, duration_s, recording, serve)."""
+    from mechanism.inspection.viewer import view as run
+
+    machine = machine or load_machine()
+    return run(html, machine.model_path, driver=machine.shaft_joint, description=machine.description, **options)
+
+
+def inspect(machine: Machine | None = None, out: str | os.PathLike = "inspection") -> list[Path]:
+    """The machine's described inspection ([inspect]: probes, clearance, a faulty variant, the animation)."""
+    from mechanism.inspection.steps import demo
+
+    return demo(out, machine or load_machine())
+
+
+def write_bench_recording(machine: Machine | None, effects: Sequence[str], seed: int, path: str | os.PathLike,
+                          duration_s: float = 60.0) -> Path:
+    """A virtual bench recording of ``machine`` with concealed ``effects`` (the truth JSON beside
+    it, whose path is returned)."""
+    from mechanism.testbench import make_recording, write_recording
+
+    recording = make_recording(list(effects), seed=seed, duration_s=duration_s)
+    return write_recording(recording, path)[1]
+
+
+def identify(machine: Machine | None, recording: str | os.PathLike, **options):
+    """Fit the machine's lumped baseline (inertia, friction) to a bench recording."""
+    from mechanism.sysid.identification import identify as run
+    from mechanism.sysid.recording import read_recording
+
+    return run(read_recording(recording), **options)
+
+
+def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
+    """Find the physics the machine's model is missing from a bench recording, model it, show the fit improve."""
+    from mechanism.sysid.diagnosis import diagnose as run
+    from mechanism.sysid.recording import read_recording
+
+    return run(read_recording(recording), **options)
+
+
+def diagnosis_report(result, folder: str | os.PathLike) -> Path:
+    """The diagnosis's HTML report with its plots, in ``folder``."""
+    from mechanism.sysid.report import diagnosis_report as run
+
+    return run(result, folder)
+
+
+__all__ = [
+    "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
+    "conversion_summary", "convert", "diagnose", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
+    "shipped_machines", "simulate", "view", "write_needle_csv", "write_table",
+]

@@ -1,10 +1,11 @@
-"""``make demo``: the whole tool on the shipped sewing machine, written to one folder.
+"""``make demo``: the whole tool on every shipped machine, written to one folder.
 
-CAD export -> converter -> MJCF -> needle inspection -> simulation under the thesis's
-voltages (Table 2, a sewing run in 12 layers) -> probes, clearance, design variants and the
-3-D animation -> diagnosis of a bench recording with a concealed effect -> stepper thread
-cut -> ``index.html`` linking every plot and file. The folder is assembled aside and swapped
-into place at the end, so a failed run never leaves half a demo behind.
+For each machine in ``mechanism/models/``: its CAD export -> converter -> MJCF -> tool motion
+-> simulation (against the machine's own speed measurements where it ships them) ->
+probes, clearance, a faulty design variant and the 3-D animation -> diagnosis of a virtual
+bench recording with a concealed effect; then ``index.html`` links every plot and file. The
+demo uses only the public API (``import mechanism``); the folder is assembled aside and
+swapped into place at the end, so a failed run never leaves half a demo behind.
 """
 
 from __future__ import annotations
@@ -17,11 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mechanism.machine.models import ASSETS
-from mechanism.files.outputs import atomic_dir, atomic_file
+import mechanism
 
-EXPORT = ASSETS / "cad" / "export" / "sewing_machine.xml"
-RECORDING = ASSETS / "recordings" / "torque_ripple_seed3.csv"
+DEMO_EFFECT = "torque_ripple"  # the concealed effect of the demo's bench recording
+DEMO_SEED = 3
+STEPS_V = (np.array([0.0, 1.5, 3.0, 4.5, 5.5]), np.array([0.2, 0.5, 0.8, 0.0, 0.3]))  # fractions of the top voltage
+TOP_VOLTAGE_V = 24.0
 
 
 class _Steps:
@@ -33,159 +35,152 @@ class _Steps:
         print(f"[{self.done}/{self.total}] {what}", flush=True)
 
 
-def _convert(out: Path, final: Path) -> tuple[Path, list[str]]:
-    from mechanism.converters import convert
-    from mechanism.cli.convert import drive_lines, summary_lines
-
-    report = convert(EXPORT, out / "model")
-    # the folder is assembled aside: show the paths it will have
-    lines = [line.replace(str(out), str(final)) for line in summary_lines(report, extra=drive_lines(report))]
+def _convert(machine: mechanism.Machine, out: Path, final: Path) -> dict:
+    folder = machine.model_path.parent / "cad"
+    exports = sorted(folder.glob("*.xml")) if folder.is_dir() else []
+    if not exports:
+        return {"lines": [f"{machine.name}: no CAD export shipped; the model is {machine.model_path.name}"]}
+    report = mechanism.convert(exports[0], out / "model")
+    lines = [line.replace(str(out), str(final)) for line in mechanism.conversion_summary(report)]
     (out / "model" / "conversion.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return report.mjcf_path, lines
+    return {"lines": lines, "mjcf": f"model/{report.mjcf_path.name}"}
 
 
-def _needle(out: Path, model: Path) -> dict:
-    from mechanism.inspection.needle import needle_motion, plot, write_csv
-
-    motion = needle_motion(model)
-    write_csv(motion, out / "needle.csv")
-    plot(motion, out / "needle.png")
+def _tool(machine: mechanism.Machine, out: Path) -> dict | None:
+    if not machine.tool_site:
+        return None
+    motion = mechanism.needle_motion(machine)
+    mechanism.write_needle_csv(motion, out / "tool.csv")
+    mechanism.plot_needle(motion, out / "tool.png")
     return {"stroke_mm": motion.stroke_mm, "hook_passage_deg": motion.hook_passage_angle_deg,
             "needle_rise_at_passage_mm": motion.needle_rise_at_passage_mm,
-            "hook_point_clearance_mm": motion.hook_point_clearance_mm}
+            "hook_point_clearance_mm": motion.hook_point_clearance_mm, "summary": motion.summary_lines()}
 
 
-def table2(model: Path | None = None) -> list[dict]:
-    """The thesis's Table 2 (no needle, no fabric) against the full model, cold and warm."""
-    from mechanism.machine.machine import Machine, MachineConfig
-    from mechanism.data.reference import thesis
-    from mechanism.dynamics.simulation import simulate
-
-    cold = Machine(model, MachineConfig(needle=False))
-    warm = Machine(model, MachineConfig(needle=False, warm=True))
-    rows = []
-    for duty, volts, _, _, rpm_cold, rpm_30s, rpm_2min in thesis()["steady_state_speed_table_2"]["rows"]:
-        model_cold = simulate(volts, 3.0, machine=cold).speed_summary(1.0)["mean_rpm"]
-        model_warm = simulate(volts, 3.0, machine=warm).speed_summary(1.0)["mean_rpm"]
-        rows.append({"duty_percent": duty, "motor_voltage_V": volts,
-                     "thesis_cold_rpm": rpm_cold, "model_cold_rpm": model_cold,
-                     "cold_error_percent": (model_cold / rpm_cold - 1) * 100,
-                     "thesis_warm_2min_rpm": rpm_2min, "model_warm_rpm": model_warm,
-                     "warm_error_percent": (model_warm / rpm_2min - 1) * 100})
+def steady_speeds(machine: mechanism.Machine) -> list[dict]:
+    """The machine's shipped steady-speed measurements (``measurements/steady_speeds.csv``:
+    motor voltage, warm-up time, shaft speed; no tool load) against the full model."""
+    path = machine.model_path.parent / "measurements" / "steady_speeds.csv"
+    if not path.is_file():
+        return []
+    table = mechanism.read_table(path, required=["motor_voltage_V", "warm_s", "speed_rpm"])
+    rows, machines = [], {}
+    for volts, warm_s, measured in zip(table["motor_voltage_V"], table["warm_s"], table["speed_rpm"]):
+        if warm_s not in machines:
+            machines[warm_s] = mechanism.load_machine(machine.description, needle=False, warm_s=float(warm_s))
+        model = mechanism.simulate(machines[warm_s], voltage_V=float(volts), duration_s=3.0).mean_speed_rpm
+        rows.append({"motor_voltage_V": float(volts), "warm_s": float(warm_s), "measured_rpm": float(measured),
+                     "model_rpm": model, "error_percent": (model / measured - 1) * 100})
     return rows
 
 
-def _simulate(out: Path, model: Path) -> dict:
-    from mechanism.cli.simulate import plot_run
-    from mechanism.physics.inputs import VoltageProfile
-    from mechanism.machine.machine import Machine, MachineConfig
-    from mechanism.dynamics.simulation import simulate
-    from mechanism.files.tables import write_table
+def _simulate(machine: mechanism.Machine, out: Path) -> dict:
+    facts: dict = {"steady_speeds": steady_speeds(machine)}
+    if facts["steady_speeds"]:
+        rows = facts["steady_speeds"]
+        mechanism.write_table(out / "steady_speeds.csv", {key: [row[key] for row in rows] for key in rows[0]},
+                              comments=["measured steady shaft speeds (no tool load) against the full multibody model"])
+    times, fractions = STEPS_V
+    steps = mechanism.VoltageProfile(times, fractions * TOP_VOLTAGE_V)
+    run = mechanism.simulate(machine, voltage_V=steps, duration_s=7.0)
+    mechanism.write_table(out / "simulate_steps.csv", run.columns(),
+                          comments=["voltage steps " + " / ".join(f"{v:g}" for v in steps.voltage_V) + " V"])
+    mechanism.plot_simulation(run, out / "simulate_steps.png")
+    facts["steps_final_rpm"] = run.mean_speed_rpm
+    if machine.fabric_capable:
+        sewing = mechanism.simulate(mechanism.load_machine(machine.description, layers=12), voltage_V=7.0, duration_s=3.0)
+        mechanism.write_table(out / "sewing_12_layers.csv", sewing.columns(), comments=["7 V, through 12 layers"])
+        mechanism.plot_simulation(sewing, out / "sewing_12_layers.png")
+        facts["sewing_mean_rpm"] = sewing.mean_speed_rpm
+    return facts
 
-    rows = table2(model)
-    write_table(out / "table2.csv", {key: [row[key] for row in rows] for key in rows[0]},
-                comments=["thesis Table 2 (arm rpm, no needle, no fabric) against the full multibody model"])
-    steps = VoltageProfile(np.array([0.0, 1.5, 3.0, 4.5, 5.5]), np.array([4.48, 12.49, 19.6, 0.0, 7.0]))
-    run = simulate(steps, 7.0, machine=Machine(model))
-    write_table(out / "simulate_steps.csv", run.columns(), comments=["voltage steps 4.48 / 12.49 / 19.6 / 0 / 7 V"])
-    plot_run(run, out / "simulate_steps.png")
-    sewing = simulate(7.0, 3.0, machine=Machine(model, MachineConfig(layers=12)))
-    write_table(out / "sewing_12_layers.csv", sewing.columns(), comments=["7 V, sewing through 12 layers"])
-    plot_run(sewing, out / "sewing_12_layers.png")
-    return {"table2": rows, "sewing_mean_rpm": sewing.speed_summary(1.0)["mean_rpm"]}
 
-
-def _diagnose(out: Path) -> dict:
-    from mechanism.sysid.diagnosis import diagnose
-    from mechanism.sysid.report import diagnosis_report
-    from mechanism.sysid.recording import read_recording
-
-    result = diagnose(read_recording(RECORDING), "lumped")
+def _diagnose(machine: mechanism.Machine, out: Path) -> dict:
+    recording = out / f"bench_{DEMO_EFFECT}_seed{DEMO_SEED}.csv"
+    truth = mechanism.write_bench_recording(machine, [DEMO_EFFECT], DEMO_SEED, recording)
+    result = mechanism.diagnose(machine, recording)
     document = result.to_json()
-    with atomic_file(out / "diagnosis.json") as handle:
-        json.dump(document, handle, indent=2)
-    diagnosis_report(result, out / "diagnosis")
-    truth = json.loads(RECORDING.with_suffix(".truth.json").read_text())
-    return {"found": [e["name"] for e in document["effects"]], "concealed": truth["effects"],
+    (out / "diagnosis.json").write_text(json.dumps(document, indent=2), encoding="utf-8")
+    mechanism.diagnosis_report(result, out / "diagnosis")
+    return {"recording": recording.name, "found": [e["name"] for e in document["effects"]],
+            "concealed": json.loads(truth.read_text())["effects"],
             "baseline_rmse": document["baseline"]["rmse"], "final_rmse": document["final"]["rmse"]}
 
 
-def _stepper(out: Path) -> dict:
-    from mechanism.steppers import stepper
-    from mechanism.steppers.step_profiles import thread_cut
-    from mechanism.files.tables import write_table
+def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
+    machine = mechanism.load_machine(name)
+    out = work / name
+    out.mkdir(parents=True, exist_ok=True)
+    facts: dict = {"name": name, "title": machine.description.section("machine").get("name", name)}
+    step(f"{name}: convert its CAD export")
+    facts["conversion"] = _convert(machine, out, final / name)
+    step(f"{name}: tool motion over one shaft revolution")
+    facts["tool"] = _tool(machine, out)
+    step(f"{name}: simulate (steady speeds against measurements, voltage steps, a sewing run)")
+    facts["simulation"] = _simulate(machine, out)
+    step(f"{name}: probes, clearance with a faulty variant, 3-D animation")
+    facts["inspection"] = [p.name for p in mechanism.inspect(machine, out)]
+    step(f"{name}: diagnose a virtual bench recording with a concealed {DEMO_EFFECT}")
+    facts["diagnosis"] = _diagnose(machine, out)
+    return facts
 
-    run = stepper.simulate(thread_cut(), kind="circuit")
-    write_table(out / "stepper_thread_cut.csv", run.columns(1e-4))
-    stepper.plot_run(run, out / "stepper_thread_cut.png")
-    return {key: value for key, value in run.summary.items() if isinstance(value, (int, float, str))}
 
-
-def run(out: str | os.PathLike = "out") -> Path:
-    """Run every step into ``out`` (replaced as a whole at the end)."""
-    from mechanism.inspection import steps as inspection
-
+def run(out: str | os.PathLike = "out", machines: list[str] | None = None) -> Path:
+    """Run every step for every shipped machine into ``out`` (replaced as a whole at the end)."""
     out = Path(out)
-    step = _Steps(8)
-    facts: dict = {}
-    with atomic_dir(out) as work:
-        step("convert the shipped CAD export (first-generation XML + STL + couplings side-car)")
-        model, facts["conversion"] = _convert(work, out)
-        step("needle motion over one arm revolution")
-        facts["needle"] = _needle(work, model)
-        step("simulate: thesis Table 2, voltage steps, sewing 12 layers")
-        facts["simulation"] = _simulate(work, model)
-        step("probes on the crank pin, needle bar and needle tip at 600 rpm")
-        inspection.demo_probes(work, model)
-        step("clearance: needle vs hook and needle plate; a mistimed hook variant")
-        inspection.demo_clearance(work, model)
-        step("3-D animation (self-contained meshcat HTML)")
-        inspection.demo_view(work, model)
-        step(f"diagnose the bench recording {RECORDING.name}")
-        facts["diagnosis"] = _diagnose(work)
-        step("stepper thread cut (circuit model)")
-        facts["stepper"] = _stepper(work)
-        with atomic_file(work / "demo.json") as handle:
-            json.dump(facts, handle, indent=2, default=float)
-        _index(work, facts)
+    names = machines or mechanism.shipped_machines()
+    step = _Steps(5 * len(names))
+    facts = {}
+    with mechanism.atomic_dir(out) as work:
+        for name in names:
+            facts[name] = machine_section(name, work, out, step)
+        (work / "demo.json").write_text(json.dumps(facts, indent=2, default=float), encoding="utf-8")
+        (work / "index.html").write_text(_index(facts), encoding="utf-8")
     print(f"wrote {out}/index.html ({time.perf_counter() - step.started:.0f} s)")
     return out / "index.html"
 
 
-def _index(out: Path, facts: dict) -> None:
-    def link(name, label=None):
-        return f'<a href="{html.escape(name)}">{html.escape(label or name)}</a>'
-
-    def img(name):
-        return f'<p><img src="{html.escape(name)}" style="max-width:900px;width:100%"></p>'
-
-    rows = "".join(
-        f"<tr><td>{r['motor_voltage_V']:.2f}</td><td>{r['thesis_cold_rpm']}</td><td>{r['model_cold_rpm']:.0f}</td>"
-        f"<td>{r['cold_error_percent']:+.1f}</td><td>{r['thesis_warm_2min_rpm']}</td><td>{r['model_warm_rpm']:.0f}</td>"
-        f"<td>{r['warm_error_percent']:+.1f}</td></tr>" for r in facts["simulation"]["table2"])
-    needle, diagnosis = facts["needle"], facts["diagnosis"]
-    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>mechanism demo: sewing machine</title>
+def _index(facts: dict) -> str:
+    sections = "".join(_section(f) for f in facts.values())
+    toc = " &middot; ".join(f'<a href="#{html.escape(n)}">{html.escape(n)}</a>' for n in facts)
+    return f"""<!doctype html><html><head><meta charset="utf-8"><title>mechanism demo</title>
 <style>body{{font-family:sans-serif;max-width:960px;margin:2em auto;line-height:1.4}}
 table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}
 pre{{background:#f6f6f6;padding:8px;white-space:pre-wrap}}</style></head><body>
-<h1>mechanism demo: Husqvarna Viking Sapphire 870 (Tegsten 2008)</h1>
-<h2>1. CAD export to MuJoCo</h2><pre>{html.escape(chr(10).join(facts['conversion']))}</pre>
-<p>{link('model/sewing_machine.xml', 'converted MJCF')} &middot; {link('machine.html', '3-D animation (opens offline)')}</p>
-<h2>2. Needle motion</h2><p>stroke {needle['stroke_mm']:.2f} mm; the hook point passes the needle at
-{needle['hook_passage_deg']:.1f} deg arm angle, {needle['needle_rise_at_passage_mm']:.2f} mm above bottom dead centre,
-{needle['hook_point_clearance_mm']:.3f} mm from the needle. {link('needle.csv')}</p>{img('needle.png')}
-<h2>3. Dynamics against the thesis</h2><table><tr><th>motor V</th><th>thesis cold rpm</th><th>model</th><th>error %</th>
-<th>thesis warm (2 min)</th><th>model warm</th><th>error %</th></tr>{rows}</table>
-<p>The 4.48-19.6 V cold points are the thesis's validity range; at 24 V and for the warm machine the thesis's
-viscous-only warm-up misses the speed: see README. {link('table2.csv')}, {link('simulate_steps.csv')}</p>{img('simulate_steps.png')}
-<p>Sewing 12 layers at 7 V: mean {facts['simulation']['sewing_mean_rpm']:.0f} rpm, a dip each time the needle pierces.
-{link('sewing_12_layers.csv')}</p>{img('sewing_12_layers.png')}
-<h2>4. Probes and clearance</h2><p>{link('probes.csv')} &middot; {link('clearance.csv')} &middot; {link('clearance.json')}
-&middot; {link('variants.csv', 'nominal vs mistimed hook')}</p>{img('probes.png')}
-<h2>5. Diagnosis of a bench recording</h2><p>{html.escape(RECORDING.name)}: concealed {', '.join(diagnosis['concealed']) or 'nothing'};
-found {', '.join(diagnosis['found']) or 'nothing'}; velocity rmse {diagnosis['baseline_rmse']:.3f} -> {diagnosis['final_rmse']:.3f} rad/s.
-{link('diagnosis/index.html', 'report')} &middot; {link('diagnosis.json')}</p>
-<h2>6. Stepper thread cut</h2><p>{link('stepper_thread_cut.csv')}</p>{img('stepper_thread_cut.png')}
-<p>All numbers: {link('demo.json')}</p></body></html>"""
-    with atomic_file(out / "index.html") as handle:
-        handle.write(page)
+<h1>mechanism demo</h1><p>Every shipped machine, from its CAD export to a diagnosed bench recording: {toc}.
+All numbers: <a href="demo.json">demo.json</a>.</p>{sections}</body></html>"""
+
+
+def _section(f: dict) -> str:
+    name = f["name"]
+
+    def link(path, label=None):
+        return f'<a href="{html.escape(name)}/{html.escape(path)}">{html.escape(label or path)}</a>'
+
+    def img(path):
+        return f'<p><img src="{html.escape(name)}/{html.escape(path)}" style="max-width:900px;width:100%"></p>'
+
+    parts = [f'<h2 id="{html.escape(name)}">{html.escape(name)}</h2>',
+             f"<h3>CAD export to MuJoCo</h3><pre>{html.escape(chr(10).join(f['conversion']['lines']))}</pre>"]
+    if "mjcf" in f["conversion"]:
+        parts.append(f"<p>{link(f['conversion']['mjcf'], 'converted MJCF')} &middot; {link('machine.html', '3-D animation (opens offline)')}</p>")
+    if f["tool"]:
+        parts.append(f"<h3>Tool motion</h3><pre>{html.escape(chr(10).join(f['tool']['summary']))}</pre>{link('tool.csv')}{img('tool.png')}")
+    sim = f["simulation"]
+    if sim["steady_speeds"]:
+        rows = "".join(f"<tr><td>{r['motor_voltage_V']:.2f}</td><td>{r['warm_s']:g}</td><td>{r['measured_rpm']:.0f}</td>"
+                       f"<td>{r['model_rpm']:.0f}</td><td>{r['error_percent']:+.1f}</td></tr>" for r in sim["steady_speeds"])
+        parts.append("<h3>Steady speeds against the measurements</h3><table><tr><th>motor V</th><th>warm s</th>"
+                     f"<th>measured rpm</th><th>model rpm</th><th>error %</th></tr>{rows}</table><p>{link('steady_speeds.csv')}</p>")
+    parts.append(f"<h3>Voltage steps</h3><p>{link('simulate_steps.csv')}</p>{img('simulate_steps.png')}")
+    if "sewing_mean_rpm" in sim:
+        parts.append(f"<p>Sewing 12 layers at 7 V: mean {sim['sewing_mean_rpm']:.0f} rpm, a dip each time the needle "
+                     f"pierces. {link('sewing_12_layers.csv')}</p>{img('sewing_12_layers.png')}")
+    if f["inspection"]:
+        parts.append("<h3>Probes and clearance</h3><p>" + " &middot; ".join(link(p) for p in f["inspection"] if not p.endswith(".png")) + "</p>")
+        parts += [img(p) for p in f["inspection"] if p.endswith(".png")]
+    d = f["diagnosis"]
+    parts.append(f"<h3>Diagnosis of a bench recording</h3><p>{link(d['recording'])}: concealed {', '.join(d['concealed']) or 'nothing'}; "
+                 f"found {', '.join(d['found']) or 'nothing'}; velocity rmse {d['baseline_rmse']:.3f} -> {d['final_rmse']:.3f} rad/s. "
+                 f"{link('diagnosis/index.html', 'report')} &middot; {link('diagnosis.json')}</p>")
+    return "".join(parts)

@@ -30,30 +30,11 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run)
 
 
-def summary_lines(report, extra=()) -> list[str]:
-    """The printed summary of a conversion, the one place for its wording. ``extra`` lines (e.g.
-    quantities the simulator computes from the model) go after the totals, before the warnings."""
-    joints = ", ".join(f"{count} {kind}" for kind, count in report.joints_by_type.items() if count) or "none"
-    lines = [
-        f"wrote {report.mjcf_path} ({report.export_format}, {report.n_parts} parts, {report.n_meshes} meshes in {report.mesh_dir})",
-        f"bodies: {report.n_bodies}",
-        f"joints: {report.n_joints} ({joints})",
-        f"loop closures: {report.n_loop_closures}",
-        f"couplings: {report.n_couplings}",
-        f"degrees of freedom: {report.degrees_of_freedom}",
-        f"total mass: {report.total_mass_kg:.6g} kg (export: {report.export_mass_kg:.6g} kg)",
-        *extra,
-        f"warnings: {len(report.warnings)}",
-    ]
-    lines += [f"warning: {warning}" for warning in report.warnings]
-    return lines
-
-
 def run(args) -> int:
     from mechanism.converters import convert
 
     from mechanism.machine.roles import drive_lines
 
     report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up)
-    print("\n".join(summary_lines(report, extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))))
+    print("\n".join(report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))))
     return 0

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from mechanism.dynamics.simulation import simulate
+    from mechanism.dynamics.simulation import plot_simulation, simulate
     from mechanism.errors import UserError
     from mechanism.files.tables import write_table
     from mechanism.machine.machine import Machine, MachineConfig, motor_from_description
@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
                     f"belt tension: {args.belt_tension}; model: {'reduced' if args.reduced else 'full multibody'}"]
         write_table(args.csv, result.columns(), comments=comments)
     if args.plot:
-        plot_run(result, args.plot)
+        plot_simulation(result, args.plot)
     if args.summary:
         last = min(1.0, duration)
         s = result.speed_summary(last)
@@ -118,25 +118,3 @@ def run(args: argparse.Namespace) -> int:
               f"min {s['min_rpm']:.1f} rpm, max {s['max_rpm']:.1f} rpm")
     sys.stdout.flush()
     return 0
-
-
-def plot_run(result, path) -> None:
-    import numpy as np
-
-    from mechanism.files.plotting import plt, save_figure
-
-    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
-    axes[0].plot(result.time_s, result.arm_velocity_rad_s * 60 / (2 * np.pi), lw=0.8)
-    axes[0].set_ylabel("shaft speed [rpm]")
-    axes[1].plot(result.time_s, result.current_A, lw=0.8, color="tab:red")
-    axes[1].set_ylabel("current [A]")
-    ax_v = axes[1].twinx()
-    ax_v.plot(result.time_s, result.voltage_V, lw=0.8, color="tab:gray")
-    ax_v.set_ylabel("voltage [V]")
-    axes[2].plot(result.time_s, result.needle_z_mm, lw=0.8, color="tab:green")
-    axes[2].axhline(0.0, color="k", lw=0.5)
-    axes[2].set_ylabel("tool above plate [mm]")
-    axes[2].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    save_figure(fig, path)

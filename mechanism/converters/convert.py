@@ -41,6 +41,23 @@ class ConversionReport:
     def n_joints(self) -> int:
         return sum(self.joints_by_type.values())
 
+    def summary_lines(self, extra=()) -> list[str]:
+        """The printed summary of a conversion, the one place for its wording. ``extra`` lines
+        (quantities the simulator computes from the model) go after the totals, before the warnings."""
+        joints = ", ".join(f"{count} {kind}" for kind, count in self.joints_by_type.items() if count) or "none"
+        lines = [
+            f"wrote {self.mjcf_path} ({self.export_format}, {self.n_parts} parts, {self.n_meshes} meshes in {self.mesh_dir})",
+            f"bodies: {self.n_bodies}",
+            f"joints: {self.n_joints} ({joints})",
+            f"loop closures: {self.n_loop_closures}",
+            f"couplings: {self.n_couplings}",
+            f"degrees of freedom: {self.degrees_of_freedom}",
+            f"total mass: {self.total_mass_kg:.6g} kg (export: {self.export_mass_kg:.6g} kg)",
+            *extra,
+            f"warnings: {len(self.warnings)}",
+        ]
+        return lines + [f"warning: {warning}" for warning in self.warnings]
+
 
 def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z") -> ConversionReport:
     """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).

@@ -39,6 +39,7 @@ class _Tables(ctypes.Structure):
         "friction_params")] + [
         ("n", ctypes.c_int), ("nfriction", ctypes.c_int),
         ("kt", ctypes.c_double), ("ke", ctypes.c_double), ("resistance", ctypes.c_double),
+        ("supply_V", ctypes.c_double), ("series_ohm", ctypes.c_double),
         ("fabric_down", ctypes.c_double), ("fabric_up", ctypes.c_double),
         ("fabric_thickness", ctypes.c_double), ("fabric_ramp", ctypes.c_double),
         ("stick_velocity", ctypes.c_double)]
@@ -90,6 +91,13 @@ class ReducedModel:
             self._needle_dz = np.zeros(n)
 
     # -- the right-hand side, in numpy (the reference for the C kernel and its fallback) --
+    def motor_current(self, voltage, motor_velocity):
+        """Armature current [A], quasi-static, within the supply's limit when described."""
+        motor, supply = self.machine.motor, self.machine.supply
+        if supply:
+            return supply.current(motor, voltage, motor_velocity)
+        return (np.asarray(voltage) - motor.back_emf_V_s_rad * np.asarray(motor_velocity)) / motor.resistance_ohm
+
     def static_friction(self, angle) -> float:
         """Break-away torque at the arm [N m] at rest at ``angle``."""
         return float(sum(abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
@@ -100,7 +108,7 @@ class ReducedModel:
         t = self.tables
         motor = self.machine.motor
         rm = periodic_interp(self._motor_ratio, angle)
-        force = rm * motor.torque_constant_Nm_A / motor.resistance_ohm * (voltage - motor.back_emf_V_s_rad * rm * velocity)
+        force = rm * motor.torque_constant_Nm_A * self.motor_current(voltage, rm * velocity)
         force += periodic_interp(self._cogging, angle) - 0.5 * t.at("dinertia_drad", angle) * velocity**2
         force -= t.at("gravity_torque_Nm", angle) + periodic_interp(self._viscous, angle) * velocity
         for r, s, law in self._friction:
@@ -131,7 +139,7 @@ class ReducedModel:
         motor = self.machine.motor
         rm = periodic_interp(self._motor_ratio, angle)
         sample_volts = volts[substeps - 1 :: substeps]
-        current = (sample_volts - motor.back_emf_V_s_rad * rm * velocity) / motor.resistance_ohm
+        current = self.motor_current(sample_volts, rm * velocity)
         needle = np.full(nsample, np.nan)
         if t.tool_z_m is not None:
             needle = self.machine.tool_height_mm(t.at("tool_z_m", angle))
@@ -165,12 +173,13 @@ class ReducedModel:
         static_scales = np.concatenate(self._static_scales) if self._friction else np.zeros(1)
         params = np.array([[law.coulomb, law.static_level, law.stribeck_velocity, STRIBECK_LAWS[law.stribeck],
                             law.tustin_exponent] for _, _, law in self._friction] or [[0.0] * 5]).ravel()
-        motor, fabric = self.machine.motor, self.machine.fabric
+        motor, fabric, supply = self.machine.motor, self.machine.fabric, self.machine.supply
         tables = _Tables(
             ptr(t.inertia_kgm2), ptr(t.dinertia_drad), ptr(t.gravity_torque_Nm), ptr(self._motor_ratio),
             ptr(self._viscous), ptr(self._cogging), ptr(self._needle_depth), ptr(self._needle_dz),
             ptr(ratios), ptr(scales), ptr(static_scales), ptr(params), n, len(self._friction),
             motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, motor.resistance_ohm,
+            supply.supply_V if supply else 0.0, supply.series_ohm if supply else 0.0,
             fabric.piercing_force_N if fabric.layers else 0.0,
             fabric.drag_fraction * fabric.piercing_force_N if fabric.layers else 0.0,
             fabric.thickness_m, fabric.point_taper_mm * 1e-3, self._stick_velocity())

@@ -139,6 +139,10 @@ def simulate(
         motor_angle = qpos[:, machine.motor_qpos]
         cog = machine.motor.cogging_Nm * np.sin(machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad)
         current = (torque - cog) / machine.motor.torque_constant_Nm_A
+    if machine.supply:  # the limit acts in the passive callback: the sensor sees the commanded current
+        motor = machine.motor
+        commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
+        current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
     needle = machine.tool_height_mm_at(arm_angle)
     return SimulationResult(
         time_s=(samples + 1) * dt,
@@ -152,3 +156,24 @@ def simulate(
         metadata={"timestep_s": dt, "native_callbacks": machine.native, "start_angle_rad": start_angle_rad},
         state=state[samples],
     )
+
+
+def plot_simulation(result: SimulationResult, path) -> None:
+    """Shaft speed, current with voltage, and tool height over time."""
+    from mechanism.files.plotting import plt, save_figure
+
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    axes[0].plot(result.time_s, result.arm_velocity_rad_s * 60 / (2 * np.pi), lw=0.8)
+    axes[0].set_ylabel("shaft speed [rpm]")
+    axes[1].plot(result.time_s, result.current_A, lw=0.8, color="tab:red")
+    axes[1].set_ylabel("current [A]")
+    ax_v = axes[1].twinx()
+    ax_v.plot(result.time_s, result.voltage_V, lw=0.8, color="tab:gray")
+    ax_v.set_ylabel("voltage [V]")
+    axes[2].plot(result.time_s, result.needle_z_mm, lw=0.8, color="tab:green")
+    axes[2].axhline(0.0, color="k", lw=0.5)
+    axes[2].set_ylabel("tool above plate [mm]")
+    axes[2].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    save_figure(fig, path)

@@ -107,6 +107,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "supply": {
         "voltage_V": _positive("supply voltage of the PWM switch [V]", high=1e3),
+        "series_resistance_ohm": _non_negative("switch on-resistance and wiring: the motor sees at most "
+                                               "voltage_V minus this times the current", 1e3),
         "duty_percent": Key(list, "PWM duty points [%] of the measured duty -> motor voltage map", item=float),
         "motor_voltage_V": Key(list, "motor terminal voltage [V] at each duty point", item=float),
     },

@@ -33,11 +33,11 @@ from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic
 from mechanism.kinematics.pose import joint_dof, solve_pose, velocity_ratios
 from mechanism.machine import parts
 from mechanism.machine.description import MachineDescription, read_description
-from mechanism.machine.models import DEFAULT_DESCRIPTION, load_spec, resolve_model
+from mechanism.machine.models import DEFAULT_DESCRIPTION, MODELS, load_spec, resolve_model, shipped_machines
 from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
 from mechanism.physics.inputs import DutyMap
 from mechanism.physics.loads import FabricLoad, python_needle_load
-from mechanism.physics.motor import DCMotor, Thermal
+from mechanism.physics.motor import DCMotor, SupplyLimit, Thermal, python_supply_limit
 
 ACTUATOR = "drive_motor"  # the actuator the machine adds (its own name, not a CAD name)
 TORQUE_SENSOR = "drive_motor_torque"
@@ -126,6 +126,16 @@ def duty_map_from(description: MachineDescription) -> DutyMap:
     return DutyMap(np.array(supply["duty_percent"]), np.array(supply["motor_voltage_V"]))
 
 
+def supply_limit(description: MachineDescription) -> SupplyLimit | None:
+    """The supply's voltage limit under load, when the description gives its series resistance."""
+    supply = description.section("supply")
+    if "series_resistance_ohm" not in supply:
+        return None
+    if "voltage_V" not in supply:
+        raise UserError(f"machine description {description.where('supply', 'voltage_V')}: a series resistance needs the supply voltage")
+    return SupplyLimit(supply["voltage_V"], supply["series_resistance_ohm"])
+
+
 def fabric_from_description(tool: dict, layers: int) -> FabricLoad:
     keys = ("layer_thickness_mm", "piercing_force_per_layer_N", "drag_fraction", "point_taper_mm")
     return FabricLoad(layers=layers, **{k: tool[k] for k in keys if k in tool})
@@ -198,6 +208,7 @@ def install_callbacks() -> bool:
             def passive(model, data):
                 python_friction(model, data)
                 python_needle_load(model, data)
+                python_supply_limit(model, data)
 
             mujoco.set_mjcb_passive(passive)
         _CALLBACK_INSTALLED = True
@@ -205,9 +216,14 @@ def install_callbacks() -> bool:
 
 
 def resolve_description(description: MachineDescription | str | os.PathLike | None) -> MachineDescription:
+    """A description from itself, a TOML path, a shipped machine's name, or None (the default machine)."""
     if isinstance(description, MachineDescription):
         return description
-    return read_description(DEFAULT_DESCRIPTION if description is None else description)
+    if description is None:
+        return read_description(DEFAULT_DESCRIPTION)
+    if isinstance(description, str) and description in shipped_machines():
+        return read_description(MODELS / description / f"{description}.toml")
+    return read_description(description)
 
 
 @dataclass(frozen=True)
@@ -285,6 +301,9 @@ class Machine:
             raise UserError(f"fabric layers need a tool site and a plate: set [tool] site and plate in "
                             f"{self.description.path or 'the machine description'}")
         self.fabric.apply_to_spec(spec)
+        self.supply = supply_limit(self.description)
+        if self.supply:
+            self.supply.apply_to_spec(spec)
         spec.add_sensor(name=TORQUE_SENSOR, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=ACTUATOR)
         if extend is not None:
@@ -299,6 +318,8 @@ class Machine:
         self.native = install_callbacks()
         self.shaft_qpos, self.shaft_dof = joint_dof(self.model, self.shaft_joint)
         self.motor_qpos, self.motor_dof = joint_dof(self.model, self.motor_joint)
+        if self.supply:
+            self.supply.bind(self.model, self.motor, self.actuator, self.motor_dof)
         self.frame = shaft_frame(self.model_path, self.description, self.model)
         self.plate_top_z = None
         if self.plate_part:
@@ -331,6 +352,12 @@ class Machine:
     @property
     def plate_part(self) -> str | None:
         return self.description.section("tool").get("plate")
+
+    @property
+    def fabric_capable(self) -> bool:
+        """Can the tool pierce fabric layers (tool site, plate and a fabric model described)?"""
+        tool = self.description.section("tool")
+        return bool(self.tool_site and self.plate_part and "piercing_force_per_layer_N" in tool)
 
     @property
     def actuator(self) -> int:

@@ -47,10 +47,6 @@ def is_mjcf(path: Path) -> bool:
     return head.startswith(b"<mujoco")
 
 
-def cache_root() -> Path:
-    return Path(os.environ.get("MECHANISM_CACHE") or Path.home() / ".cache" / "mechanism")
-
-
 def export_digest(export: Path) -> str:
     """Hash of the export and every file beside it (geometry, couplings side-car)."""
     digest = hashlib.sha256()
@@ -68,7 +64,9 @@ def converted_model(export: Path) -> Path:
     """The MJCF of a CAD export, converted once per content and cached."""
     from mechanism.converters import ExportError, convert
 
-    folder = cache_root() / f"{export.stem}-{export_digest(export)}"
+    from mechanism.native import cache_root
+
+    folder = cache_root() / "models" / f"{export.stem}-{export_digest(export)}"
     target = folder / f"{export.stem}.xml"
     if not target.is_file():
         try:

@@ -27,9 +27,14 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 
 
-def cache_dir() -> Path:
+def cache_root() -> Path:
+    """Where mechanism keeps what it builds once (compiled kernels, converted CAD exports)."""
     root = os.environ.get("MECHANISM_CACHE") or os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(root) / "mechanism" / "native"
+    return Path(root) / "mechanism"
+
+
+def cache_dir() -> Path:
+    return cache_root() / "native"
 
 
 def _compiler() -> str | None:

@@ -1,6 +1,6 @@
 // Passive forces of a machine model that MuJoCo has no native element for:
 // kinetic friction laws (Stribeck/Tustin/Hess-Soom, position-dependent Coulomb level)
-// and the fabric load on the needle. Installed as mjcb_passive (process-global), so it
+// the fabric load on the needle, and the supply's voltage limit on the motor. Installed as mjcb_passive (process-global), so it
 // acts only on models carrying the custom numerics written by mechanism/friction.py and
 // mechanism/loads.py, and leaves every other model untouched.
 //
@@ -18,6 +18,7 @@
 
 #define FRICTION_FIELDS 12
 #define LOAD_FIELDS 9
+#define SUPPLY_FIELDS 8
 
 static int find_numeric(const mjModel* m, const char* name) {
   for (int i = 0; i < m->nnumeric; i++) {
@@ -85,9 +86,27 @@ static void apply_needle_load(const mjModel* m, mjData* d, const mjtNum* p, int 
   mj_applyFT(m, d, force, torque, tip, body, d->qfrc_passive);
 }
 
+// Must match mechanism/physics/motor.py SupplyLimit: the supply cannot put more than
+// supply_V - series_ohm * I on the motor terminals, so the current is the smaller of the
+// commanded one and (supply_V - Ke w) / (R + series_ohm); the difference is taken back here.
+static void apply_supply_limit(const mjModel* m, mjData* d, const mjtNum* p, int n) {
+  // p: [version, actuator, dof, supply_V, series_ohm, resistance_ohm, kt, ke]
+  if (n < SUPPLY_FIELDS) return;
+  int act = (int)p[1], dof = (int)p[2];
+  if (act < 0 || act >= m->nu || dof < 0 || dof >= m->nv) return;
+  mjtNum vs = p[3], rs = p[4], r = p[5], kt = p[6], ke = p[7];
+  mjtNum emf = ke * d->qvel[dof];
+  mjtNum commanded = (d->ctrl[act] - emf) / r;
+  mjtNum high = (vs - emf) / (r + rs), low = (-vs - emf) / (r + rs);
+  if (commanded > high && commanded > 0) d->qfrc_passive[dof] += kt * (high - commanded);
+  if (commanded < low && commanded < 0) d->qfrc_passive[dof] += kt * (low - commanded);
+}
+
 void mechanism_passive(const mjModel* m, mjData* d) {
   int i = find_numeric(m, "mechanism_friction");
   if (i >= 0) apply_friction(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
   i = find_numeric(m, "mechanism_needle_load");
   if (i >= 0) apply_needle_load(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
+  i = find_numeric(m, "mechanism_supply");
+  if (i >= 0) apply_supply_limit(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
 }

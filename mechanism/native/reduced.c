@@ -13,6 +13,7 @@ typedef struct {
   const double *friction_params;                                          // nfriction x 5
   int n, nfriction;
   double kt, ke, resistance;
+  double supply_V, series_ohm;  // series_ohm 0: no supply limit (mechanism/physics/motor.py SupplyLimit)
   double fabric_down, fabric_up, fabric_thickness, fabric_ramp;
   double stick_velocity;
 } Tables;
@@ -55,7 +56,15 @@ static double fabric_force(const Tables* t, double depth, double v) {
 static double force(const Tables* t, double theta, double omega, double volts) {
   Cell c = locate(t, theta);
   double rm = at(t->motor_ratio, c);
-  double f = rm * t->kt / t->resistance * (volts - t->ke * rm * omega);
+  double emf = t->ke * rm * omega;
+  double current = (volts - emf) / t->resistance;
+  if (t->series_ohm > 0) {
+    double high = (t->supply_V - emf) / (t->resistance + t->series_ohm);
+    double low = (-t->supply_V - emf) / (t->resistance + t->series_ohm);
+    if (current > high && current > 0) current = high;
+    if (current < low && current < 0) current = low;
+  }
+  double f = rm * t->kt * current;
   f += at(t->cogging, c) - 0.5 * at(t->dinertia, c) * omega * omega - at(t->gravity, c);
   f -= at(t->viscous, c) * omega;
   for (int k = 0; k < t->nfriction; k++) {

@@ -90,3 +90,52 @@ def motor_current(model: mujoco.MjModel, data: mujoco.MjData, motor: DCMotor, ac
         qadr = model.jnt_qposadr[model.actuator_trnid[aid, 0]]
         torque -= motor.cogging_Nm * np.sin(motor.cogging_poles * data.qpos[qadr] + motor.cogging_phase_rad)
     return float(torque / motor.torque_constant_Nm_A)
+
+
+SUPPLY_NUMERIC = "mechanism_supply"
+
+
+@dataclass(frozen=True)
+class SupplyLimit:
+    """The supply cannot put more than ``supply_V - series_ohm * I`` on the motor terminals
+    (a PWM switch's on-resistance and the wiring at full duty): the armature current is the
+    smaller of the commanded one and ``(supply_V - Ke w) / (R + series_ohm)``. A commanded
+    voltage within the supply's reach under load is unaffected. Quasi-static in the current
+    (the winding's inductance is not part of the limit)."""
+
+    supply_V: float
+    series_ohm: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.supply_V) and self.supply_V > 0 and np.isfinite(self.series_ohm) and self.series_ohm >= 0):
+            raise UserError("the supply needs a positive voltage and a non-negative series resistance")
+
+    def current(self, motor: DCMotor, voltage, motor_velocity) -> np.ndarray:
+        """Armature current [A] (numpy twin of native/machine.c and native/reduced.c)."""
+        emf = motor.back_emf_V_s_rad * np.asarray(motor_velocity, dtype=float)
+        commanded = (np.asarray(voltage, dtype=float) - emf) / motor.resistance_ohm
+        high = (self.supply_V - emf) / (motor.resistance_ohm + self.series_ohm)
+        low = (-self.supply_V - emf) / (motor.resistance_ohm + self.series_ohm)
+        current = np.where((commanded > high) & (commanded > 0), high, commanded)
+        return np.where((current < low) & (current < 0), low, current)
+
+    def apply_to_spec(self, spec: mujoco.MjSpec) -> None:
+        spec.add_numeric(name=SUPPLY_NUMERIC, data=np.zeros(8))
+
+    def bind(self, model: mujoco.MjModel, motor: DCMotor, actuator: int, dof: int) -> None:
+        model.numeric(SUPPLY_NUMERIC).data[:] = [1.0, float(actuator), float(dof), self.supply_V, self.series_ohm,
+                                                 motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad]
+
+
+def python_supply_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """The supply-limit part of native/machine.c in Python (fallback without a compiler)."""
+    try:
+        p = model.numeric(SUPPLY_NUMERIC).data
+    except KeyError:
+        return
+    act, dof = int(p[1]), int(p[2])
+    vs, rs, r, kt, ke = p[3:8]
+    motor = DCMotor(resistance_ohm=r, torque_constant_Nm_A=kt, back_emf_V_s_rad=ke)
+    commanded = (data.ctrl[act] - ke * data.qvel[dof]) / r
+    limited = float(SupplyLimit(vs, rs).current(motor, data.ctrl[act], data.qvel[dof]))
+    data.qfrc_passive[dof] += kt * (limited - commanded)

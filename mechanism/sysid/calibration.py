@@ -11,6 +11,11 @@ how friction varies over the arm revolution. The thesis gives two kinds of evide
   at low speed. The running amplitude a and the phase φ are fitted to those observations
   (log-ratio least squares) with the reduced model.
 
+The thesis's steady speeds after warming (Table 2, 30 s and 2 min) and at the supply's full
+24 V say what the thesis's viscous-only warm-up leaves out: warming lowers the Coulomb level,
+and the supply cannot hold 24 V on the motor under load. :func:`fit_warming_and_supply` fits
+both (``python -m mechanism.sysid.calibration --steady-speeds``).
+
 ``python -m mechanism.sysid.calibration`` prints the shaft's friction table for the shipped
 description (mechanism/models/sapphire870/sapphire870.toml); tests/test_dynamics.py checks
 the description against the thesis.
@@ -97,7 +102,67 @@ def fit_static(amplitude, phase_rad, description=None) -> tuple[float, float]:
     return static, a_s
 
 
+def steady_speeds_table(description=None):
+    """(motor V, warm s, measured rpm) rows of the machine's shipped steady-speed measurements."""
+    from mechanism.files.tables import read_table
+
+    description = resolve_description(description)
+    table = read_table(description.model.parent / "measurements" / "steady_speeds.csv",
+                       required=["motor_voltage_V", "warm_s", "speed_rpm"])
+    return list(zip(table["motor_voltage_V"], table["warm_s"], table["speed_rpm"]))
+
+
+def fit_warming_and_supply(description=None, start=(0.5, 0.05, 3.5e-5, 30.0)):
+    """The supply's series resistance and the warm friction (shaft Coulomb, motor viscous, time
+    constant) that best reproduce the steady speeds, cold friction kept; with 1-sigma errors.
+
+    Reduced model, 6 s from rest, the mean speed of the last 2 s; log-ratio least squares over
+    the warm columns and the cold point at the supply's full voltage (the cold column below it
+    is the friction the description already has)."""
+    from dataclasses import replace
+
+    description = resolve_description(description)
+    rows = steady_speeds_table(description)
+    supply_V = description.section("supply")["voltage_V"]
+    shaft, motor = description.shaft_joint, description.motor_joint
+    cold = description.friction.get(shaft, {})
+    static_ratio = cold.get("static_Nm", cold.get("coulomb_Nm", 1.0)) / max(cold.get("coulomb_Nm", 1.0), 1e-12)
+    used = [row for row in rows if row[1] > 0 or row[0] >= supply_V]
+    scales = np.array([1.0, 0.1, 1e-5, 30.0])
+
+    def variant(x):
+        rs, coulomb, viscous, tau = x * scales
+        sections = {**description.sections, "supply": {**description.section("supply"), "series_resistance_ohm": rs},
+                    "warm": {"time_constant_s": tau}}
+        warm = {motor: {"viscous_Nm_s_per_rad": viscous}, shaft: {"coulomb_Nm": coulomb, "static_Nm": coulomb * static_ratio}}
+        return replace(description, sections=sections, warm_friction=warm)
+
+    def residual(x):
+        changed = variant(x)
+        out = []
+        for volts, warm_s, measured in used:
+            reduced = ReducedModel(Machine(changed, MachineConfig(needle=False, warm_s=float(warm_s))))
+            run = reduced.simulate(float(volts), 6.0)
+            out.append(np.log(run.arm_velocity_rad_s[run.window(2.0)].mean() * 60 / TWO_PI / measured))
+        return np.array(out)
+
+    fit = least_squares(residual, np.array(start) / scales, bounds=([0, 0, 0.05, 0.03], [20, 2, 20, 20]), diff_step=1e-3)
+    dof = max(1, len(fit.fun) - len(fit.x))
+    covariance = np.linalg.pinv(fit.jac.T @ fit.jac) * float(fit.fun @ fit.fun) / dof
+    return fit.x * scales, np.sqrt(np.diag(covariance)) * scales, fit.fun
+
+
 def main() -> None:
+    import sys
+
+    if "--steady-speeds" in sys.argv:
+        values, errors, residual = fit_warming_and_supply()
+        names = ("[supply] series_resistance_ohm", "[warm_friction.shaft] coulomb_Nm",
+                 "[warm_friction.motor] viscous_Nm_s_per_rad", "[warm] time_constant_s")
+        for name, value, error in zip(names, values, errors):
+            print(f"{name} = {value:.4g}   # +/- {error:.2g}")
+        print("residuals [%]:", " ".join(f"{100 * r:+.1f}" for r in residual))
+        return
     amplitude, phase = fit_running()
     static, static_amplitude = fit_static(amplitude, phase)
     shaft = resolve_description(None).shaft_joint
