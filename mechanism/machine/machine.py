@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -438,6 +439,33 @@ class Machine:
         if self.tables.tool_z_m is None:
             return np.full(np.shape(shaft_angle_rad), np.nan)
         return self.tool_height_mm(periodic_interp(self.tables.tool_z_m, shaft_angle_rad))
+
+    def to_xml(self, path: str | os.PathLike) -> Path:
+        """Write a self-contained MJCF of this machine that stock MuJoCo loads and steps
+        (``python -m mujoco.viewer --mjcf=PATH``), its meshes copied beside it.
+
+        The motor is a native ``<dcmotor>`` (ctrl = terminal voltage [V]); viscous friction is
+        joint ``damping`` and the break-away level joint ``frictionloss``. What MJCF cannot
+        express (the kinetic/Stribeck and position-dependent friction, the fabric load, the
+        supply's limit) acts through mechanism's passive callback, so stock MuJoCo runs the
+        machine with Coulomb friction at its break-away level instead."""
+        import shutil
+
+        from mechanism.files.outputs import atomic_dir, atomic_file
+
+        path = Path(path)
+        source = self.model_path.parent / (self.spec.meshdir or "")
+        meshes = f"{path.stem}_meshes"
+        with atomic_dir(path.parent / meshes) as folder:
+            for mesh in self.spec.meshes:
+                shutil.copy2(source / mesh.file, folder / Path(mesh.file).name)
+        xml = self.spec.to_xml()  # compiles against the original meshes; the folder name is swapped after
+        xml, count = re.subn(r'(<compiler\b[^>]*\bmeshdir=")[^"]*(")', rf"\g<1>{meshes}\g<2>", xml, count=1)
+        if not count:
+            xml = re.sub(r"<compiler\b", f'<compiler meshdir="{meshes}"', xml, count=1)
+        with atomic_file(path) as handle:
+            handle.write(xml)
+        return path
 
     def with_config(self, **changes) -> "Machine":
         return Machine(self.description, replace(self.config, **changes), self._extend)

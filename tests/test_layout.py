@@ -1,0 +1,94 @@
+"""The package's rooms and layers (docs/architecture.md): imports only go down, never across
+two rooms of one layer, and never in a circle. Every import counts, also those inside functions."""
+
+import ast
+from pathlib import Path
+
+import networkx as nx
+
+PACKAGE = Path(__file__).resolve().parent.parent / "mechanism"
+
+# room -> layer; a room may import rooms of lower layers and itself only.
+LAYERS = {
+    "errors": 0,
+    "files": 1, "native": 1, "data": 1,
+    "batch": 2, "converters": 2,
+    "kinematics": 3, "physics": 3,
+    "machine": 4, "models": 4,
+    "dynamics": 5,
+    "inspection": 6, "sysid": 6,
+    "steppers": 7, "testbench": 7,
+    "api": 8, "demo": 8, "__init__": 8,
+    "cli": 9,
+    "__main__": 10,
+}
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), str(path))
+    found = set()
+    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+            found |= {f"{base}.{alias.name}" for alias in node.names}
+            found.add(base)  # `from package import name` runs the package's __init__ too
+    return {name for name in found if name == "mechanism" or name.startswith("mechanism.")}
+
+
+def room(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def graph() -> nx.DiGraph:
+    modules = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+    g = nx.DiGraph()
+    for name, path in modules.items():
+        g.add_node(name)
+        for target in imports(path):
+            while target not in modules and "." in target:  # `from mechanism.x import name` names a symbol
+                target = target.rpartition(".")[0]
+            if target != name and target in modules and target != "mechanism":
+                g.add_edge(name, target)
+    return g
+
+
+def test_every_room_has_a_layer():
+    rooms = {room(m) for m in graph().nodes}
+    assert rooms <= set(LAYERS), f"give these a layer in this test and docs/architecture.md: {sorted(rooms - set(LAYERS))}"
+
+
+def test_imports_only_go_down():
+    wrong = []
+    for source, target in graph().edges:
+        a, b = room(source), room(target)
+        if a != b and LAYERS[a] <= LAYERS[b]:
+            wrong.append(f"{source} -> {target} ({a} layer {LAYERS[a]}, {b} layer {LAYERS[b]})")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_cycle():
+    g = graph()
+    # a package's __init__ exporting its own modules is how packages work, not a circle
+    g.remove_edges_from([(a, b) for a, b in list(g.edges) if b.startswith(a + ".")])
+    cycles = list(nx.simple_cycles(g))
+    assert not cycles, cycles[:5]
+
+
+def test_the_converter_and_the_test_bench_stay_independent():
+    g = graph()
+    for source, target in g.edges:
+        if room(source) == "converters" and room(target) != "converters":
+            assert LAYERS[room(target)] < LAYERS["converters"], f"{source} imports {target}: converters never import the simulator"
+        if room(source) == "testbench":
+            assert room(target) != "sysid", f"{source} imports {target}: the truth model must not know the diagnosis"
