@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test test-fast lint bench clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -16,8 +16,17 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/mechanism demo --out out
 
-test: $(STAMP)
+# ruff (bugs, not taste) and mypy on the public API, then every test
+lint: $(STAMP)
+	$(VENV)/bin/ruff check mechanism tests bench
+	$(VENV)/bin/mypy
+
+test: lint
 	$(PY) -m pytest -q
+
+# the same without the tests marked slow (about a minute)
+test-fast: lint
+	$(PY) -m pytest -q -m "not slow"
 
 bench: $(STAMP)
 	$(PY) -m bench

@@ -58,7 +58,7 @@ def probe(machine: Machine | None = None, probes: Sequence[str] = (), *, speed_r
     from mechanism.inspection.probes import Probe, run_probes
 
     machine = machine or load_machine()
-    parsed = [Probe(*text.rsplit(":", 1)) for text in probes]
+    parsed = [Probe(name, quantity) for name, _, quantity in (text.rpartition(":") for text in probes)]
     return run_probes(parsed, machine.model_path, voltage_V, duration_s, speed_rpm, driver=machine.shaft_joint,
                       description=machine.description)
 
@@ -99,7 +99,7 @@ def write_bench_recording(machine: Machine | None, effects: Sequence[str], seed:
     from mechanism.testbench import make_recording, write_recording
 
     recording = make_recording(list(effects), seed=seed, duration_s=duration_s)
-    return write_recording(recording, path)[1]
+    return write_recording(recording, Path(path))[1]
 
 
 def identify(machine: Machine | None, recording: str | os.PathLike, **options):

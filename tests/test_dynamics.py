@@ -80,7 +80,7 @@ def test_speed_ripple_falls_with_speed_as_measured(bare):
     # Slowest at the needle's lowest position at the lowest speed (thesis 3.2.3, 2.2 V); at
     # higher speed the machine's inertia delays the minimum further along the upstroke.
     assert abs(crawl[1] - BDC_DEG) < 30
-    for amplitude, where in (low, high):
+    for _, where in (low, high):
         assert BDC_DEG <= where <= BDC_DEG + 90
 
 

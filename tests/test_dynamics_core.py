@@ -15,7 +15,6 @@ from mechanism.physics.friction import FrictionLaw, python_friction
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.errors import UserError
 from mechanism.machine.machine import Machine, MachineConfig, duty_map_from
-from mechanism.physics.motor import DCMotor
 from mechanism.dynamics.simulation import simulate
 from support.machines import shipped_description
 from support.machines import thesis_motor

@@ -62,7 +62,7 @@ def reexport(tmp_path_factory):
     text = text.replace('meshdir="meshes"', f'meshdir="{DEFAULT_MODEL.parent / "meshes"}"')
     shaft, motor, lower = cad_name("arm_shaft"), cad_name("motor"), cad_name("lower_shaft")
     text = text.replace(f'<joint name="{shaft}"/>', f'<joint name="{shaft}" axis="0 0 -1" ref="{-SHAFT_ZERO_RAD}"/>')
-    assert f'axis="0 0 -1" ref=' in text
+    assert 'axis="0 0 -1" ref=' in text
     text = re.sub(rf'(joint1="{re.escape(motor)}" joint2="{re.escape(shaft)}" polycoef="0) 8', r"\1 -8", text)
     text = re.sub(rf'(joint1="{re.escape(shaft)}" joint2="{re.escape(lower)}" polycoef="0) 1', r"\1 -1", text)
     folder = tmp_path_factory.mktemp("reexport")

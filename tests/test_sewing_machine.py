@@ -4,7 +4,6 @@ motion checked against the analytic slider-crank, the belts and the thesis."""
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -146,7 +145,7 @@ def test_each_mjcf_body_carries_the_mass_and_inertia_of_its_export_parts(model):
         total = masses.sum()
         com = (masses[:, None] * cgs).sum(axis=0) / total
         inertia = np.zeros((3, 3))
-        for (mass_g, cg, part_inertia, rotation, _, _), mass in zip(members, masses):
+        for (_, cg, part_inertia, rotation, _, _), mass in zip(members, masses):
             d = cg * 1e-3 - com
             inertia += rotation @ (part_inertia * 1e-9) @ rotation.T + mass * (d @ d * np.eye(3) - np.outer(d, d))
         assert model.body_mass[body] == pytest.approx(total, rel=1e-6), model.body(body).name

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
+from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, inspection_target
 
 ORDER = 45
 

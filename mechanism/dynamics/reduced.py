@@ -17,16 +17,13 @@ the full model, for identification.
 from __future__ import annotations
 
 import ctypes
-import functools
-import os
 from dataclasses import dataclass, field
 
-import mujoco
 import numpy as np
 
 from mechanism import native
 from mechanism.errors import UserError
-from mechanism.physics.friction import STRIBECK_LAWS, FrictionLaw
+from mechanism.physics.friction import STRIBECK_LAWS
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_interp
 from mechanism.machine.machine import Machine, MachineConfig
@@ -136,7 +133,6 @@ class ReducedModel:
             self._run_python(volts, dt, substeps, start_angle_rad, start_velocity_rad_s, out)
         angle, velocity, acceleration = out.T
         t = self.tables
-        motor = self.machine.motor
         rm = periodic_interp(self._motor_ratio, angle)
         sample_volts = volts[substeps - 1 :: substeps]
         current = self.motor_current(sample_volts, rm * velocity)

@@ -8,7 +8,6 @@ thesis's dSpace recordings); acceleration is the mean over each sample interval.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 import mujoco

@@ -343,7 +343,7 @@ def plot(motion: NeedleMotion, path: str | os.PathLike) -> None:
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.axhline(0.0, color="0.3", lw=0.8)
-        for x, name in ((motion.tdc_angle_deg, "TDC"), (motion.bdc_angle_deg, "BDC")):
+        for x in (motion.tdc_angle_deg, motion.bdc_angle_deg):
             ax.axvline(x, color="0.5", ls=":", lw=1)
         if motion.hook_passage_angle_deg is not None:
             ax.axvline(motion.hook_passage_angle_deg, color="tab:red", ls="--", lw=1.2)

@@ -27,7 +27,7 @@ def demo_probes(out: Path, machine) -> list[Path]:
     specs = _inspect(machine).get("probes", [])
     if not specs:
         return []
-    probes = [Probe(*spec.rsplit(":", 1)) for spec in specs]
+    probes = [Probe(name, quantity) for name, _, quantity in (spec.rpartition(":") for spec in specs)]
     speed = _inspect(machine).get("probe_speed_rpm", DEFAULT_PROBE_SPEED_RPM)
     result = run_probes(probes, machine.model_path, speed_rpm=speed, driver=machine.shaft_joint)
     csv, png = out / "probes.csv", out / "probes.png"

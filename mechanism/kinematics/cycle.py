@@ -61,7 +61,7 @@ def kinematic_cycle(
     model: mujoco.MjModel,
     angles: np.ndarray,
     speed_rad_s: float,
-    driver: str | None = None,
+    driver: str,
     data: mujoco.MjData | None = None,
 ) -> CycleStates:
     """Poses, velocities and accelerations with ``driver`` turning at a constant speed.
@@ -103,7 +103,7 @@ def set_state(
     qpos: np.ndarray,
     qvel: np.ndarray,
     qacc: np.ndarray,
-    driver: str | None = None,
+    driver: str,
 ) -> float:
     """Put a cycle state into ``data`` with rigid inverse-dynamics loads, evaluate all
     sensors, and return the driver torque [N·m] (or force [N] for a slide) that holds it.

@@ -58,6 +58,7 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     travel = None
     if zero:
         tables = compute_tables(model, shaft, zero, n=72)
+        assert tables.tool_z_m is not None
         travel = float(np.ptp(tables.tool_z_m)) * 1e3
     plate = _plate_guess(model, zero)
     ratio = guess.ratios.get(motor, 1.0)

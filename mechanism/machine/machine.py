@@ -22,7 +22,7 @@ import functools
 import math
 import os
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -142,7 +142,7 @@ def fabric_from_description(tool: dict, layers: int) -> FabricLoad:
     return FabricLoad(layers=layers, **{k: tool[k] for k in keys if k in tool})
 
 
-def _require(kind: str, name: str, names: list[str], description: MachineDescription, section: str, key: str) -> None:
+def _require(kind: str, name: str, names: list[str], description: MachineDescription, section: str, key: str | None) -> None:
     if name not in names:
         raise UserError(f"machine description {description.where(section, key)}: the model has no {kind} {name!r}; "
                         f"close matches: {close_matches(name, names)}")
@@ -245,6 +245,7 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription) -> 
         raise UserError(f"machine description {description.where('drive', 'motor_joint')}: the motor joint {motor!r} "
                         f"does not move when the shaft {shaft!r} turns (no coupling between them)")
     height = coarse.tool_z_m
+    assert height is not None  # compute_tables was given the zero site
     if np.ptp(height) <= 1e-9 * max(float(model.stat.extent), 1e-3):
         raise UserError(f"machine description {description.where('drive', 'zero_site')}: the site {description.zero_site!r} "
                         f"does not rise and fall as the shaft turns, so the shaft has no zero")
@@ -327,6 +328,7 @@ class Machine:
             self.reset(0.0)
             self.plate_top_z = plate_top(self.model, self.data, self.plate_part)
         if self.fabric.layers:
+            assert self.tool_site and self.plate_top_z is not None  # checked before compiling
             self.fabric.bind(self.model, self.tool_site, self.plate_top_z)
 
     # -- roles, all from the description --

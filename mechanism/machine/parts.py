@@ -133,4 +133,4 @@ def loop_equalities(model: mujoco.MjModel, joint: str) -> list[int]:
 
 def loop_joint_names(model: mujoco.MjModel) -> list[str]:
     names = _names(model, mujoco.mjtObj.mjOBJ_EQUALITY, model.neq)
-    return sorted({_loop_joint_of(name) for name in names if name.startswith("loop:")})
+    return sorted({joint for name in names if (joint := _loop_joint_of(name))})
