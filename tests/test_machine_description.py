@@ -191,3 +191,13 @@ def test_bad_descriptions_are_one_error_line_and_nothing_written(case, cli, tmp_
     if expected:
         assert expected in line
     assert not out.exists()
+
+
+def test_docs_list_every_key_of_the_schema():
+    from pathlib import Path
+
+    from mechanism.machine.description import schema_markdown
+
+    docs = (Path(__file__).resolve().parent.parent / "docs" / "machine.md").read_text()
+    marker = "tests/test_machine_description.py keeps it current -->\n\n"
+    assert docs.split(marker, 1)[1] == schema_markdown(), "regenerate the key tables of docs/machine.md from schema_markdown()"

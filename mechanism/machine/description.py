@@ -300,3 +300,33 @@ def _with_path(description: MachineDescription, path: Path) -> MachineDescriptio
     from dataclasses import replace
 
     return replace(description, path=path)
+
+
+def _kind_name(key: Key) -> str:
+    if key.choices:
+        return " \\| ".join(f'`"{c}"`' for c in key.choices)
+    if key.kind is list:
+        return f"list of {'numbers' if key.item is float else 'text'}"
+    return {float: "number", int: "whole number", str: "text"}.get(key.kind, str(key.kind))  # type: ignore[call-overload]
+
+
+def _range(key: Key) -> str:
+    if key.low is None and key.high is None:
+        return ""
+    low = "" if key.low is None else f"{'>' if key.open_low else '>='} {key.low:g}"
+    high = "" if key.high is None else f"<= {key.high:g}"
+    return ", ".join(part for part in (low, high) if part)
+
+
+def schema_markdown() -> str:
+    """Every key of the description as Markdown tables (docs/machine.md is this, checked by a test)."""
+    lines = []
+    tables = {**SCHEMA, 'friction."JOINT"': FRICTION_KEYS, 'warm_friction."JOINT"': FRICTION_KEYS}
+    for section, keys in tables.items():
+        lines += [f"### `[{section}]`", "", "| key | type | range | required | meaning |", "| --- | --- | --- | --- | --- |"]
+        lines += [f"| `{name}` | {_kind_name(key)} | {_range(key)} | {'yes' if key.required else ''} | {key.doc} |"
+                  for name, key in keys.items()]
+        lines.append("")
+    lines += [f"### `[{PRESET_TABLE}]`", "", "`name = \"target\"` pairs: design-variant parameters in the "
+              "`mechanism-variants/1` target syntax (docs/inspection.md) that variant files may name.", ""]
+    return "\n".join(lines)
