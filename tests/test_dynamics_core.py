@@ -128,3 +128,24 @@ def test_break_away_follows_the_static_position_amplitude(rest_angle):
     moving = simulate(1.02 * breakaway_V, 1.5, machine=machine, start_angle_rad=rest_angle)
     assert abs(stuck.arm_angle_rad[-1] - rest_angle) < 2e-3
     assert moving.arm_angle_rad[-1] - rest_angle > 0.5
+
+
+@pytest.mark.parametrize("kernel", ["machine", "reduced"])
+def test_each_compiled_kernel_has_the_python_stribeck_law_point_by_point(kernel):
+    """One law, written in Python (FrictionLaw.stribeck_shape) and in C: the same numbers."""
+    import ctypes
+
+    from mechanism import native
+    from mechanism.physics.friction import STRIBECK_LAWS
+
+    library = native.load(kernel)
+    if library is None:
+        pytest.skip("no C compiler: the Python twin runs instead")
+    shape = library.mechanism_stribeck_shape
+    shape.restype = ctypes.c_double
+    shape.argtypes = [ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_double]
+    for law in ("tustin", "hess-soom", "none"):
+        for vs, delta in ((0.5, 1.0), (2.0, 0.6), (7.0, 2.0)):
+            python = FrictionLaw(coulomb=0.1, static=0.2, stribeck=law, stribeck_velocity=vs, tustin_exponent=delta)
+            for v in np.linspace(-30.0, 30.0, 61):
+                assert shape(STRIBECK_LAWS[law], v, vs, delta) == pytest.approx(float(python.stribeck_shape(v)), abs=1e-15)

@@ -201,3 +201,28 @@ def test_docs_list_every_key_of_the_schema():
     docs = (Path(__file__).resolve().parent.parent / "docs" / "machine.md").read_text()
     marker = "tests/test_machine_description.py keeps it current -->\n\n"
     assert docs.split(marker, 1)[1] == schema_markdown(), "regenerate the key tables of docs/machine.md from schema_markdown()"
+
+
+def test_supply_limit_python_twin_matches_the_compiled_callback():
+    import mujoco
+
+    from mechanism.machine import machine as machine_module
+    from mechanism.physics.motor import python_supply_limit
+
+    limited = mechanism.load_machine(_with_supply(TOY_MACHINE, 10.0, 0.8))
+    reference = mechanism.simulate(limited, voltage_V=12.0, duration_s=0.4)  # commanded above the supply: limited
+    model, data = limited.model, limited.reset(0.0)
+    mujoco.set_mjcb_passive(lambda m, d: (machine_module.python_friction(m, d), python_supply_limit(m, d)))
+    try:
+        velocities = []
+        for step in range(int(0.4 / model.opt.timestep)):
+            data.ctrl[limited.actuator] = 12.0
+            mujoco.mj_step(model, data)
+            if (step + 1) % 2 == 0:
+                velocities.append(data.qvel[limited.shaft_dof])
+    finally:
+        machine_module._CALLBACK_INSTALLED = False
+        machine_module.install_callbacks()
+    np.testing.assert_allclose(velocities, reference.arm_velocity_rad_s, atol=1e-6)
+    unlimited = mechanism.simulate(mechanism.load_machine(TOY_MACHINE), voltage_V=12.0, duration_s=0.4)
+    assert reference.arm_velocity_rad_s[-1] < 0.95 * unlimited.arm_velocity_rad_s[-1]  # the limit acted

@@ -31,7 +31,7 @@ static int find_numeric(const mjModel* m, const char* name) {
 static mjtNum smooth_sign(mjtNum v, mjtNum eps) { return v / sqrt(v * v + eps * eps); }
 
 // Must match friction.py: the Stribeck shape S(v) in [0, 1], 1 at rest.
-static mjtNum stribeck_shape(int law, mjtNum v, mjtNum vs, mjtNum delta) {
+mjtNum mechanism_stribeck_shape(int law, mjtNum v, mjtNum vs, mjtNum delta) {
   if (law == 0 || vs <= 0) return 0;
   mjtNum x = fabs(v) / vs;
   if (law == 1) return exp(-pow(x, delta));  // Tustin
@@ -59,7 +59,7 @@ static void apply_friction(const mjModel* m, mjData* d, const mjtNum* p, int n) 
       }
     }
     mjtNum v = d->qvel[dof];
-    mjtNum kinetic = (coulomb + (stat - coulomb) * stribeck_shape(law, v, vs, delta)) * scale;
+    mjtNum kinetic = (coulomb + (stat - coulomb) * mechanism_stribeck_shape(law, v, vs, delta)) * scale;
     d->qfrc_passive[dof] += (level - kinetic) * smooth_sign(v, eps);
   }
 }

@@ -36,7 +36,7 @@ static double at(const double* a, Cell c) { return a[c.i0] * (1 - c.f) + a[c.i1]
 
 static double sgn(double x) { return (x > 0) - (x < 0); }
 
-static double stribeck_shape(int law, double v, double vs, double delta) {
+double mechanism_stribeck_shape(int law, double v, double vs, double delta) {
   if (law == 0 || vs <= 0) return 0;
   double x = fabs(v) / vs;
   if (law == 1) return exp(-pow(x, delta));
@@ -71,7 +71,7 @@ static double force(const Tables* t, double theta, double omega, double volts) {
     const double* p = t->friction_params + 5 * k;
     double r = at(t->friction_ratio + k * t->n, c), s = at(t->friction_scale + k * t->n, c);
     double v = r * omega;
-    double level = (p[0] + (p[1] - p[0]) * stribeck_shape((int)p[3], v, p[2], p[4])) * s;
+    double level = (p[0] + (p[1] - p[0]) * mechanism_stribeck_shape((int)p[3], v, p[2], p[4])) * s;
     f -= r * level * sgn(v);
   }
   if (t->fabric_down > 0) {
