@@ -1,4 +1,4 @@
-"""Batch clearance checks of design variants: throughput, parallel speed-up, cost per variant.
+"""Batch clearance checks (the shaft of both models is `arm_shaft`) of design variants: throughput, parallel speed-up, cost per variant.
 
 A batch of Monte Carlo variants (hook timing, needle height, crank radius tolerances) of
 the needle-vs-hook clearance over one arm revolution at 0.5 deg:
@@ -41,9 +41,9 @@ def _model():
 
 
 def _sewing_timing(model) -> str:
-    from mechanism.inspection.variants import PRESETS
+    import mechanism
 
-    return PRESETS["hook_timing_deg"]
+    return mechanism.read_description(mechanism.load_machine().description.path).variant_presets["hook_timing_deg"]
 
 
 def _variants(count: int, timing_target: str, scratch: Path):
@@ -77,7 +77,7 @@ def _timed(model, variants, pairs, workers):
     from mechanism.inspection.variants import run_variants
 
     before = os.times()
-    batch = run_variants(model, variants, pairs, workers=workers, progress=False)
+    batch = run_variants(model, variants, pairs, driver="arm_shaft", workers=workers, progress=False)
     after = os.times()
     cpu = sum(getattr(after, f) - getattr(before, f) for f in ("user", "system", "children_user", "children_system"))
     return batch, cpu
@@ -119,12 +119,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as scratch:
         variants = _variants(count, timing, Path(scratch))
         subset = _subset(variants, min(len(variants), 60))
-        run_variants(model, _subset(variants, 4), pairs, workers=1, progress=False)  # warm-up: imports, first calls
+        run_variants(model, _subset(variants, 4), pairs, driver="arm_shaft", workers=1, progress=False)  # warm-up: imports, first calls
         (one, cpu_one), (two, cpu_two) = (_timed(model, subset, pairs, workers) for workers in (1, 2))
         print(f"{len(subset)} variants: 1 worker {one.seconds:.2f} s, 2 workers {two.seconds:.2f} s, "
               f"speed-up {one.seconds / two.seconds:.2f}x (target >= 1.7x on 2 idle cores); CPU time "
               f"{cpu_one:.2f} s vs {cpu_two:.2f} s (equal CPU = no parallel overhead: a lower speed-up means busy cores)")
-        batch = run_variants(model, variants, pairs, workers=2, progress=True)
+        batch = run_variants(model, variants, pairs, driver="arm_shaft", workers=2, progress=True)
         print(f"{len(variants)} variants with 2 workers: {batch.seconds:.1f} s, {len(variants) / batch.seconds:.1f} variants/s, "
               f"{batch.failed} fail (interfere)")
     revolution, steps = _revolution_seconds(copy.deepcopy(model))

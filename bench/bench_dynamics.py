@@ -37,7 +37,7 @@ def best_of(fn, repeats=5):
 
 def raw_step_seconds(model_path, arm_speed, nstep):
     model = load_model(model_path)
-    model.opt.timestep = Machine(model_path).model.opt.timestep
+    model.opt.timestep = Machine().model.opt.timestep
     data = mujoco.MjData(model)
     solve_pose(model, data, {"arm_shaft": 0.3})
     data.qvel[:] = arm_speed * velocity_ratios(model, data, "arm_shaft")
@@ -49,7 +49,7 @@ def raw_step_seconds(model_path, arm_speed, nstep):
 
 
 def main() -> None:
-    machine = Machine(DEFAULT_MODEL)
+    machine = Machine()
     dt = machine.model.opt.timestep
     nstep = int(SIM_SECONDS / dt)
     run = simulate(12.0, SIM_SECONDS, machine=machine)
