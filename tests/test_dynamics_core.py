@@ -17,7 +17,7 @@ from mechanism.errors import UserError
 from mechanism.machine.machine import Machine, MachineConfig, duty_map_from
 from mechanism.dynamics.simulation import simulate
 from support.machines import shipped_description
-from support.machines import thesis_motor
+from support.machines import thesis_motor, velocities_with_passive
 
 
 PWM = duty_map_from(shipped_description())
@@ -80,19 +80,7 @@ def test_python_fallback_matches_the_compiled_callback():
     compiled = Machine(TOY_MACHINE, MachineConfig(friction=laws))
     reference = simulate(VoltageProfile(np.array([0.0, 0.3]), np.array([3.0, 6.0])), 0.6, machine=compiled)
     # Same model, friction stepped in Python instead of C.
-    model, data = compiled.model, compiled.reset(0.0)
-    ctrl = compiled.actuator
-    mujoco.set_mjcb_passive(python_friction)
-    try:
-        velocities = []
-        for step in range(int(0.6 / model.opt.timestep)):
-            data.ctrl[ctrl] = 3.0 if step * model.opt.timestep < 0.3 else 6.0
-            mujoco.mj_step(model, data)
-            if (step + 1) % 2 == 0:
-                velocities.append(data.qvel[compiled.arm_dof])
-    finally:
-        machine_module._CALLBACK_INSTALLED = False
-        machine_module.install_callbacks()
+    velocities = velocities_with_passive(compiled, python_friction, lambda t: 3.0 if t < 0.3 else 6.0, 0.6)
     np.testing.assert_allclose(velocities, reference.arm_velocity_rad_s, atol=1e-6)
 
 

@@ -10,7 +10,7 @@ import mechanism
 from mechanism.data.reference import thesis
 from mechanism.machine.description import read_description
 from mechanism.machine.models import DEFAULT_DESCRIPTION, DEFAULT_MODEL
-from support.machines import TOY_MACHINE
+from support.machines import TOY_MACHINE, velocities_with_passive
 
 CONTRACT = """\
 [machine]
@@ -204,25 +204,13 @@ def test_docs_list_every_key_of_the_schema():
 
 
 def test_supply_limit_python_twin_matches_the_compiled_callback():
-    import mujoco
-
     from mechanism.machine import machine as machine_module
     from mechanism.physics.motor import python_supply_limit
 
     limited = mechanism.load_machine(_with_supply(TOY_MACHINE, 10.0, 0.8))
     reference = mechanism.simulate(limited, voltage_V=12.0, duration_s=0.4)  # commanded above the supply: limited
-    model, data = limited.model, limited.reset(0.0)
-    mujoco.set_mjcb_passive(lambda m, d: (machine_module.python_friction(m, d), python_supply_limit(m, d)))
-    try:
-        velocities = []
-        for step in range(int(0.4 / model.opt.timestep)):
-            data.ctrl[limited.actuator] = 12.0
-            mujoco.mj_step(model, data)
-            if (step + 1) % 2 == 0:
-                velocities.append(data.qvel[limited.shaft_dof])
-    finally:
-        machine_module._CALLBACK_INSTALLED = False
-        machine_module.install_callbacks()
+    velocities = velocities_with_passive(
+        limited, lambda m, d: (machine_module.python_friction(m, d), python_supply_limit(m, d)), lambda t: 12.0, 0.4)
     np.testing.assert_allclose(velocities, reference.arm_velocity_rad_s, atol=1e-6)
     unlimited = mechanism.simulate(mechanism.load_machine(TOY_MACHINE), voltage_V=12.0, duration_s=0.4)
     assert reference.arm_velocity_rad_s[-1] < 0.95 * unlimited.arm_velocity_rad_s[-1]  # the limit acted
