@@ -10,7 +10,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from mechanism.machine import machine as machine_module
 from mechanism.physics.friction import FrictionLaw, python_friction
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.errors import UserError
