@@ -1,6 +1,7 @@
 """The batch runner (mechanism.batch): local processes and a real Ray cluster started with
 `ray start`; payload once per worker, ordered and complete results, workers that die."""
 
+import json
 import os
 import shutil
 import socket
@@ -84,6 +85,24 @@ def test_bad_options_and_missing_ray(monkeypatch, capsys):
     assert capsys.readouterr().err == ""  # no bar was started
 
 
+def test_ray_missing_on_the_command_line_is_one_error_line(cli, tmp_path):
+    """A `ray` package that cannot be imported (first on the path) stands for Ray not installed."""
+    (tmp_path / "ray").mkdir()
+    (tmp_path / "ray" / "__init__.py").write_text("raise ImportError('no ray here')\n")
+    variants = tmp_path / "v.csv"
+    variants.write_text("coupling:hook_drive:hook_deg\n1\n")
+    model = tmp_path / "m.xml"
+    import mechanisms as M
+
+    model.write_text(M.needle_and_plate().to_xml())
+    path = os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")])
+    result = cli("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants,
+                 "--backend", "ray", "--csv", tmp_path / "out.csv", env={"PYTHONPATH": path})
+    assert "the ray backend needs Ray: pip install 'mechanism[ray]'" in result.assert_bad_input()
+    assert result.stderr.startswith("error:")  # no progress-bar fragment before it
+    assert not (tmp_path / "out.csv").exists()
+
+
 # -- Ray: a real cluster on 127.0.0.1 ---------------------------------------------------------
 
 def _free_port() -> int:
@@ -127,8 +146,6 @@ def ray_cluster():
 def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_path):
     """The CLI connects to the cluster by address (no num_cpus: Ray would refuse) and the
     rows equal the local run's."""
-    import json
-
     import mechanisms as M
 
     model = tmp_path / "m.xml"
@@ -154,3 +171,20 @@ def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path):
     assert results == [i * i for i in items]  # nothing lost, in item order
     assert sorted(seen) == items
     assert not ray.is_initialized()  # disconnected from the cluster it did not start
+
+
+def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster, tmp_path):
+    """The options travel once, each recording's path per job; a bad recording is reported."""
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.fleet import diagnose_fleet
+    from mechanism.sysid.recording import read_recording
+
+    recording = ROOT / "assets" / "recordings" / "torque_ripple_seed3.csv"
+    broken = tmp_path / "broken.csv"
+    broken.write_text("time,voltage,arm_angle\n0,1,0\n")
+    result = diagnose_fleet([recording, broken], tmp_path / "out", backend="ray", ray_address=ray_cluster, progress=False,
+                            candidates=["torque_ripple"])
+    assert [row["status"] for row in result.rows] == ["ok", "error"] and result.rows[1]["error"]
+    here = diagnose(read_recording(recording), candidates=["torque_ripple"]).to_json()
+    assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
+    assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it
