@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import difflib
 import os
 import shutil
 import tempfile
@@ -59,12 +60,15 @@ class ConversionReport:
         return lines + [f"warning: {warning}" for warning in self.warnings]
 
 
-def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z") -> ConversionReport:
+def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z",
+            drivers: tuple[str, ...] = ()) -> ConversionReport:
     """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).
 
     ``name`` defaults to the export's file stem. ``up`` is the export's world axis that points up
     (``x``, ``y``, ``z``, ``-x``, ...): gravity acts against it; the export's frame is kept, since
-    exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). The MJCF refers to the meshes by a path
+    exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). ``drivers``
+    names joints a user turns (export or sanitised names): they stay joints of the kinematic tree
+    and loops close elsewhere; a name the export lacks is an error. The MJCF refers to the meshes by a path
     relative to ``outdir``. Nothing is written unless the whole conversion succeeds; other
     files already in ``outdir`` and ``mesh_dir`` are left alone.
     """
@@ -79,7 +83,12 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
     assembly = read(export_path)
     meshes = load_meshes(assembly)
     inertia.repair_parts(assembly, meshes)
-    plan = tree.plan(assembly)
+    joint_names = {j.name for j in assembly.joints} | {sanitize(j.name) for j in assembly.joints}
+    for driver in drivers:
+        if driver not in joint_names:
+            raise ExportError(f"export {export_path.name}: no joint {driver!r} to keep as a driver; close matches: "
+                              f"{', '.join(difflib.get_close_matches(driver, sorted(joint_names), 3)) or 'none'}")
+    plan = tree.plan(assembly, set(drivers))
     meshdir = os.path.relpath(mesh_dir.resolve(), outdir.resolve()).replace(os.sep, "/")
     built = mjcf.build(assembly, plan, meshes, model_name=model_name, meshdir=meshdir, gravity=gravity)
     used = {m.name: m for m in meshes.values() if m is not None}
