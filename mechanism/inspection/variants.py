@@ -33,6 +33,7 @@ A **variants file** (JSON, or CSV with one column per parameter) lists the varia
 from __future__ import annotations
 
 import itertools
+import math
 import json
 import os
 import re
@@ -336,6 +337,9 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None) -> V
                 param(key, where)
                 values[key] = _number(value, f"{where}.{key}")
         rows.append((name, values))
+    count = len(rows) + math.prod(len(v) for _, v in grid_axes) * max(len(draws), 1) if grid_axes else len(rows) + len(draws)
+    if count > MAX_VARIANTS:  # checked from the request, before the grid is built
+        raise UserError(f"{label}: {count} variants, at most {MAX_VARIANTS} allowed")
     grid = [dict(zip([n for n, _ in grid_axes], combo)) for combo in itertools.product(*[v for _, v in grid_axes])] if grid_axes else []
     if grid and draws:
         combined = [({**g, **{k: g.get(k, 0.0) + v for k, v in d.items()}}) for g in grid for d in draws]
