@@ -207,12 +207,13 @@ class Transaction:
 
 
 @contextlib.contextmanager
-def transaction():
+def transaction(independent: bool = False):
     """All ``atomic_*`` outputs inside are published together at the end, or none on failure.
 
-    Nested transactions join the outermost one."""
+    A nested transaction joins the outer one, unless ``independent``: then it publishes at
+    its own end (for files the run reads back at once, such as a conversion into a cache)."""
     current = _active.get()
-    if current is not None:
+    if current is not None and not independent:
         yield current
         return
     current = Transaction()
@@ -228,65 +229,62 @@ def transaction():
         _active.reset(token)
 
 
-def _prepare(path: Path) -> Path:
-    """Parent folder created (and remembered for removal on failure), leftovers cleaned."""
+def _prepare(path, current: Transaction) -> Path:
+    """Parent folder created (and removed again if the transaction fails), leftovers cleaned."""
     path = Path(path)
-    created = _make_parents(path.parent)
-    current = _active.get()
-    if current is not None:
-        current.created.extend(created)
+    current.created.extend(_make_parents(path.parent))
     clean_leftovers(path)
     return path
 
 
 @contextlib.contextmanager
-def _staged(path: Path, temporary: Path, folder: bool):
-    """Yield; then publish ``temporary`` as ``path`` (now, or with the transaction)."""
+def _staged(current: Transaction, path: Path, temporary: Path, folder: bool):
+    """Yield; then stage ``temporary`` to become ``path`` when the transaction publishes."""
     try:
         yield
     except BaseException:
         _remove(temporary)
         raise
-    current = _active.get()
-    if current is not None:
-        current.stage(temporary, path, folder)
-        return
-    single = Transaction()
-    single.stage(temporary, path, folder)
-    single.publish()
+    current.stage(temporary, path, folder)
+
+
+def _expect_file(path: Path) -> None:
+    if path.is_dir():
+        raise UserError(f"output {path}: is a folder, expected a file")
 
 
 @contextlib.contextmanager
 def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
-    """Open a temporary file next to ``path``; on success it replaces ``path``."""
-    path = _prepare(path)
-    if path.is_dir():
-        raise UserError(f"output {path}: is a folder, expected a file")
-    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
-    os.chmod(tmp, _umask_mode())
-    if "b" not in mode:
-        open_kwargs.setdefault("encoding", "utf-8")
-        open_kwargs.setdefault("newline", "")
-    with _staged(path, tmp, folder=False):
-        with open(tmp, mode, **open_kwargs) as handle:
-            yield handle
+    """Open a temporary file next to ``path``; on success it replaces ``path`` (at the end of
+    the surrounding transaction, if any)."""
+    with transaction() as current:
+        path = _prepare(path, current)
+        _expect_file(path)
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        tmp = Path(tmp)
+        os.chmod(tmp, _umask_mode())
+        if "b" not in mode:
+            open_kwargs.setdefault("encoding", "utf-8")
+            open_kwargs.setdefault("newline", "")
+        with _staged(current, path, tmp, folder=False):
+            with open(tmp, mode, **open_kwargs) as handle:
+                yield handle
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path next to ``path`` for writers that want a file name
     (matplotlib, trimesh); on success it replaces ``path``."""
-    path = _prepare(path)
-    if path.is_dir():
-        raise UserError(f"output {path}: is a folder, expected a file")
-    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=f".tmp{path.suffix}", dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
-    os.chmod(tmp, _umask_mode())
-    with _staged(path, tmp, folder=False):
-        yield tmp
+    with transaction() as current:
+        path = _prepare(path, current)
+        _expect_file(path)
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=f".tmp{path.suffix}", dir=path.parent)
+        os.close(fd)
+        tmp = Path(tmp)
+        os.chmod(tmp, _umask_mode())
+        with _staged(current, path, tmp, folder=False):
+            yield tmp
 
 
 @contextlib.contextmanager
@@ -297,16 +295,17 @@ def atomic_dir(path: str | os.PathLike, keep: bool = False):
     so it costs no space): files the run does not write are kept. An existing ``path`` is
     replaced only after the new content is complete; a file at ``path`` is an error.
     """
-    path = _prepare(path)
-    if os.path.lexists(path) and not path.is_dir():
-        raise UserError(f"output {path}: exists and is not a folder")
-    tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
-    with _staged(path, tmp, folder=True):
-        if keep and path.is_dir():
-            _clone(path, tmp)
-        else:
-            os.chmod(tmp, _umask_mode(0o777))
-        yield tmp
+    with transaction() as current:
+        path = _prepare(path, current)
+        if os.path.lexists(path) and not path.is_dir():
+            raise UserError(f"output {path}: exists and is not a folder")
+        tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
+        with _staged(current, path, tmp, folder=True):
+            if keep and path.is_dir():
+                _clone(path, tmp)
+            else:
+                os.chmod(tmp, _umask_mode(0o777))
+            yield tmp
 
 
 def _clone(source: Path, target: Path) -> None:
@@ -403,17 +402,21 @@ def publish_files(pairs, folder: str | os.PathLike | None = None, inputs=()) -> 
 
     When every destination lies in ``folder``, ``folder`` is swapped in whole (its other files
     kept): a kill leaves the old or the new folder. A destination that is one of ``inputs``
-    is refused before anything is written."""
+    is refused before anything is written. Published at once, also inside a run's transaction."""
     pairs = [(Path(src), Path(dst)) for src, dst in pairs]
     protected = {Path(p).resolve() for p in inputs if p is not None}
     for _, destination in pairs:
         if destination.resolve() in protected:
             raise UserError(f"output {destination}: would overwrite an input of this run; choose another folder or name")
-    folder = Path(folder) if folder is not None else None
+    with transaction(independent=True):  # the caller reads these files back at once
+        _publish_files(pairs, Path(folder) if folder is not None else None)
+
+
+def _publish_files(pairs, folder: Path | None) -> None:
     here = Path.cwd().resolve()
     if (folder is not None and not _same_or_inside(here, folder.resolve())
             and all(_same_or_inside(dst.resolve(), folder.resolve()) for _, dst in pairs)):
-        with transaction(), atomic_dir(folder, keep=True) as new:
+        with atomic_dir(folder, keep=True) as new:
             for source, destination in pairs:
                 target = new / destination.resolve().relative_to(folder.resolve())
                 target.parent.mkdir(parents=True, exist_ok=True)
@@ -422,10 +425,9 @@ def publish_files(pairs, folder: str | os.PathLike | None = None, inputs=()) -> 
                 shutil.copyfile(source, target)
                 os.chmod(target, _umask_mode())
         return
-    with transaction():
-        for source, destination in pairs:
-            with atomic_path(destination) as tmp:
-                shutil.copyfile(source, tmp)
+    for source, destination in pairs:
+        with atomic_path(destination) as tmp:
+            shutil.copyfile(source, tmp)
 
 
 def ensure_parent(path: str | os.PathLike) -> Path:

@@ -257,12 +257,11 @@ def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None
     """
     path = Path(path)
     label = f"variants file {path}"
-    if not path.is_file():
-        raise UserError(f"{label}: no such file")
-    if path.stat().st_size > 64 * 2**20:
-        raise UserError(f"{label}: larger than 64 MiB")
+    from mechanism.files.limits import read_bounded
+
+    data = read_bounded(path, "variants file", 64 * 2**20)  # by bytes read: a pipe claims size 0
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise UserError(f"{label}: not UTF-8 text") from None
     if path.suffix.lower() == ".json" or text.lstrip().startswith("{"):
