@@ -54,9 +54,9 @@ class DCMotor:
         # NaN passes every comparison: check finite ranges, each number by name
         from mechanism.files.limits import check_number
 
-        check_number(self.resistance_ohm, "motor resistance_ohm", 0, 1e3, "ohm", low_open=True)
-        check_number(self.torque_constant_Nm_A, "motor torque_constant_Nm_per_A", 0, 100, "N m/A", low_open=True)
-        check_number(self.back_emf_V_s_rad, "motor back_emf_V_s_per_rad", 0, 100, "V s/rad", low_open=True)
+        check_number(self.resistance_ohm, "motor resistance_ohm", 1e-6, 1e3, "ohm")
+        check_number(self.torque_constant_Nm_A, "motor torque_constant_Nm_per_A", 1e-6, 100, "N m/A")
+        check_number(self.back_emf_V_s_rad, "motor back_emf_V_s_per_rad", 1e-6, 100, "V s/rad")
         check_number(self.inductance_H, "motor inductance_H", 0, 1, "H")
         check_number(self.cogging_Nm, "motor cogging_Nm", 0, 10, "N m")
         check_number(self.cogging_phase_rad, "motor cogging_phase_rad", -1e3, 1e3, "rad")
