@@ -186,3 +186,13 @@ def test_a_kill_at_any_instant_of_publishing_leaves_the_old_or_the_new_output(tm
             assert folder == new and (target / "file.txt").read_text() == "new file"
             break
     assert (False, True) in seen and (True, True) in seen, "kills before and after the folder swap were both tried"
+
+
+def test_files_written_inside_a_folder_being_built_can_be_read_back_at_once(tmp_path):
+    with transaction():
+        with atomic_dir(tmp_path / "out") as work:
+            with atomic_file(work / "recording.csv") as handle:
+                handle.write("time_s\n0\n")
+            assert (work / "recording.csv").read_text() == "time_s\n0\n"
+        assert not (tmp_path / "out").exists()
+    assert tree(tmp_path / "out") == {"recording.csv": "time_s\n0\n"}

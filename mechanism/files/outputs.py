@@ -158,6 +158,7 @@ class Transaction:
 
     staged: list[tuple[Path, Path, bool]] = field(default_factory=list)
     created: list[Path] = field(default_factory=list)
+    building: list[Path] = field(default_factory=list)  # folders being filled (atomic_dir's block)
 
     def stage(self, temporary: Path, destination: Path, folder: bool) -> None:
         for i, (old_tmp, old_dst, _) in enumerate(self.staged):
@@ -229,6 +230,18 @@ def transaction(independent: bool = False):
         _active.reset(token)
 
 
+def _in_staged_folder(path) -> bool:
+    """True for a path inside a folder the running transaction has yet to publish: writing
+    there is already invisible until then, and the run may read it back at once (the demo
+    diagnoses the recording it just wrote into its output folder)."""
+    current = _active.get()
+    if current is None:
+        return False
+    path = Path(path).absolute()
+    return any(folder and temporary.absolute() in path.parents for temporary, _, folder in current.staged) or any(
+        building.absolute() in path.parents for building in current.building)
+
+
 def _prepare(path, current: Transaction) -> Path:
     """Parent folder created (and removed again if the transaction fails), leftovers cleaned."""
     path = Path(path)
@@ -257,7 +270,7 @@ def _expect_file(path: Path) -> None:
 def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
     """Open a temporary file next to ``path``; on success it replaces ``path`` (at the end of
     the surrounding transaction, if any)."""
-    with transaction() as current:
+    with transaction(independent=_in_staged_folder(path)) as current:
         path = _prepare(path, current)
         _expect_file(path)
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent)
@@ -276,7 +289,7 @@ def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path next to ``path`` for writers that want a file name
     (matplotlib, trimesh); on success it replaces ``path``."""
-    with transaction() as current:
+    with transaction(independent=_in_staged_folder(path)) as current:
         path = _prepare(path, current)
         _expect_file(path)
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=f".tmp{path.suffix}", dir=path.parent)
@@ -295,7 +308,7 @@ def atomic_dir(path: str | os.PathLike, keep: bool = False):
     so it costs no space): files the run does not write are kept. An existing ``path`` is
     replaced only after the new content is complete; a file at ``path`` is an error.
     """
-    with transaction() as current:
+    with transaction(independent=_in_staged_folder(path)) as current:
         path = _prepare(path, current)
         if os.path.lexists(path) and not path.is_dir():
             raise UserError(f"output {path}: exists and is not a folder")
@@ -305,7 +318,11 @@ def atomic_dir(path: str | os.PathLike, keep: bool = False):
                 _clone(path, tmp)
             else:
                 os.chmod(tmp, _umask_mode(0o777))
-            yield tmp
+            current.building.append(tmp)
+            try:
+                yield tmp
+            finally:
+                current.building.remove(tmp)
 
 
 def _clone(source: Path, target: Path) -> None:
