@@ -174,23 +174,14 @@ def test_an_unwritable_json_path_leaves_no_csv(cli, tmp_path):
 # -- 5. a killed run leaves the old or the new output, whole -----------------------------------------
 
 KILL_CLI = textwrap.dedent("""
-    import os, signal, sys
-    from mechanism.files import outputs
+    import sys
+    from support.killing import kill_before_rename
     from mechanism.cli import main
 
-    kill_at, calls = int(sys.argv[1]), [0]
-
-    def counted(function):
-        def wrapper(*args, **kwargs):
-            if calls[0] == kill_at:
-                os.kill(os.getpid(), signal.SIGKILL)
-            calls[0] += 1
-            return function(*args, **kwargs)
-        return wrapper
-
-    os.replace, os.rename, outputs._exchange = counted(os.replace), counted(os.rename), counted(outputs._exchange)
+    kill_before_rename(int(sys.argv[1]))
     sys.exit(main(sys.argv[2:]))
 """)
+SUBPROCESS_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")])}
 
 
 def kill_during_publish(args, folder: Path, old, new, cleanup):
@@ -199,7 +190,7 @@ def kill_during_publish(args, folder: Path, old, new, cleanup):
     outcomes = set()
     for kill_at in range(10):
         run = subprocess.run([sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)], capture_output=True,
-                             text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")])})
+                             text=True, env=SUBPROCESS_ENV)
         for path in cleanup:
             from mechanism.files.outputs import clean_leftovers
 
@@ -251,7 +242,7 @@ def test_clearance_killed_while_publishing_leaves_each_output_old_or_new(cli, tm
     outcomes = set()
     for kill_at in range(6):
         run = subprocess.run([sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)], capture_output=True,
-                             text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+                             text=True, env=SUBPROCESS_ENV)
         from mechanism.files.outputs import clean_leftovers
 
         for name in old:

@@ -129,23 +129,12 @@ def test_a_link_to_an_input_is_the_input(tmp_path):
 # -- killed while publishing ---------------------------------------------------------------------
 
 KILLER = textwrap.dedent("""
-    import os, signal, sys
+    import sys
     from pathlib import Path
     from mechanism.files import outputs
+    from support.killing import kill_before_rename
 
-    kill_at, exchange = int(sys.argv[1]), sys.argv[2] == "exchange"
-    calls = [0]
-
-    def counted(function):
-        def wrapper(*args, **kwargs):
-            if calls[0] == kill_at:
-                os.kill(os.getpid(), signal.SIGKILL)
-            calls[0] += 1
-            return function(*args, **kwargs)
-        return wrapper
-
-    os.rename, os.replace = counted(os.rename), counted(os.replace)
-    outputs._exchange = counted(outputs._exchange) if exchange else (lambda a, b: False)
+    kill_before_rename(int(sys.argv[1]), exchange=sys.argv[2] == "exchange")
     target = Path(sys.argv[3])
     with outputs.transaction():
         with outputs.atomic_dir(target / "folder") as new:
@@ -153,7 +142,6 @@ KILLER = textwrap.dedent("""
                 (new / name).write_text("new " + name)
         with outputs.atomic_file(target / "file.txt") as handle:
             handle.write("new file")
-    print("finished", calls[0])
 """)
 
 
@@ -173,7 +161,7 @@ def test_a_kill_at_any_instant_of_publishing_leaves_the_old_or_the_new_output(tm
         target = tmp_path / f"{mode}{kill_at}"
         old_state(target)
         run = subprocess.run([sys.executable, "-c", KILLER, str(kill_at), mode, str(target)], capture_output=True,
-                             text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+                             text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")])})
         killed = run.returncode != 0
         outputs.clean_leftovers(target / "folder")  # what the next run does first
         outputs.clean_leftovers(target / "file.txt")
