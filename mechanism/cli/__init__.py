@@ -78,15 +78,20 @@ def debug_enabled() -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    debug = debug_enabled()
     warnings.formatwarning = _format_warning
-    # numpy overflow means an input out of any physical range (huge coordinates): an error, not noise
-    warnings.filterwarnings("error", message="overflow encountered", category=RuntimeWarning)
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "handler", None):
         parser.print_help(sys.stderr)
         return EXIT_BAD_INPUT
+    with warnings.catch_warnings():
+        # numpy overflow means an input beyond any physical size (huge coordinates): an error, not noise
+        warnings.filterwarnings("error", message="overflow encountered", category=RuntimeWarning)
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The verb, every failure as one ``error:`` line that starts a line of its own."""
     from mechanism.files.capture import LineTracker
 
     stderr = LineTracker(sys.stderr)
@@ -101,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 - the one place every failure becomes one line
-        if debug:
+        if debug_enabled():
             raise
         stderr.end_line()
         sys.stderr.write(f"error: {describe(exc)}\n")
