@@ -33,8 +33,8 @@ def register(subparsers) -> None:
     which.add_argument("--all-pairs", action="store_true",
                        help="every pair of parts that move relative to each other (parts joined to each other by a "
                             "joint between two moving bodies are skipped)")
-    parser.add_argument("--cycle", type=number(0, 1000, low_open=True), default=1.0, metavar="N", help="arm shaft revolutions to check (default 1)")
-    parser.add_argument("--resolution", type=number(0, 360, "deg", low_open=True), default=0.5, metavar="DEG", help="sampling step of the arm angle [deg] (default 0.5)")
+    parser.add_argument("--cycle", type=number(0, 100, low_open=True), default=1.0, metavar="N", help="arm shaft revolutions to check (default 1)")
+    parser.add_argument("--resolution", type=number(0.01, 360, "deg"), default=0.5, metavar="DEG", help="sampling step of the arm angle [deg] (default 0.5)")
     parser.add_argument("--required", type=number(-1000, 1000, "mm"), default=0.0, metavar="MM",
                         help="required clearance [mm]: a pair passes if its minimum clearance is at least this (default 0: no interference)")
     parser.add_argument("--variants", metavar="FILE",

@@ -145,6 +145,10 @@ def simulate(
     substeps = max(1, int(round(1.0 / (sample_rate_hz * dt))))
     nsample = int(round(duration_s * sample_rate_hz))
     nstep = nsample * substeps
+    from mechanism.files.limits import check_elements
+
+    width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
+    check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
     step_times = np.arange(nstep) * dt
     control = np.zeros((1, nstep, model.nu))
     control[0, :, machine.actuator] = voltage(step_times)

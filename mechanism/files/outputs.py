@@ -261,6 +261,17 @@ def _staged(current: Transaction, path: Path, temporary: Path, folder: bool):
     current.stage(temporary, path, folder)
 
 
+def _temporary_file(path: Path, suffix: str) -> Path:
+    """An empty temporary sibling of ``path`` with ordinary permissions."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=suffix, dir=path.parent)
+    except OSError as exc:
+        raise UserError(f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
+    os.close(fd)
+    os.chmod(tmp, _umask_mode())
+    return Path(tmp)
+
+
 def _expect_file(path: Path) -> None:
     if path.is_dir():
         raise UserError(f"output {path}: is a folder, expected a file")
@@ -273,10 +284,7 @@ def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
     with transaction(independent=_in_staged_folder(path)) as current:
         path = _prepare(path, current)
         _expect_file(path)
-        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        tmp = Path(tmp)
-        os.chmod(tmp, _umask_mode())
+        tmp = _temporary_file(path, ".tmp")
         if "b" not in mode:
             open_kwargs.setdefault("encoding", "utf-8")
             open_kwargs.setdefault("newline", "")
@@ -292,10 +300,7 @@ def atomic_path(path: str | os.PathLike):
     with transaction(independent=_in_staged_folder(path)) as current:
         path = _prepare(path, current)
         _expect_file(path)
-        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=f".tmp{path.suffix}", dir=path.parent)
-        os.close(fd)
-        tmp = Path(tmp)
-        os.chmod(tmp, _umask_mode())
+        tmp = _temporary_file(path, f".tmp{path.suffix}")
         with _staged(current, path, tmp, folder=False):
             yield tmp
 
@@ -312,7 +317,10 @@ def atomic_dir(path: str | os.PathLike, keep: bool = False):
         path = _prepare(path, current)
         if os.path.lexists(path) and not path.is_dir():
             raise UserError(f"output {path}: exists and is not a folder")
-        tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
+        try:
+            tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
+        except OSError as exc:
+            raise UserError(f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
         with _staged(current, path, tmp, folder=True):
             if keep and path.is_dir():
                 _clone(path, tmp)
