@@ -81,9 +81,10 @@ def test_a_description_with_a_non_finite_motor_number_is_refused(cli, tmp_path):
     assert "resistance" in line
 
 
-def test_a_rollout_that_blows_up_ends_with_the_time_and_the_likely_cause():
+def test_a_rollout_that_blows_up_ends_with_the_time_and_the_likely_cause(tmp_path, monkeypatch):
     import mujoco
 
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
     from mechanism.dynamics.simulation import _rollout_in_chunks
     from mechanism.errors import UserError
 
@@ -315,9 +316,10 @@ def test_huge_stl_coordinates_are_one_error_line_without_numpy_or_mujoco_text(cl
     assert not (tmp_path / "out").exists()
 
 
-def test_text_c_code_prints_on_stderr_is_captured(capfd):
+def test_text_c_code_prints_on_stderr_is_captured(capfd, tmp_path, monkeypatch):
     import mujoco
 
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
     from mechanism.files.capture import UNSTABLE_MARKERS, captured_stderr
 
     model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><joint name="j"/><geom size=".1"/></body>'

@@ -22,7 +22,7 @@ from exports import FourBar  # noqa: E402
 from mechanism.cli import main  # noqa: E402
 from mechanism.errors import UserError  # noqa: E402
 
-FUZZ = settings(max_examples=12, deadline=None, derandomize=True,
+FUZZ = settings(max_examples=12, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 hostile_floats = st.one_of(
