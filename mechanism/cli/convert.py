@@ -31,7 +31,14 @@ def register(subparsers) -> None:
                         help="a joint you turn (a crank, the motor shaft): it stays a joint of the model and loops close "
                              "elsewhere (repeatable; by default joints in a bearing on the frame stay, pins between moving "
                              "parts close the loops)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("export",), outputs=(_model_file,))
+
+
+def _model_file(args):
+    """OUTDIR/NAME.xml, the file convert writes (checked against the export before the run)."""
+    from pathlib import Path
+
+    return Path(args.outdir) / f"{args.name or Path(args.export).stem}.xml"
 
 
 def run(args) -> int:

@@ -26,7 +26,7 @@ def register(subparsers) -> None:
     add_recording_arguments(parser, "diagnosis")
     parser.add_argument("--effects", metavar="NAME[,NAME]",
                         help="restrict the candidates to these effects (default: the whole library)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("recording", "model"), outputs=("json",), output_dirs=("report",))
 
 
 def run(args) -> int:

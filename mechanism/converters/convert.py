@@ -107,7 +107,8 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
         except Exception as exc:  # MuJoCo reports model errors as ValueError with several lines
             raise ExportError(f"export {export_path.name}: MuJoCo rejects the converted model: {' '.join(str(exc).split())}") from None
         (stage_model / mjcf_path.name).write_text(xml, encoding="utf-8")
-        _publish(stage_model / mjcf_path.name, mjcf_path, [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()])
+        _publish(stage_model / mjcf_path.name, mjcf_path, [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()],
+                 inputs=[export_path, *(p.geometry for p in assembly.parts.values())])
 
     return ConversionReport(
         mjcf_path=mjcf_path, mesh_dir=mesh_dir, model_name=model_name, source=export_path,
@@ -197,27 +198,8 @@ def _staging(outdir: Path, meshdir: str):
         shutil.rmtree(root, ignore_errors=True)
 
 
-def _publish(model_file: Path, target: Path, meshes: list[tuple[Path, Path]]) -> None:
-    """Move the finished files into place, each by an atomic rename; undo everything on failure."""
-    created_dirs = set()
-    for folder in {target.parent, *(dst.parent for _, dst in meshes)}:
-        while not folder.exists():
-            created_dirs.add(folder)
-            folder = folder.parent
-    done: list[Path] = []
-    try:
-        for folder in sorted(created_dirs, key=lambda p: len(p.parts)):
-            folder.mkdir(parents=True, exist_ok=True)
-        for source, destination in [*meshes, (model_file, target)]:
-            temporary = destination.with_name(f".{destination.name}.tmp{os.getpid()}")
-            shutil.copyfile(source, temporary)
-            os.replace(temporary, destination)
-            done.append(destination)
-    except BaseException:
-        for path in done:
-            with contextlib.suppress(OSError):
-                path.unlink()
-        for folder in sorted(created_dirs, key=lambda p: -len(p.parts)):
-            with contextlib.suppress(OSError):
-                folder.rmdir()
-        raise
+def _publish(model_file: Path, target: Path, meshes: list[tuple[Path, Path]], inputs=()) -> None:
+    """Publish the model and its meshes as one output (see mechanism.files.outputs)."""
+    from mechanism.files.outputs import publish_files
+
+    publish_files([*meshes, (model_file, target)], folder=target.parent, inputs=inputs)
