@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import json
 import math
 import sys
 from dataclasses import dataclass
@@ -67,16 +66,11 @@ UNITS = {"in": "length", "kg/m^3": "density", "1": "count", "-": "text", "V": "d
 
 # --------------------------------------------------------------------------- parameters
 
-class Params:
-    """``section -> name -> {value, unit, source}``; lengths in inches (the CAD document's unit)."""
+class Params(shapes.Params):
+    """``section -> name -> {value, unit, source}``; lengths in inches (the CAD document's unit).
+    ``Params.load(path)`` reads the file as the sewing machine's parameters are read."""
 
-    def __init__(self, path: Path):
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ParamError(f"{path}: no such file") from None
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ParamError(f"{path}: not a JSON parameter file ({exc})") from None
+    def __init__(self, data: dict, path: Path):  # noqa: D107 - checks the press's own units
         if not isinstance(data, dict) or data.get("format") != PARAMS_FORMAT:
             raise ParamError(f"{path}: 'format' must be {PARAMS_FORMAT!r}")
         self.path = Path(path)
@@ -414,20 +408,20 @@ def summary(p: Params, result: dict) -> list[str]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="parameter file (JSON, see the README)")
-    parser.add_argument("-o", "--out", type=Path, default=DEFAULT_OUT, help="output folder for the export (replaced atomically)")
-    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    for flags, options in (
+            (("--params",), dict(type=Path, default=DEFAULT_PARAMS, help="parameter file (JSON, see the press README)")),
+            (("-o", "--out"), dict(type=Path, default=DEFAULT_OUT, help="export folder (replaced atomically)")),
+            (("-q", "--quiet"), dict(action="store_true", help="print nothing on success"))):
+        parser.add_argument(*flags, **options)
     args = parser.parse_args(argv)
     try:
-        params = Params(args.params)
-        result = write_export(params, args.out)
+        params = Params.load(args.params)
+        report = [f"wrote {args.out}"] + [f"  {line}" for line in summary(params, write_export(params, args.out))]
     except ParamError as exc:
-        sys.stderr.write(f"error: {exc}\n")
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     if not args.quiet:
-        print(f"wrote {args.out}")
-        for line in summary(params, result):
-            print(f"  {line}")
+        print("\n".join(report))
     return 0
 
 
