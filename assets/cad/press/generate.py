@@ -161,7 +161,7 @@ def layout(p: Params) -> Layout:
         raise ParamError(f"{p.path}: worm_gear.wheel_teeth and worm_gear.worm_starts must be whole numbers")
     return Layout(crank_z=crank_z, tip_tdc_z=crank_z + r - l - p("ram.pin_height"),
                   tip_bdc_z=crank_z - r - l - p("ram.pin_height"),
-                  worm_z=crank_z + wheel + p.positive("worm_gear.worm_pitch_radius"),
+                  worm_z=crank_z + wheel + p.positive("worm_gear.worm_pitch_radius") + p.positive("fits.running_clearance"),
                   worm_x=p("worm_gear.wheel_x0") + 0.5 * p.positive("worm_gear.wheel_width"), ratio=teeth / starts)
 
 
@@ -169,7 +169,8 @@ def frame_solid(p: Params, lay: Layout) -> mf.Manifold:
     """The C-frame in world coordinates: bed, column, bearing housing with its arm, ram guide."""
     zc, head = lay.crank_z, p.positive("frame.head_half_height")
     bx, top = p.positive("frame.bed_x"), zc + head
-    x_disc, x_bearing = p("crank.disc_x1"), p("frame.bearing_x1")
+    c = p.positive("fits.running_clearance")
+    x_disc, x_bearing = p("crank.disc_x1") + c, p("frame.bearing_x1")
     cx0, cx1, cy0 = p("frame.column_x0"), p("frame.column_x1"), p("frame.column_y0")
     g0, g1, gw = p("frame.guide_z0"), p("frame.guide_z1"), p.positive("frame.guide_half_width")
     ram_r, flat_y = p.positive("ram.radius"), p("ram.flat_y")
@@ -180,9 +181,9 @@ def frame_solid(p: Params, lay: Layout) -> mf.Manifold:
     bearing_arm = box(x_disc, cx1, head, cy0, zc - head, top)
     guide = box(-gw, gw, -gw, gw, g0, g1)
     guide_arm = box(-0.75 * gw, 0.75 * gw, gw, cy0, g0, g1)
-    key = box(-0.6 * ram_r, 0.6 * ram_r, flat_y, ram_r, g0, g1)  # fills the ram's flat: no turning
-    bore = cylinder_x(p.positive("crank.shaft_radius"), x_disc - 0.1, x_bearing + 0.1, z=zc)
-    ram_bore = cylinder(ram_r, g0 - 0.1, g1 + 0.1, SEGMENTS)
+    key = box(-0.6 * ram_r, 0.6 * ram_r, flat_y + c, ram_r + c, g0, g1)  # fills the ram's flat: no turning
+    bore = cylinder_x(p.positive("crank.shaft_radius") + c, x_disc - 0.1, x_bearing + 0.1, z=zc)
+    ram_bore = cylinder(ram_r + c, g0 - 0.1, g1 + 0.1, SEGMENTS)
     dowel_r, dowel = p.positive("frame.dowel_radius"), p.positive("frame.dowel_offset")
     dowels = union(*(cylinder(dowel_r, -plate - 0.5, -plate + 0.1, 24).translate((0.0, s * dowel, 0.0)) for s in (-1, 1)))
     return union(bed, column, bearing, bearing_arm, guide - ram_bore, guide_arm) + key - bore - dowels
@@ -204,10 +205,11 @@ def build_parts(p: Params, lay: Layout) -> list[Part]:
     half = 0.5 * p.positive("rod.thickness")
     big, small = p.positive("rod.big_eye_radius"), p.positive("rod.small_eye_radius")
     web_w, web_t = 0.5 * p.positive("rod.web_width"), 0.5 * p.positive("rod.web_thickness")
-    rod = union(shapes.tube(big, p("crank.pin_radius"), -half, half, SEGMENTS),
-                shapes.tube(small, p("ram.pin_radius"), -half, half, 32).translate((0.0, l, 0.0)),
+    c = p.positive("fits.running_clearance")  # bores, faces and the worm mesh run with this gap
+    rod = union(shapes.tube(big, p("crank.pin_radius") + c, c - half, half - c, SEGMENTS),
+                shapes.tube(small, p("ram.pin_radius") + c, c - half, half - c, 32).translate((0.0, l, 0.0)),
                 box(-web_w, web_w, 0.8 * big, l - 0.8 * small, -web_t, web_t)
-                - cylinder(p("crank.pin_radius"), -1, 1, SEGMENTS) - cylinder(p("ram.pin_radius"), -1, 1, 32).translate((0.0, l, 0.0)))
+                - cylinder(p("crank.pin_radius") + c, -1, 1, SEGMENTS) - cylinder(p("ram.pin_radius") + c, -1, 1, 32).translate((0.0, l, 0.0)))
     ram_r, ram_len, pin_h = p.positive("ram.radius"), p.positive("ram.length"), p.positive("ram.pin_height")
     nose = p.positive("ram.nose_length")
     ram = (union(cylinder(p.positive("ram.nose_radius"), 0.0, nose, 32), cylinder(ram_r, nose, ram_len, SEGMENTS))
@@ -221,14 +223,14 @@ def build_parts(p: Params, lay: Layout) -> list[Part]:
     shaft = union(cylinder(p.positive("motor.shaft_radius"), p("motor.shaft_y0"), p("motor.shaft_y1"), 32),
                   cylinder(p.positive("worm_gear.worm_pitch_radius"), -p.positive("worm_gear.worm_half_length"),
                            p("worm_gear.worm_half_length"), 32),
-                  cylinder(p.positive("motor.collar_radius"), p("motor.housing_y0") + p("motor.cap_thickness"),
-                           p("motor.housing_y0") + p("motor.cap_thickness") + p.positive("motor.collar_length"), 32),
+                  cylinder(p.positive("motor.collar_radius"), p("motor.housing_y0") + p("motor.cap_thickness") + c,
+                           p("motor.housing_y0") + p("motor.cap_thickness") + c + p.positive("motor.collar_length"), 32),
                   cylinder(p.positive("motor.armature_radius"), p("motor.armature_y0"),
                            p("motor.armature_y0") + p.positive("motor.armature_length"), SEGMENTS))
     y0, y1, cap = p("motor.housing_y0"), p("motor.housing_y1"), p.positive("motor.cap_thickness")
     housing = (cylinder(p.positive("motor.housing_outer_radius"), y0, y1, SEGMENTS)
                - cylinder(p.positive("motor.housing_inner_radius"), y0 + cap, y1 - cap, SEGMENTS)
-               - cylinder(p("motor.shaft_radius"), y0 - 0.1, y1 + 0.1, 32))
+               - cylinder(p("motor.shaft_radius") + c, y0 - 0.1, y1 + 0.1, 32))
     worm_axis = np.array([lay.worm_x, 0.0, lay.worm_z])
     tdc_tip = np.array([0.0, 0.0, lay.tip_tdc_z])
     return [
