@@ -70,7 +70,7 @@ class Params(shapes.Params):
     """``section -> name -> {value, unit, source}``; lengths in inches (the CAD document's unit).
     ``Params.load(path)`` reads the file as the sewing machine's parameters are read."""
 
-    def __init__(self, data: dict, path: Path):  # noqa: D107 - checks the press's own units
+    def __init__(self, data: dict, path: Path):  # the press's own units and keys
         if not isinstance(data, dict) or data.get("format") != PARAMS_FORMAT:
             raise ParamError(f"{path}: 'format' must be {PARAMS_FORMAT!r}")
         self.path = Path(path)
