@@ -155,6 +155,7 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_pa
     common = ("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants)
     on_ray = cli(*common, "--backend", "ray", "--ray-address", ray_cluster, "--csv", tmp_path / "ray.csv")
     assert on_ray.returncode == 0, on_ray.stderr
+    assert "warning" not in on_ray.stderr  # nothing of Ray's own logging reaches the user
     local = cli(*common, "--csv", tmp_path / "local.csv")
     assert local.returncode == 0, local.stderr
     assert (tmp_path / "ray.csv").read_text() == (tmp_path / "local.csv").read_text()

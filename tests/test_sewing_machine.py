@@ -282,7 +282,7 @@ def test_needle_cli_writes_the_table_and_the_plot(tmp_path, cli):
     csv, png = tmp_path / "needle.csv", tmp_path / "needle.png"
     result = cli("needle", "--csv", csv, "--plot", png, "--samples", "72", "--speed", "600")
     assert result.returncode == 0, result.stderr
-    assert "stroke: 33.000 mm" in result.stdout and "hook point passes the needle at arm angle" in result.stdout
+    assert "stroke: 33.000 mm" in result.stdout and "hook point passes the needle at shaft angle" in result.stdout
     lines = [line for line in csv.read_text().splitlines() if not line.startswith("#")]
     assert lines[0].split(",") == ["arm_angle_deg", "needle_z_mm", "needle_velocity_mm_per_rad",
                                    "needle_acceleration_mm_per_rad2", "needle_velocity_mm_s", "needle_acceleration_mm_s2",

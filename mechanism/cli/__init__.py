@@ -10,7 +10,11 @@ Verbs are discovered automatically, so adding one is one new file. Heavy imports
 (mujoco, trimesh, matplotlib) belong inside ``run`` so that ``--help`` stays fast.
 
 Every failure ends as one ``error: ...`` line on stderr and exit status 2; set
-``MECHANISM_DEBUG=1`` to see the traceback instead.
+``MECHANISM_DEBUG=1`` to see the traceback instead. Each verb runs as one output transaction
+(``mechanism.files.outputs``): its declared outputs are checked before any work
+(``set_defaults(inputs=..., outputs=..., output_dirs=..., plots=...)``, see ``_guard``), written
+to hidden temporaries and published together only when the verb succeeded; text that
+third-party C code prints on stderr is captured and reported as one line.
 """
 
 from __future__ import annotations
@@ -65,29 +69,103 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _format_warning(message, category, filename, lineno, line=None):
-    return f"warning: {message}\n"
+    return f"warning: {' '.join(str(message).split())}\n"
+
+
+def debug_enabled() -> bool:
+    """``MECHANISM_DEBUG`` is on only for 1, true or yes."""
+    return os.environ.get("MECHANISM_DEBUG", "").strip().lower() in {"1", "true", "yes"}
 
 
 def main(argv: list[str] | None = None) -> int:
-    debug = bool(os.environ.get("MECHANISM_DEBUG"))
     warnings.formatwarning = _format_warning
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "handler", None):
         parser.print_help(sys.stderr)
         return EXIT_BAD_INPUT
+    with warnings.catch_warnings():
+        # numpy overflow means an input beyond any physical size (huge coordinates): an error, not noise
+        warnings.filterwarnings("error", message="overflow encountered", category=RuntimeWarning)
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The verb, every failure as one ``error:`` line that starts a line of its own."""
+    from mechanism.files.capture import LineTracker
+
+    stderr = LineTracker(sys.stderr)
+    sys.stderr = stderr
     try:
-        return int(args.handler(args) or 0)
+        check_paths(args)
+        return run_verb(args)
     except KeyboardInterrupt:
+        stderr.end_line()
         sys.stderr.write("error: interrupted\n")
         return 130
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 - the one place every failure becomes one line
-        if debug:
+        if debug_enabled():
             raise
+        stderr.end_line()
         sys.stderr.write(f"error: {describe(exc)}\n")
         return EXIT_BAD_INPUT
+    finally:
+        sys.stderr.flush()
+        sys.stderr = stderr.stream
+
+
+def _declared(args: argparse.Namespace, kind: str) -> list[tuple[str, object]]:
+    """(option label, path) of what the verb declared: attribute names or functions of args."""
+    found = []
+    for item in getattr(args, kind, ()) or ():
+        values = item(args) if callable(item) else getattr(args, item, None)
+        label = getattr(item, "label", None) or (f"--{item.replace('_', '-')}" if isinstance(item, str) else "output")
+        for value in values if isinstance(values, (list, tuple)) else [values]:
+            if value:
+                found.append((label, value))
+    return found
+
+
+def check_paths(args: argparse.Namespace) -> None:
+    """The verb's declared outputs against its inputs, before any work (files.outputs.check_outputs)."""
+    from mechanism.files.outputs import check_outputs
+
+    check_outputs(_declared(args, "inputs"), _declared(args, "outputs"), _declared(args, "output_dirs"),
+                  _declared(args, "plots"))
+
+
+def run_verb(args: argparse.Namespace) -> int:
+    """The verb as one output transaction, with third-party stderr captured: their text
+    becomes one ``warning:`` line, MuJoCo's instability report an error (nothing published)."""
+    from mechanism.errors import UserError
+    from mechanism.files.capture import UNSTABLE_MARKERS, captured_stderr, summarize
+    from mechanism.files.outputs import transaction
+
+    _quiet_mujoco_log()
+    with transaction():
+        with captured_stderr() as captured:
+            status = int(args.handler(args) or 0)
+        text = "".join(captured)
+        if any(marker in text for marker in UNSTABLE_MARKERS):
+            raise UserError(f"the simulation became unstable ({summarize(text, 200)}); check the parameters "
+                            "(voltage, inductance, friction, loads) or use a smaller time step")
+        if text.strip():
+            sys.stderr.write(f"warning: {summarize(text)}\n")
+    return status
+
+
+def _quiet_mujoco_log() -> None:
+    """MuJoCo writes its warnings to MUJOCO_LOG.TXT in the current folder too: a stray file."""
+    try:
+        import mujoco
+
+        config = mujoco.MjLogConfig.get()
+        config.logto_file = False
+        config.set()
+    except (ImportError, AttributeError):  # older MuJoCo: nothing to switch off
+        pass
 
 
 def describe(exc: BaseException) -> str:
@@ -103,6 +181,10 @@ def describe(exc: BaseException) -> str:
         return text
     if isinstance(exc, FileNotFoundError):
         return f"no such file: {exc.filename}"
+    if isinstance(exc, MemoryError):
+        return "out of memory: the request is too large for this machine (reduce the counts or sizes asked for)"
+    if isinstance(exc, RuntimeWarning) and "overflow" in text:
+        return f"numeric overflow ({text}): an input value is out of any physical range"
     if isinstance(exc, OSError):
         return f"{exc.strerror or text}: {exc.filename}" if exc.filename else text
     return f"{exc.__class__.__name__}: {text} (set MECHANISM_DEBUG=1 for the traceback)"

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 def add_batch_arguments(parser, what: str) -> None:
     """--workers, --backend, --ray-address for a verb whose batch items are ``what``."""
-    parser.add_argument("--workers", type=int, default=1, metavar="K",
+    from mechanism.batch import MAX_WORKERS
+    from mechanism.files.limits import number
+
+    parser.add_argument("--workers", type=number(1, MAX_WORKERS, integer=True), default=1, metavar="K",
                         help=f"parallel worker processes for {what} (default 1; with --backend ray and no cluster: "
                              "the CPUs of the local Ray instance)")
     parser.add_argument("--backend", choices=["local", "ray"], default="local",

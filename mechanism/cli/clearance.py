@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from mechanism.cli._batch import add_batch_arguments, check_batch_arguments
+from mechanism.files.limits import number
+
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, inspection_target
 
 ORDER = 45
@@ -33,9 +35,9 @@ def register(subparsers) -> None:
     which.add_argument("--all-pairs", action="store_true",
                        help="every pair of parts that move relative to each other (parts joined to each other by a "
                             "joint between two moving bodies are skipped)")
-    parser.add_argument("--cycle", type=float, default=1.0, metavar="N", help="arm shaft revolutions to check (default 1)")
-    parser.add_argument("--resolution", type=float, default=0.5, metavar="DEG", help="sampling step of the arm angle [deg] (default 0.5)")
-    parser.add_argument("--required", type=float, default=0.0, metavar="MM",
+    parser.add_argument("--cycle", type=number(0, 100, low_open=True), default=1.0, metavar="N", help="arm shaft revolutions to check (default 1)")
+    parser.add_argument("--resolution", type=number(0.01, 360, "deg"), default=0.5, metavar="DEG", help="sampling step of the arm angle [deg] (default 0.5)")
+    parser.add_argument("--required", type=number(-1000, 1000, "mm"), default=0.0, metavar="MM",
                         help="required clearance [mm]: a pair passes if its minimum clearance is at least this (default 0: no interference)")
     parser.add_argument("--variants", metavar="FILE",
                         help="design variants (JSON or CSV; parameters such as hook_timing_deg, crank_radius_mm, "
@@ -45,7 +47,7 @@ def register(subparsers) -> None:
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="one row per pair (or per variant with --variants)")
     parser.add_argument("--json", metavar="OUT.json", help="full report: closest points, interference ranges, depths")
     parser.add_argument("--strict", action="store_true", help="exit with status 1 when any check fails")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("machine", "model", "variants"), outputs=("csv", "json"))
 
 
 def run(args) -> int:

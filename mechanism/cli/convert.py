@@ -27,7 +27,18 @@ def register(subparsers) -> None:
                         help="the export's world axis that points up: x, y, z, -x, -y or -z (write --up=-z; default z); gravity "
                              "(9.81 m/s^2) acts against it. Exports do not record it: SolidWorks and Inventor "
                              "assemblies are often Y-up (--up y)")
-    parser.set_defaults(handler=run)
+    parser.add_argument("--driver", action="append", default=[], metavar="JOINT",
+                        help="a joint you turn (a crank, the motor shaft): it stays a joint of the model and loops close "
+                             "elsewhere (repeatable; by default joints in a bearing on the frame stay, pins between moving "
+                             "parts close the loops)")
+    parser.set_defaults(handler=run, inputs=("export",), outputs=(_model_file,))
+
+
+def _model_file(args):
+    """OUTDIR/NAME.xml, the file convert writes (checked against the export before the run)."""
+    from pathlib import Path
+
+    return Path(args.outdir) / f"{args.name or Path(args.export).stem}.xml"
 
 
 def run(args) -> int:
@@ -35,6 +46,7 @@ def run(args) -> int:
 
     from mechanism.machine.roles import drive_lines
 
-    report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up)
+    report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up,
+                     drivers=tuple(args.driver))
     print("\n".join(report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))))
     return 0

@@ -18,7 +18,7 @@ def register(subparsers) -> None:
     parser.add_argument("--out", default="out", metavar="DIR", help="output folder, replaced as a whole (default out)")
     parser.add_argument("--machine", action="append", metavar="NAME",
                         help="only this shipped machine (repeatable; default: all of them)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, output_dirs=("out",))
 
 
 def run(args) -> int:

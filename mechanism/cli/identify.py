@@ -40,7 +40,7 @@ def register(subparsers) -> None:
                         help="fit Coulomb and viscous friction to the thesis's Table 2 steady-state speeds (no recording)")
     parser.add_argument("--free", metavar="Kt,Ke,R", default="",
                         help="motor constants to fit as well, comma-separated from R, Kt, Ke (default: none)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("recording", "model"), outputs=("json",), output_dirs=("report",))
 
 
 def write_outputs(args, data: dict, report=None) -> None:

@@ -21,7 +21,7 @@ def register(subparsers) -> None:
     parser.add_argument("model", metavar="EXPORT_OR_MJCF", help="a CAD export (converted once, cached) or a converted MJCF")
     parser.add_argument("-o", "--out", required=True, metavar="MACHINE.toml", help="the draft description to write")
     parser.add_argument("--name", metavar="NAME", help="machine name (default: the file's stem)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("model",), outputs=("out",))
 
 
 def run(args) -> int:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 import argparse
 
 from mechanism.cli._machine import add_machine_arguments, machine_from_args
@@ -40,9 +42,9 @@ def register(subparsers) -> None:
     parser.add_argument("--plot", metavar="OUT.png", help="position, velocity and acceleration vs arm angle (PNG, SVG or PDF)")
     parser.add_argument("--samples", type=int, default=360, metavar="N",
                         help="equally spaced arm angles over the revolution (36 to 36000, default 360 = 1 deg)")
-    parser.add_argument("--speed", type=float, metavar="RPM",
+    parser.add_argument("--speed", type=number(0, 1e5, "rpm", low_open=True), metavar="RPM",
                         help="arm-shaft speed [rpm]: adds velocity in mm/s and acceleration in mm/s^2 at that constant speed")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",))
 
 
 def run(args) -> int:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
 
 ORDER = 40
@@ -39,15 +41,15 @@ def register(subparsers) -> None:
                              "frame, from the joint anchor); once for all groups or once per group (default: the origin)")
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--cycle", action="store_true", help="one kinematic cycle of the arm shaft at --speed")
-    mode.add_argument("--voltage", type=float, metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
-    parser.add_argument("--duration", type=float, metavar="S", help="simulated time [s] (with --voltage)")
-    parser.add_argument("--speed", type=float, default=600.0, metavar="RPM", help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)")
-    parser.add_argument("--revolutions", type=float, default=1.0, metavar="N", help="arm revolutions for --cycle (default 1)")
-    parser.add_argument("--resolution", type=float, default=0.5, metavar="DEG", help="arm angle step for --cycle [deg] (default 0.5)")
+    mode.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
+    parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
+    parser.add_argument("--speed", type=number(0, 1e5, "rpm"), default=600.0, metavar="RPM", help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)")
+    parser.add_argument("--revolutions", type=number(0, 100, low_open=True), default=1.0, metavar="N", help="arm revolutions for --cycle (default 1)")
+    parser.add_argument("--resolution", type=number(0.01, 360, "deg"), default=0.5, metavar="DEG", help="arm angle step for --cycle [deg] (default 0.5)")
     parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="write the probe table")
     parser.add_argument("--plot", metavar="OUT.png", help="plot every probe over the arm angle (cycle) or time (simulation)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",))
 
 
 def run(args) -> int:

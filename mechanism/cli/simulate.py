@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 import argparse
 import sys
 
@@ -26,7 +28,7 @@ def register(subparsers) -> None:
     )
     add_machine_arguments(parser)
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--voltage", type=float, metavar="V", help="constant motor terminal voltage [V], 0-30")
+    source.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="constant motor terminal voltage [V], 0-30")
     source.add_argument("--profile", metavar="FILE",
                         help="voltage profile CSV with columns time_s (or time) and voltage_V (or voltage); "
                              "each voltage holds until the next time (zero-order hold)")
@@ -36,7 +38,7 @@ def register(subparsers) -> None:
     parser.add_argument("--duration", type=float, metavar="S",
                         help="simulated time [s] (default with --profile: the profile's last time)")
     warm = parser.add_mutually_exclusive_group()
-    warm.add_argument("--warm-s", type=float, default=0.0, metavar="S",
+    warm.add_argument("--warm-s", type=number(0, 1e6, "s"), default=0.0, metavar="S",
                       help="the machine after S seconds of running: friction warmed as the description's [warm] says")
     warm.add_argument("--warm", action="store_const", const=WARM_DEFAULT_S, dest="warm_s",
                       help=f"shortcut for --warm-s {WARM_DEFAULT_S:g} (the thesis's warm column)")
@@ -45,20 +47,20 @@ def register(subparsers) -> None:
     parser.add_argument("--feeding", action="store_true", help="feed mechanism engaged (the description's [loads] feeding)")
     parser.add_argument("--belt-tension", choices=["low", "normal", "hard"], default="normal",
                         help="belt tension setting (the description's [loads]; default normal)")
-    parser.add_argument("--start-angle", type=float, default=0.0, metavar="DEG",
+    parser.add_argument("--start-angle", type=number(-3600, 3600, "deg"), default=0.0, metavar="DEG",
                         help="shaft angle at rest at the start [deg], 0 = the described zero")
-    parser.add_argument("--inductance", type=float, metavar="H", help="motor winding inductance [H] (default: the description's)")
-    parser.add_argument("--cogging", type=float, metavar="NM", help="motor cogging torque amplitude [N m] (periods per turn: the description's)")
+    parser.add_argument("--inductance", type=number(0, 1, "H"), metavar="H", help="motor winding inductance [H] (default: the description's)")
+    parser.add_argument("--cogging", type=number(0, 10, "N m"), metavar="NM", help="motor cogging torque amplitude [N m] (periods per turn: the description's)")
     parser.add_argument("--thermal", action="store_true", help="winding resistance rises with temperature")
-    parser.add_argument("--timestep", type=float, metavar="MS",
+    parser.add_argument("--timestep", type=number(0.01, 2, "ms"), metavar="MS",
                         help="simulation time step [ms] (default: the description's, else 0.5); loops and belts stiffen "
                              "with it: at ~1000 rpm the Sapphire's needle-bar loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms")
     parser.add_argument("--reduced", action="store_true", help="use the fast reduced 1-DOF model instead of the full multibody model")
-    parser.add_argument("--rate", type=float, default=1000.0, metavar="HZ", help="output sample rate [Hz] (default 1000)")
+    parser.add_argument("--rate", type=number(0, 1e5, "Hz", low_open=True), default=1000.0, metavar="HZ", help="output sample rate [Hz] (default 1000)")
     parser.add_argument("--csv", metavar="OUT.csv", help="write the time series")
     parser.add_argument("--plot", metavar="OUT.png", help="plot speed, current and tool height over time")
     parser.add_argument("--summary", action="store_true", help="print mean/min/max shaft speed [rpm] over the last second")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("profile", "machine", "model"), outputs=("csv", "plot"), plots=("plot",))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,6 +77,10 @@ def run(args: argparse.Namespace) -> int:
 
     if not (args.csv or args.plot or args.summary):
         raise UserError("nothing to output: give --csv, --plot and/or --summary")
+    if args.duration is not None and 0 < args.duration <= 3600:  # else the simulation names the range
+        from mechanism.files.limits import check_elements
+
+        check_elements(args.duration * args.rate * 16, "--duration x --rate")
     description = description_from_args(args)
     motor = motor_from_description(description.motor)
     options = {"inductance_H": args.inductance, "cogging_Nm": args.cogging}

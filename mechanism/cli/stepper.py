@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 import argparse
 import json
 import math
@@ -45,6 +47,10 @@ def _sweep_range(text: str) -> list[float]:
     return [parts[0] + k * parts[2] for k in range(count)]
 
 
+def _sequence_file(args):
+    return None if args.sequence in (None, "thread-cut", "thread-cut-ramped") else args.sequence
+
+
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "stepper",
@@ -69,22 +75,22 @@ def register(subparsers) -> None:
     parser.add_argument("--mode", default="full", metavar="full|half|microN",
                         help="drive mode: full (both phases on), half, or microN sine/cosine microstepping with "
                              "N = 2..256 positions per full step (default full)")
-    parser.add_argument("--rate", type=float, metavar="STEPS_PER_S",
+    parser.add_argument("--rate", type=number(0, 1e5, "steps/s", low_open=True), metavar="STEPS_PER_S",
                         help="slew rate [full steps/s] for thread-cut and target files (default: the thesis's 1000)")
-    parser.add_argument("--ramp-steps", type=float, default=None, metavar="STEPS",
+    parser.add_argument("--ramp-steps", type=number(0, 1e5, "steps", low_open=True), default=None, metavar="STEPS",
                         help="thread-cut-ramped: full steps of the ramp to rest before the reversal (default 25)")
-    parser.add_argument("--load-torque", type=float, default=0.0, metavar="NM",
+    parser.add_argument("--load-torque", type=number(0, 10, "N m"), default=0.0, metavar="NM",
                         help="load torque Tl [N m] on the motor shaft, as Coulomb friction (default 0)")
-    parser.add_argument("--load-inertia", type=float, default=0.0, metavar="KG_M2",
+    parser.add_argument("--load-inertia", type=number(0, 1, "kg m^2"), default=0.0, metavar="KG_M2",
                         help="load inertia [kg m^2] reflected to the motor shaft (default 0: the bare rotor, 5e-8)")
-    parser.add_argument("--settle", type=float, default=0.1, metavar="S",
+    parser.add_argument("--settle", type=number(0, 60, "s"), default=0.1, metavar="S",
                         help="seconds simulated after the sequence ends, before the lost-step check (default 0.1)")
-    parser.add_argument("--sample-period", type=float, default=1e-4, metavar="S",
+    parser.add_argument("--sample-period", type=number(0, 1, "s", low_open=True), default=1e-4, metavar="S",
                         help="CSV row spacing [s] (default 1e-4; the simulation step is 5 us for the circuit model)")
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="output table")
     parser.add_argument("--plot", metavar="OUT.png", help="also plot position, speed, currents and torque (or the sweep)")
     parser.add_argument("--json", metavar="OUT.json", help="also write the summary as JSON")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=(_sequence_file,), outputs=("csv", "plot", "json"), plots=("plot",))
 
 
 def run(args) -> int:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 ORDER = 70
 
 
@@ -19,12 +21,19 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--effect", metavar="NAME[,NAME]",
                         help="concealed effect(s), comma-separated; 'none' for the clean machine (see --list)")
-    parser.add_argument("--seed", type=int, default=0, metavar="N",
+    parser.add_argument("--seed", type=number(0, 2**32 - 1, integer=True), default=0, metavar="N",
                         help="random seed: machine parameters, effect magnitudes, voltage profile, start angle, noise (default 0)")
-    parser.add_argument("--duration", type=float, default=60.0, metavar="S", help="recording length [s] (default 60)")
+    parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), default=60.0, metavar="S", help="recording length [s] (default 60)")
     parser.add_argument("-o", "--output", metavar="REC.csv", help="recording to write; the truth goes to REC.truth.json")
     parser.add_argument("--list", action="store_true", help="print the effect vocabulary with one line of physics each and exit")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, outputs=("output", _truth_output))
+
+
+def _truth_output(args):
+    """REC.truth.json next to -o REC.csv (checked with the CSV before the run)."""
+    from mechanism.testbench import truth_path_for
+
+    return truth_path_for(args.output) if args.output and str(args.output).lower().endswith(".csv") else None
 
 
 def run(args) -> int:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
 
 ORDER = 50
@@ -24,16 +26,16 @@ def register(subparsers) -> None:
     add_machine_arguments(parser)
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--cycle", action="store_true", help="one arm shaft revolution (the default)")
-    motion.add_argument("--voltage", type=float, metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
+    motion.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
     motion.add_argument("--recording", metavar="FILE", help="replay a recording CSV (time, voltage, arm_angle) kinematically")
-    parser.add_argument("--duration", type=float, metavar="S", help="simulated time [s] (with --voltage)")
+    parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
     parser.add_argument("--frames", type=int, default=120, metavar="N", help="animation frames (default 120)")
     parser.add_argument("--probe", action="append", default=[], metavar="NAME", help="mark a part frame or named frame (repeatable)")
     parser.add_argument("--pairs", metavar="A:B[,C:D...]", help="show the clearance minimum of these part pairs")
     parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--html", metavar="OUT.html", help="write the self-contained animation")
     parser.add_argument("--serve", action="store_true", help="start a live meshcat server on localhost and wait (Ctrl-C ends)")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("machine", "model", "recording"), outputs=("html",))
 
 
 def run(args) -> int:

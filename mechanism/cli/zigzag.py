@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from mechanism.files.limits import number
+
 import argparse
 import json
 import math
@@ -52,13 +54,13 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--spm", type=float, required=True, metavar="STITCHES_PER_MIN",
+    parser.add_argument("--spm", type=number(0, 5000, "stitches/min", low_open=True), required=True, metavar="STITCHES_PER_MIN",
                         help="sewing speed [stitches per minute] = arm shaft rpm")
-    parser.add_argument("--width-mm", type=float, default=None, metavar="MM",
+    parser.add_argument("--width-mm", type=number(0, 50, "mm", low_open=True), default=None, metavar="MM",
                         help="sideways move [mm] (default: the full zigzag width, 7 mm)")
-    parser.add_argument("--rate", type=float, default=None, metavar="STEPS_PER_S",
+    parser.add_argument("--rate", type=number(0, 1e5, "steps/s", low_open=True), default=None, metavar="STEPS_PER_S",
                         help="stepper slew rate [full steps/s] (default: the thesis's 1000)")
-    parser.add_argument("--ramp-steps", type=float, default=0.0, metavar="STEPS",
+    parser.add_argument("--ramp-steps", type=number(0, 1e4, "steps"), default=0.0, metavar="STEPS",
                         help="linear ramps at both ends of the move [full steps] (default 0: abrupt)")
     parser.add_argument("--model", default="circuit", choices=["circuit", "physical"], help="motor model (default circuit)")
     parser.add_argument("--mode", default="full", metavar="full|half|microN", help="drive mode (default full)")
@@ -67,20 +69,20 @@ def register(subparsers) -> None:
     parser.add_argument("--machine-model", metavar="MJCF",
                         help="sewing-machine MJCF for --needle machine (default: the shipped sewing machine)")
     parser.add_argument("--needle-csv", metavar="FILE", help="needle height table (overrides --needle)")
-    parser.add_argument("--crank-mm", type=float, default=16.5, metavar="MM", help="slider-crank: crank radius [mm] (default 16.5)")
-    parser.add_argument("--rod-mm", type=float, default=50.0, metavar="MM", help="slider-crank: rod length [mm] (default 50)")
-    parser.add_argument("--tdc-height-mm", type=float, default=21.0, metavar="MM",
+    parser.add_argument("--crank-mm", type=number(0, 1000, "mm", low_open=True), default=16.5, metavar="MM", help="slider-crank: crank radius [mm] (default 16.5)")
+    parser.add_argument("--rod-mm", type=number(0, 1e4, "mm", low_open=True), default=50.0, metavar="MM", help="slider-crank: rod length [mm] (default 50)")
+    parser.add_argument("--tdc-height-mm", type=number(-1000, 1000, "mm"), default=21.0, metavar="MM",
                         help="slider-crank: needle point above the plate at TDC [mm] (default 21)")
-    parser.add_argument("--clearance-mm", type=float, default=0.0, metavar="MM",
+    parser.add_argument("--clearance-mm", type=number(0, 100, "mm"), default=0.0, metavar="MM",
                         help="fabric thickness: the needle must be this far above the plate to move [mm] (default 0)")
-    parser.add_argument("--tolerance-mm", type=float, default=None, metavar="MM",
+    parser.add_argument("--tolerance-mm", type=number(0, 100, "mm", low_open=True), default=None, metavar="MM",
                         help="the move is done when the needle stays this close to its target [mm] "
                              "(default half a step, 0.0875 mm)")
-    parser.add_argument("--stitches", type=int, default=6, metavar="N", help="stitches simulated for --csv/--plot (default 6)")
+    parser.add_argument("--stitches", type=number(1, 1000, integer=True), default=6, metavar="N", help="stitches simulated for --csv/--plot (default 6)")
     parser.add_argument("--csv", metavar="OUT.csv", help="write the needle path of the stitch run")
     parser.add_argument("--plot", metavar="OUT.png", help="plot the needle path of the stitch run")
     parser.add_argument("--json", metavar="OUT.json", help="write the move check (and stitch summary) as JSON")
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=run, inputs=("needle_csv", "machine_model"), outputs=("csv", "plot", "json"), plots=("plot",))
 
 
 def run(args) -> int:

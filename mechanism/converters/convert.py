@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import difflib
 import os
 import shutil
 import tempfile
@@ -59,12 +60,15 @@ class ConversionReport:
         return lines + [f"warning: {warning}" for warning in self.warnings]
 
 
-def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z") -> ConversionReport:
+def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z",
+            drivers: tuple[str, ...] = ()) -> ConversionReport:
     """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).
 
     ``name`` defaults to the export's file stem. ``up`` is the export's world axis that points up
     (``x``, ``y``, ``z``, ``-x``, ...): gravity acts against it; the export's frame is kept, since
-    exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). The MJCF refers to the meshes by a path
+    exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). ``drivers``
+    names joints a user turns (export or sanitised names): they stay joints of the kinematic tree
+    and loops close elsewhere; a name the export lacks is an error. The MJCF refers to the meshes by a path
     relative to ``outdir``. Nothing is written unless the whole conversion succeeds; other
     files already in ``outdir`` and ``mesh_dir`` are left alone.
     """
@@ -79,7 +83,12 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
     assembly = read(export_path)
     meshes = load_meshes(assembly)
     inertia.repair_parts(assembly, meshes)
-    plan = tree.plan(assembly)
+    joint_names = {j.name for j in assembly.joints} | {sanitize(j.name) for j in assembly.joints}
+    for driver in drivers:
+        if driver not in joint_names:
+            raise ExportError(f"export {export_path.name}: no joint {driver!r} to keep as a driver; close matches: "
+                              f"{', '.join(difflib.get_close_matches(driver, sorted(joint_names), 3)) or 'none'}")
+    plan = tree.plan(assembly, set(drivers))
     meshdir = os.path.relpath(mesh_dir.resolve(), outdir.resolve()).replace(os.sep, "/")
     built = mjcf.build(assembly, plan, meshes, model_name=model_name, meshdir=meshdir, gravity=gravity)
     used = {m.name: m for m in meshes.values() if m is not None}
@@ -98,7 +107,8 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
         except Exception as exc:  # MuJoCo reports model errors as ValueError with several lines
             raise ExportError(f"export {export_path.name}: MuJoCo rejects the converted model: {' '.join(str(exc).split())}") from None
         (stage_model / mjcf_path.name).write_text(xml, encoding="utf-8")
-        _publish(stage_model / mjcf_path.name, mjcf_path, [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()])
+        _publish(stage_model / mjcf_path.name, mjcf_path, [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()],
+                 inputs=[export_path, *(p.geometry for p in assembly.parts.values())])
 
     return ConversionReport(
         mjcf_path=mjcf_path, mesh_dir=mesh_dir, model_name=model_name, source=export_path,
@@ -188,27 +198,8 @@ def _staging(outdir: Path, meshdir: str):
         shutil.rmtree(root, ignore_errors=True)
 
 
-def _publish(model_file: Path, target: Path, meshes: list[tuple[Path, Path]]) -> None:
-    """Move the finished files into place, each by an atomic rename; undo everything on failure."""
-    created_dirs = set()
-    for folder in {target.parent, *(dst.parent for _, dst in meshes)}:
-        while not folder.exists():
-            created_dirs.add(folder)
-            folder = folder.parent
-    done: list[Path] = []
-    try:
-        for folder in sorted(created_dirs, key=lambda p: len(p.parts)):
-            folder.mkdir(parents=True, exist_ok=True)
-        for source, destination in [*meshes, (model_file, target)]:
-            temporary = destination.with_name(f".{destination.name}.tmp{os.getpid()}")
-            shutil.copyfile(source, temporary)
-            os.replace(temporary, destination)
-            done.append(destination)
-    except BaseException:
-        for path in done:
-            with contextlib.suppress(OSError):
-                path.unlink()
-        for folder in sorted(created_dirs, key=lambda p: -len(p.parts)):
-            with contextlib.suppress(OSError):
-                folder.rmdir()
-        raise
+def _publish(model_file: Path, target: Path, meshes: list[tuple[Path, Path]], inputs=()) -> None:
+    """Publish the model and its meshes as one output (see mechanism.files.outputs)."""
+    from mechanism.files.outputs import publish_files
+
+    publish_files([*meshes, (model_file, target)], folder=target.parent, inputs=inputs)

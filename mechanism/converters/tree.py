@@ -2,10 +2,12 @@
 
 * Parts joined by welds (CAD weld joints, grounding, rigid sub-assemblies) form one body.
 * The tree is a spanning tree of the joint graph rooted at the ground, chosen greedily
-  (Kruskal) so that the joints that are costly or inexact to close stay real tree joints:
-  joints named by couplings first, then joints that would need a carrier body to close
-  (prismatic, cylindrical, planar, universal, ...), then spherical joints, revolute joints
-  last (a revolute closes exactly with two ``connect`` constraints on its axis).
+  (Kruskal) so that the joints a user drives and the joints that are costly or inexact to
+  close stay real tree joints: the named drivers first (``convert --driver``, a machine
+  description's motor and shaft joints), joints named by couplings, then joints that would
+  need a carrier body to close (prismatic, cylindrical, planar, universal, ...), spherical
+  joints, revolute joints in a bearing on the frame (a crank a user turns), and pins between
+  moving parts last (a revolute closes exactly with two ``connect`` constraints on its axis).
 * A real joint locked by a chain of welds (its two parts are also welded together) is kept
   as a tree joint and the weld that closes that cycle becomes the loop closure instead.
 * Every joint left out of the tree closes a loop. Welds between parts that ended in one
@@ -20,6 +22,7 @@ from dataclasses import dataclass, field
 
 from mechanism.converters.assembly import BALL, GROUND, HINGE, Assembly, Joint
 from mechanism.converters.graph import UnionFind
+from mechanism.converters.names import sanitize
 
 
 @dataclass
@@ -66,13 +69,15 @@ class Plan:
         return order
 
 
-def tree_rank(joint: Joint, coupled: set[str]) -> tuple:
+def tree_rank(joint: Joint, coupled: set[str], drivers: set[str] = frozenset(), on_frame: bool = False) -> tuple:
     """Sort key: lower ranks are taken into the tree first (closing them would cost most)."""
     kinds = [p.kind for p in joint.primitives]
-    if joint.name in coupled:
+    if joint.name in drivers or sanitize(joint.name) in drivers:
+        rank = -1
+    elif joint.name in coupled:
         rank = 0
     elif kinds == [HINGE]:
-        rank = 3
+        rank = 3 if on_frame else 4
     elif kinds == [BALL]:
         rank = 2
     else:
@@ -80,8 +85,9 @@ def tree_rank(joint: Joint, coupled: set[str]) -> tuple:
     return (rank,)
 
 
-def plan(assembly: Assembly) -> Plan:
-    """Choose bodies, tree joints and loop closures for ``assembly``."""
+def plan(assembly: Assembly, drivers: set[str] = frozenset()) -> Plan:
+    """Choose bodies, tree joints and loop closures for ``assembly``; the joints named in
+    ``drivers`` (export or sanitised names) stay joints of the tree whenever a tree can hold them."""
     order = {id(joint): i for i, joint in enumerate(assembly.joints)}
     welds = [j for j in assembly.joints if j.is_weld]
     reals = [j for j in assembly.joints if not j.is_weld]
@@ -91,7 +97,13 @@ def plan(assembly: Assembly) -> Plan:
     for joint in welds:
         weld_only.union(joint.base, joint.follower)
     locked = [j for j in reals if weld_only.find(j.base) == weld_only.find(j.follower)]
-    free = sorted((j for j in reals if j not in locked), key=lambda j: (tree_rank(j, coupled), order[id(j)]))
+    frame = weld_only.find(GROUND)
+
+    def on_frame(joint: Joint) -> bool:
+        return frame in (weld_only.find(joint.base), weld_only.find(joint.follower))
+
+    free = sorted((j for j in reals if j not in locked),
+                  key=lambda j: (tree_rank(j, coupled, drivers, on_frame(j)), order[id(j)]))
 
     spanning = UnionFind()
     tree_joints, left_out = [], []

@@ -27,7 +27,7 @@ from mechanism.physics.friction import STRIBECK_LAWS
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_interp
 from mechanism.machine.machine import Machine, MachineConfig
-from mechanism.dynamics.simulation import MAX_DURATION_S, SimulationResult
+from mechanism.dynamics.simulation import MAX_DURATION_S, SimulationResult, unstable
 
 class _Tables(ctypes.Structure):
     _fields_ = [(name, ctypes.c_void_p) for name in (
@@ -122,15 +122,22 @@ class ReducedModel:
             raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
         if not isinstance(voltage, VoltageProfile):
             voltage = VoltageProfile.constant(voltage)
+        if not (np.isfinite(start_angle_rad) and np.isfinite(start_velocity_rad_s) and 10 <= sample_rate_hz <= 100_000):
+            raise UserError("start angle and velocity must be finite and the sample rate 10 Hz to 100 kHz")
         nsample = int(round(duration_s * sample_rate_hz))
         dt = 1.0 / (sample_rate_hz * substeps)
         volts = voltage(np.arange(nsample * substeps) * dt)
+        if not np.isfinite(volts).all():  # the C kernel indexes tables by angle: NaN would crash it
+            raise UserError("voltage must be finite")
         out = np.zeros((nsample, 3))
         library = native.load("reduced")
         if library is not None:
             self._run_native(library, volts, dt, substeps, start_angle_rad, start_velocity_rad_s, out)
         else:
             self._run_python(volts, dt, substeps, start_angle_rad, start_velocity_rad_s, out)
+        bad = ~np.isfinite(out).all(axis=1)
+        if bad.any():
+            raise unstable((int(np.argmax(bad)) + 1) / sample_rate_hz, "non-finite angle or speed")
         angle, velocity, acceleration = out.T
         t = self.tables
         rm = periodic_interp(self._motor_ratio, angle)

@@ -44,10 +44,41 @@ def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool):
                 model, data, state[None, :], control[None, start:stop], nstep=stop - start,
                 initial_warmstart=warmstart[None, :])
             states[start:stop], sensors[start:stop] = chunk_state[0], chunk_sensors[0]
+            check_stable(model, data, states[start:stop], sensors[start:stop], start * model.opt.timestep,
+                         control[start:stop])
             state = states[stop - 1]
             warmstart = data.qacc_warmstart.copy()
             bar.update((stop - start) * model.opt.timestep)
     return states, sensors
+
+
+MUJOCO_MAX_VALUE = 1e10  # mjMAXVAL: larger controls and states count as diverged
+_INSTABILITY_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS", "mjWARN_BADCTRL")
+LIKELY_CAUSE = ("likely cause: a time step too large for the model's stiffness (try a smaller --timestep) or a "
+                "parameter out of its physical range (inductance, friction, loads, voltage)")
+
+
+def unstable(time_s: float, what: str) -> UserError:
+    return UserError(f"the simulation became unstable at t = {time_s:.4f} s ({what}); {LIKELY_CAUSE}")
+
+
+def check_stable(model, data, states: np.ndarray, sensors: np.ndarray, start_s: float,
+                 control: np.ndarray | None = None) -> None:
+    """UserError at the first sign of instability in a rollout chunk: MuJoCo's warning
+    counters (it zeroes a bad control, or resets the state after a bad acceleration, and goes
+    on), a time that stops increasing (that reset), any non-finite state or sensor value."""
+    bad = ~np.isfinite(states).all(axis=1) | ~np.isfinite(sensors).all(axis=1)
+    bad[1:] |= np.diff(states[:, 0]) <= 0
+    if control is not None:
+        bad |= ~(np.abs(control) < MUJOCO_MAX_VALUE).all(axis=1)
+    first = int(np.argmax(bad)) if bad.any() else None
+    when = start_s + (first or 0) * model.opt.timestep
+    for name in _INSTABILITY_WARNINGS:
+        warning = getattr(mujoco.mjtWarning, name)
+        if data.warning[warning].number:
+            raise unstable(when, f"MuJoCo: {mujoco.mju_warningText(warning, data.warning[warning].lastinfo)}")
+    if first is not None:
+        raise unstable(when, "non-finite or reset state")
 
 
 @dataclass
@@ -114,6 +145,10 @@ def simulate(
     substeps = max(1, int(round(1.0 / (sample_rate_hz * dt))))
     nsample = int(round(duration_s * sample_rate_hz))
     nstep = nsample * substeps
+    from mechanism.files.limits import check_elements
+
+    width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
+    check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
     step_times = np.arange(nstep) * dt
     control = np.zeros((1, nstep, model.nu))
     control[0, :, machine.actuator] = voltage(step_times)

@@ -20,9 +20,8 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.files.limits import read_bounded
 from mechanism.files.outputs import atomic_file
-
-MAX_TABLE_BYTES = 512 * 1024 * 1024
 
 
 @dataclass
@@ -61,20 +60,12 @@ def read_table(
     """
     path = Path(path)
     label = f"{what} {path}"
+    data = read_bounded(path, what)
     try:
-        size = path.stat().st_size
-    except FileNotFoundError:
-        raise UserError(f"{label}: no such file") from None
-    except OSError as exc:
-        raise UserError(f"{label}: cannot read ({exc.strerror})") from None
-    if path.is_dir():
-        raise UserError(f"{label}: is a directory, expected a CSV file")
-    if size > MAX_TABLE_BYTES:
-        raise UserError(f"{label}: file is larger than {MAX_TABLE_BYTES // 2**20} MiB")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise UserError(f"{label}: not UTF-8 text") from None
+    del data
     return parse_table(text, required, optional, aliases, min_rows, label)
 
 

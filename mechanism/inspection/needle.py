@@ -84,8 +84,8 @@ class NeedleMotion:
         acc = np.abs(self.needle_acceleration_mm_per_rad2).max()
         lines = [
             f"stroke: {self.stroke_mm:.3f} mm",
-            f"top dead centre: arm angle {self.tdc_angle_deg:.2f} deg, needle point {self.tdc_z_mm:.3f} mm",
-            f"bottom dead centre: arm angle {self.bdc_angle_deg:.2f} deg, needle point {self.bdc_z_mm:.3f} mm",
+            f"top dead centre: shaft angle {self.tdc_angle_deg:.2f} deg, tool point {self.tdc_z_mm:.3f} mm",
+            f"bottom dead centre: shaft angle {self.bdc_angle_deg:.2f} deg, tool point {self.bdc_z_mm:.3f} mm",
             f"peak velocity: {vel:.3f} mm/rad; peak acceleration: {acc:.3f} mm/rad^2",
         ]
         if self.speed_rpm is not None:
@@ -94,12 +94,12 @@ class NeedleMotion:
                          f"peak acceleration {acc * w**2 / 1000:.1f} m/s^2")
         if self.hook_passage_angle_deg is not None:
             lines.append(
-                f"hook point passes the needle at arm angle {self.hook_passage_angle_deg:.2f} deg: needle "
+                f"hook point passes the needle at shaft angle {self.hook_passage_angle_deg:.2f} deg: needle "
                 f"{self.needle_rise_at_passage_mm:.3f} mm above bottom dead centre, hook point "
                 f"{self.hook_point_above_eye_mm:.3f} mm above the eye centre, "
                 f"{self.hook_point_to_needle_axis_mm:.3f} mm from the needle axis, "
                 f"{self.hook_point_clearance_mm:.3f} mm clear of the needle")
-        lines.append(f"needle height measured from {self.plate_reference}")
+        lines.append(f"tool height measured from {self.plate_reference}")
         lines += [f"note: {note}" for note in self.notes]
         return lines
 

@@ -34,6 +34,7 @@ building the fcl BVHs once).
 from __future__ import annotations
 
 import itertools
+import math
 import json
 import os
 import re
@@ -257,12 +258,11 @@ def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None
     """
     path = Path(path)
     label = f"variants file {path}"
-    if not path.is_file():
-        raise UserError(f"{label}: no such file")
-    if path.stat().st_size > 64 * 2**20:
-        raise UserError(f"{label}: larger than 64 MiB")
+    from mechanism.files.limits import read_bounded
+
+    data = read_bounded(path, "variants file", 64 * 2**20)  # by bytes read: a pipe claims size 0
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise UserError(f"{label}: not UTF-8 text") from None
     if path.suffix.lower() == ".json" or text.lstrip().startswith("{"):
@@ -337,6 +337,9 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None) -> V
                 param(key, where)
                 values[key] = _number(value, f"{where}.{key}")
         rows.append((name, values))
+    count = len(rows) + math.prod(len(v) for _, v in grid_axes) * max(len(draws), 1) if grid_axes else len(rows) + len(draws)
+    if count > MAX_VARIANTS:  # checked from the request, before the grid is built
+        raise UserError(f"{label}: {count} variants, at most {MAX_VARIANTS} allowed")
     grid = [dict(zip([n for n, _ in grid_axes], combo)) for combo in itertools.product(*[v for _, v in grid_axes])] if grid_axes else []
     if grid and draws:
         combined = [({**g, **{k: g.get(k, 0.0) + v for k, v in d.items()}}) for g in grid for d in draws]

@@ -6,22 +6,22 @@ is, the motor's datasheet or the friction. The description does, and every verb 
 
     [machine]
     name = "press"
-    model = "press.xml"                 # converted MJCF, or a CAD export (converted on first use)
+    model = "press.xml"                              # converted MJCF, or a CAD export (converted on first use)
     [drive]
-    motor_joint = "MOTOR-1--FRAME-1"    # the joint the motor turns
-    shaft_joint = "CRANK-1--FRAME-1"    # main shaft: recordings' angle, the cycle's driver
-    zero_site = "RAM_TIP"               # shaft angle 0 where this site is highest against gravity
+    motor_joint = "MOTOR_HOUSING-1--MOTOR_ROTOR-1"   # the joint the motor turns
+    shaft_joint = "BASE_FRAME-1--CRANKSHAFT-1"       # main shaft: recordings' angle, the cycle's driver
+    zero_site = "RAM-1"                              # shaft angle 0 where this site is highest against gravity
     [motor]
     type = "dc"
-    resistance_ohm = 2.4
+    resistance_ohm = 2.6
     torque_constant_Nm_per_A = 0.045
     back_emf_V_s_per_rad = 0.045
-    [friction."CRANK-1--FRAME-1"]
-    coulomb_Nm = 0.3
-    viscous_Nm_s_per_rad = 1e-3
+    [friction."BASE_FRAME-1--CRANKSHAFT-1"]
+    coulomb_Nm = 0.6
+    viscous_Nm_s_per_rad = 0.01
     [tool]
-    site = "RAM_TIP"
-    plate = "DIE-1"
+    site = "RAM-1"
+    plate = "DIE_PLATE-1"
 
 Units are in every key name. Unknown keys and sections are errors with a did-you-mean;
 every value is checked for type and physical range. Names are checked against the model

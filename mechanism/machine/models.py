@@ -60,17 +60,17 @@ def export_digest(export: Path) -> str:
     return digest.hexdigest()[:20]
 
 
-def converted_model(export: Path) -> Path:
-    """The MJCF of a CAD export, converted once per content and cached."""
+def converted_model(export: Path, drivers: tuple[str, ...] = ()) -> Path:
+    """The MJCF of a CAD export (``drivers`` kept as tree joints), converted once per content and cached."""
     from mechanism.converters import ExportError, convert
-
     from mechanism.native import cache_root
 
-    folder = cache_root() / "models" / f"{export.stem}-{export_digest(export)}"
+    key = hashlib.sha256("\0".join([export_digest(export), *drivers]).encode()).hexdigest()[:20]
+    folder = cache_root() / "models" / f"{export.stem}-{key}"
     target = folder / f"{export.stem}.xml"
     if not target.is_file():
         try:
-            convert(export, folder, name=export.stem)
+            convert(export, folder, name=export.stem, drivers=drivers)
         except ExportError as exc:
             raise UserError(str(exc)) from None
     return target
@@ -81,7 +81,7 @@ def resolve_model(description) -> Path:
     path = Path(description.model)
     if not path.is_file():
         raise UserError(f"machine description {description.where('machine', 'model')}: no such file {path}")
-    return path if is_mjcf(path) else converted_model(path)
+    return path if is_mjcf(path) else converted_model(path, (description.motor_joint, description.shaft_joint))
 
 
 def load_spec(path: str | os.PathLike | None = None):

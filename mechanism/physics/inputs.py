@@ -22,7 +22,7 @@ VOLTAGE_RANGE_V = (0.0, 30.0)
 def _check_voltage(values, label: str) -> None:
     values = np.atleast_1d(values)
     low, high = VOLTAGE_RANGE_V
-    bad = np.flatnonzero((values < low) | (values > high))
+    bad = np.flatnonzero(~((values >= low) & (values <= high)))  # NaN fails both
     if bad.size:
         raise UserError(f"{label}: voltage {values[bad[0]]:g} V is outside {low:g}-{high:g} V")
 
@@ -35,7 +35,7 @@ class DutyMap:
     motor_voltage_V: np.ndarray
 
     def __call__(self, duty_percent: float) -> float:
-        if not 0 <= duty_percent <= 100:
+        if not 0 <= duty_percent <= 100:  # NaN too
             raise UserError(f"duty cycle must be between 0 and 100 %, got {duty_percent:g}")
         return float(np.interp(duty_percent, self.duty_percent, self.motor_voltage_V))
 

@@ -51,10 +51,23 @@ class DCMotor:
         return replace(self, **overrides)
 
     def __post_init__(self):
-        if min(self.resistance_ohm, self.torque_constant_Nm_A, self.back_emf_V_s_rad) <= 0:
-            raise UserError("motor resistance and constants must be positive")
-        if self.inductance_H < 0 or self.cogging_Nm < 0:
-            raise UserError("motor inductance and cogging amplitude must be non-negative")
+        # NaN passes every comparison: check finite ranges, each number by name
+        from mechanism.files.limits import check_number
+
+        check_number(self.resistance_ohm, "motor resistance_ohm", 1e-6, 1e3, "ohm")
+        check_number(self.torque_constant_Nm_A, "motor torque_constant_Nm_per_A", 1e-6, 100, "N m/A")
+        check_number(self.back_emf_V_s_rad, "motor back_emf_V_s_per_rad", 1e-6, 100, "V s/rad")
+        check_number(self.inductance_H, "motor inductance_H", 0, 1, "H")
+        check_number(self.cogging_Nm, "motor cogging_Nm", 0, 10, "N m")
+        check_number(self.cogging_phase_rad, "motor cogging_phase_rad", -1e3, 1e3, "rad")
+        poles = check_number(self.cogging_poles, "motor cogging periods per turn", 1, 1000)
+        if isinstance(self.cogging_poles, bool) or not poles.is_integer():
+            raise UserError(f"motor cogging periods per turn must be an integer from 1 to 1000, got {self.cogging_poles!r}")
+        if self.thermal is not None:
+            check_number(self.thermal.resistance_K_W, "motor thermal resistance_K_W", 0, 1e4, "K/W", low_open=True)
+            check_number(self.thermal.time_constant_s, "motor thermal time_constant_s", 0, 1e6, "s", low_open=True)
+            check_number(self.thermal.tempcoef_per_K, "motor thermal tempcoef_per_K", 0, 1, "1/K")
+            check_number(self.thermal.ambient_C, "motor thermal ambient_C", -50, 100, "degC")
 
     @property
     def _ratio(self) -> float:
@@ -107,8 +120,10 @@ class SupplyLimit:
     series_ohm: float
 
     def __post_init__(self):
-        if not (np.isfinite(self.supply_V) and self.supply_V > 0 and np.isfinite(self.series_ohm) and self.series_ohm >= 0):
-            raise UserError("the supply needs a positive voltage and a non-negative series resistance")
+        from mechanism.files.limits import check_number
+
+        check_number(self.supply_V, "supply voltage", 0, 1e3, "V", low_open=True)
+        check_number(self.series_ohm, "supply series resistance", 0, 1e3, "ohm")
 
     def current(self, motor: DCMotor, voltage, motor_velocity) -> np.ndarray:
         """Armature current [A] (numpy twin of native/machine.c and native/reduced.c)."""

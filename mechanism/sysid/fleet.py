@@ -127,32 +127,31 @@ def diagnose_fleet(
 ) -> FleetResult:
     """Diagnose every recording (files, or folders of ``*.csv``) into ``out_dir``; see the
     module docstring. ``diagnose_options`` go to ``diagnose`` (``baseline``, ``candidates``,
-    ``model_path``). Each recording's JSON is written as soon as it is done;
+    ``model_path``). Each recording's JSON is written (into the folder being built) when it is done;
     ``on_recording(name, summary_row)`` sees each one then."""
     from mechanism.batch import check_options, run_batch
+    from mechanism.files.outputs import atomic_dir
 
     check_options(backend, workers)
     files = recording_paths(paths)
     names = _unique_names(files)
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
     options = {"workers": _fit_threads(backend, workers), **diagnose_options}
+    # one output transaction: the folder (earlier files kept) appears complete or not at all
+    with atomic_dir(out_dir, keep=True) as folder:
 
-    def done(index: int, outcome: dict) -> None:
-        if outcome["json"] is not None:
-            _write_json(out / f"{names[index]}.json", outcome["json"])
-        if on_recording is not None:
-            on_recording(names[index], _summary_row(names[index], outcome))
+        def done(index: int, outcome: dict) -> None:
+            if outcome["json"] is not None:
+                _write_json(folder / f"{names[index]}.json", outcome["json"])
+            if on_recording is not None:
+                on_recording(names[index], _summary_row(names[index], outcome))
 
-    start = time.perf_counter()
-    outcomes = run_batch(_diagnose_one, [str(p) for p in files], shared=options, workers=workers, backend=backend,
-                         ray_address=ray_address, on_result=done, progress=progress, desc="recordings", unit="recording")
-    rows = [_summary_row(name, outcome) for name, outcome in zip(names, outcomes)]
-    result = FleetResult(out, rows, find_outliers(rows), time.perf_counter() - start)
-    write_summary_csv(out / SUMMARY_CSV, rows)
-    write_summary_html(out / SUMMARY_HTML, result)
+        start = time.perf_counter()
+        outcomes = run_batch(_diagnose_one, [str(p) for p in files], shared=options, workers=workers, backend=backend,
+                             ray_address=ray_address, on_result=done, progress=progress, desc="recordings", unit="recording")
+        rows = [_summary_row(name, outcome) for name, outcome in zip(names, outcomes)]
+        result = FleetResult(Path(out_dir), rows, find_outliers(rows), time.perf_counter() - start)
+        write_summary_csv(folder / SUMMARY_CSV, rows)
+        write_summary_html(folder / SUMMARY_HTML, result)
     return result
 
 

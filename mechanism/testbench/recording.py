@@ -11,7 +11,7 @@ import numpy as np
 
 from mechanism import __version__
 from mechanism.errors import UserError, close_matches
-from mechanism.files.outputs import atomic_file
+from mechanism.files.outputs import atomic_file, transaction
 from mechanism.files.tables import write_table
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
@@ -283,14 +283,11 @@ def write_recording(recording: Recording, csv_path: str | Path) -> tuple[Path, P
         "columns: time [s], voltage [V, commanded], arm_angle [rad, unwrapped, 0 = needle top dead centre, "
         f"{ENCODER_COUNTS_PER_REV} counts/rev], current [A]",
     ]
-    write_table(csv_path, recording.columns(), comments=comments, fmt="%.10g")
-    try:
+    with transaction():  # both files or neither; a failure never touches the previous pair
+        write_table(csv_path, recording.columns(), comments=comments, fmt="%.10g")
         with atomic_file(truth_path) as handle:
             json.dump(_jsonable(truth), handle, indent=2)
             handle.write("\n")
-    except BaseException:
-        csv_path.unlink(missing_ok=True)
-        raise
     return csv_path, truth_path
 
 

@@ -1,0 +1,131 @@
+"""Limits on untrusted numbers and sizes, checked before any work or allocation.
+
+Every number a verb takes is finite and in its physical range; every input is read by
+counting the bytes actually read (a pipe or ``/dev/zero`` reports size 0); every count
+that sizes an allocation is checked from the request. The byte and element limits can be
+raised with environment variables (``MECHANISM_MAX_INPUT_MB``, ``MECHANISM_MAX_ELEMENTS``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+
+from mechanism.errors import UserError
+
+DEFAULT_MAX_INPUT_MB = 512
+DEFAULT_MAX_ELEMENTS = 200_000_000  # float64 values one request may allocate (1.6 GB)
+
+
+def _env_limit(name: str, default: float) -> float:
+    text = os.environ.get(name, "").strip()
+    if not text:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        raise UserError(f"${name} must be a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise UserError(f"${name} must be a positive number, got {text!r}")
+    return value
+
+
+def max_input_bytes() -> int:
+    """The most bytes one input file may hold (``$MECHANISM_MAX_INPUT_MB``, default 512 MiB)."""
+    return int(_env_limit("MECHANISM_MAX_INPUT_MB", DEFAULT_MAX_INPUT_MB) * 2**20)
+
+
+def max_elements() -> int:
+    """The most numbers one request may allocate (``$MECHANISM_MAX_ELEMENTS``)."""
+    return int(_env_limit("MECHANISM_MAX_ELEMENTS", DEFAULT_MAX_ELEMENTS))
+
+
+def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -> bytes:
+    """The bytes of ``path``, read in chunks and stopped once past ``limit``: the size a file
+    claims is not trusted (pipes, devices and growing files claim anything)."""
+    path = Path(path)
+    limit = max_input_bytes() if limit is None else limit
+    if path.is_dir():
+        raise UserError(f"{what} {path}: is a folder, expected a file")
+    chunks, total = [], 0
+    try:
+        with open(path, "rb") as handle:
+            while True:
+                chunk = handle.read(min(1 << 20, limit + 1 - total))
+                if not chunk:
+                    break
+                total += len(chunk)
+                if total > limit:
+                    raise UserError(f"{what} {path}: larger than the input limit of {limit // 2**20} MiB "
+                                    f"(raise it with MECHANISM_MAX_INPUT_MB)")
+                chunks.append(chunk)
+    except FileNotFoundError:
+        raise UserError(f"{what} {path}: no such file") from None
+    except OSError as exc:
+        raise UserError(f"{what} {path}: cannot read ({exc.strerror})") from None
+    return b"".join(chunks)
+
+
+def check_elements(count: float, what: str) -> None:
+    """UserError before allocating ``count`` numbers when that exceeds the limit."""
+    limit = max_elements()
+    if not count <= limit:
+        raise UserError(f"{what}: {count:.3g} values would need {count * 8 / 2**30:.3g} GiB, more than the limit of "
+                        f"{limit:.3g} values ({limit * 8 / 2**30:.3g} GiB; raise it with MECHANISM_MAX_ELEMENTS)")
+
+
+def check_number(value, what: str, low: float | None = None, high: float | None = None, unit: str = "",
+                 low_open: bool = False) -> float:
+    """``value`` as a float when finite and within ``[low, high]`` (``(low, high]`` with
+    ``low_open``), else a UserError naming ``what`` and the range."""
+    problem = range_problem(value, low, high, unit, low_open)
+    if problem:
+        raise UserError(f"{what}: {problem}")
+    return float(value)
+
+
+def range_problem(value, low=None, high=None, unit: str = "", low_open: bool = False) -> str | None:
+    """None for a finite number in range, else why not (``'31 is outside 0-30 V'``)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return f"expected a number, got {value!r}"
+    if not math.isfinite(number):
+        return f"{value} is not a finite number ({describe_range(low, high, unit, low_open)})"
+    below = low is not None and (number <= low if low_open else number < low)
+    if below or (high is not None and number > high):
+        return f"{value:g} is outside {describe_range(low, high, unit, low_open)}"
+    return None
+
+
+def describe_range(low=None, high=None, unit: str = "", low_open: bool = False) -> str:
+    unit = f" {unit}" if unit else ""
+    if low is not None and high is not None:
+        return f"{low:g}-{high:g}{unit}" + (f" (above {low:g})" if low_open else "")
+    if low is not None:
+        return f"{'above' if low_open else 'at least'} {low:g}{unit}"
+    if high is not None:
+        return f"at most {high:g}{unit}"
+    return "any finite number"
+
+
+def number(low: float | None = None, high: float | None = None, unit: str = "", low_open: bool = False,
+           integer: bool = False):
+    """An argparse ``type`` for a finite number in range: a bad value is one ``error:`` line
+    naming the option and the range (exit 2) before any work."""
+
+    def parse(text: str):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            kind = "an integer" if integer else "a number"
+            raise argparse.ArgumentTypeError(f"expected {kind}, got {text!r}") from None
+        problem = range_problem(value, low, high, unit, low_open)
+        if problem:
+            raise argparse.ArgumentTypeError(problem)
+        return value
+
+    parse.__name__ = "integer" if integer else "number"
+    return parse
