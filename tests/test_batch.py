@@ -42,7 +42,9 @@ def _die_once(marker_dir, item):
     if item == 5 and not marker.exists():
         marker.write_text(str(os.getpid()))
         os._exit(1)
-    return item * item
+    import ray
+
+    return item * item, ray.get_runtime_context().gcs_address  # which cluster ran it
 
 
 # -- local ------------------------------------------------------------------------------------
@@ -162,14 +164,16 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_pa
     assert "pass" in (tmp_path / "ray.csv").read_text()
 
 
-def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path):
+def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path, monkeypatch):
     ray = pytest.importorskip("ray")
+    monkeypatch.setenv("RAY_ADDRESS", ray_cluster)  # the cluster named by the environment, not the argument
     seen = []
     items = list(range(12))
-    results = run_batch(_die_once, items, shared=str(tmp_path), workers=2, backend="ray", ray_address=ray_cluster,
+    results = run_batch(_die_once, items, shared=str(tmp_path), workers=2, backend="ray",
                         chunk_size=2, on_result=lambda i, r: seen.append(i), progress=False)
     assert (tmp_path / "died_5").exists()  # a worker process really died mid-batch
-    assert results == [i * i for i in items]  # nothing lost, in item order
+    assert [square for square, _ in results] == [i * i for i in items]  # nothing lost, in item order
+    assert {address.rpartition(":")[2] for _, address in results} == {ray_cluster.rpartition(":")[2]}
     assert sorted(seen) == items
     assert not ray.is_initialized()  # disconnected from the cluster it did not start
 
