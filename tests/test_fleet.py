@@ -28,7 +28,7 @@ def fleet_dir(tmp_path_factory):
     return folder
 
 
-@pytest.mark.slow  # about 15 s: three 60 s recordings and one of them again alone
+@pytest.mark.slow  # 7-16 s (idle to loaded): three 60 s recordings and one of them again alone
 def test_a_fleet_gets_one_json_each_a_summary_and_survives_a_bad_recording(cli, fleet_dir, tmp_path):
     out = tmp_path / "out"
     result = cli("diagnose", fleet_dir, "--workers", "2", "--effects", EFFECTS, "--out", out)
