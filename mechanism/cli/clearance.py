@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from mechanism.cli._batch import add_batch_arguments, check_batch_arguments
 from mechanism.files.limits import number
 
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, inspection_target
@@ -24,7 +25,8 @@ def register(subparsers) -> None:
         ),
         epilog=(
             "examples: mechanism clearance --pairs needle:hook,needle:needle_plate --required 0.05 --csv c.csv --json c.json; "
-            "mechanism clearance --pairs needle:hook --variants variants.json --workers 2 --csv variants.csv"
+            "mechanism clearance --pairs needle:hook --variants variants.json --workers 2 --csv variants.csv; "
+            "mechanism clearance --pairs needle:hook --variants variants.json --backend ray --ray-address 10.0.0.5:6379 --csv variants.csv"
         ),
     )
     add_machine_arguments(parser)
@@ -40,10 +42,7 @@ def register(subparsers) -> None:
     parser.add_argument("--variants", metavar="FILE",
                         help="design variants (JSON or CSV; parameters such as hook_timing_deg, crank_radius_mm, "
                              "needle_bar_height_mm or coupling:/joint:/body:/part: targets, offsets from nominal in deg or mm)")
-    parser.add_argument("--workers", type=number(1, 1024, integer=True), default=1, metavar="K", help="parallel worker processes for --variants (default 1)")
-    parser.add_argument("--backend", choices=["local", "ray"], default="local",
-                        help="where variants run: local processes, or Ray (pip install 'mechanism[ray]'; uses a running "
-                             "cluster if ray.init() was called, else starts a local one)")
+    add_batch_arguments(parser, "--variants")
     parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="one row per pair (or per variant with --variants)")
     parser.add_argument("--json", metavar="OUT.json", help="full report: closest points, interference ranges, depths")
@@ -53,11 +52,9 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from mechanism.inspection.clearance import all_pairs, check_clearance, parse_pairs, write_json, write_rows
-    from mechanism.errors import UserError
     from mechanism.machine.models import load_model
 
-    if args.workers != 1 and not args.variants:
-        raise UserError("--workers applies to --variants")
+    check_batch_arguments(args, bool(args.variants), "--variants")
     path, args.driver, description = inspection_target(args)
     model = load_model(path)
     pairs = all_pairs(model) if args.all_pairs else parse_pairs(args.pairs, model)
@@ -66,7 +63,7 @@ def run(args) -> int:
 
         variants = read_variants(args.variants, description.variant_presets if description else None)
         batch = run_variants(model, variants, pairs, args.required, args.driver, args.cycle, args.resolution,
-                             args.workers, args.backend)
+                             args.workers, args.backend, ray_address=args.ray_address)
         table = batch.table()
         write_rows(args.csv, table, comments=[f"required clearance: {args.required:g} mm; one row per variant; "
                                                "min_mm < 0 is minus the penetration depth"])

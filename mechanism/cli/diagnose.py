@@ -8,6 +8,8 @@ ORDER = 61
 def register(subparsers) -> None:
     from mechanism.cli.identify import add_recording_arguments
 
+    from mechanism.cli._batch import add_batch_arguments
+
     parser = subparsers.add_parser(
         "diagnose",
         help="find the physics a model is missing from a bench recording, model it, show the fit improve",
@@ -21,17 +23,29 @@ def register(subparsers) -> None:
             "rmse is the RMS arm-velocity residual [rad/s] on the held-out half. A recording at one constant "
             "voltage is not identifiable: exit status 2, and the JSON says so."
         ),
-        epilog="example: mechanism diagnose rec.csv --json out/diagnosis.json --report out/diagnosis",
+        epilog="examples: mechanism diagnose rec.csv --json out/diagnosis.json --report out/diagnosis; "
+               "mechanism diagnose recordings/ --workers 2 --out out/fleet",
     )
     add_recording_arguments(parser, "diagnosis")
+    for action in parser._actions:  # several recordings, or folders of them: a fleet
+        if action.dest == "recording":
+            action.nargs, action.metavar = "+", "REC.csv|DIR"
+            action.help += "; several recordings or a folder of *.csv: a fleet, diagnosed in parallel into --out"
     parser.add_argument("--effects", metavar="NAME[,NAME]",
                         help="restrict the candidates to these effects (default: the whole library)")
-    parser.set_defaults(handler=run, inputs=("recording", "model"), outputs=("json",), output_dirs=("report",))
+    parser.add_argument("--out", metavar="DIR",
+                        help="fleet output folder: one JSON per recording (as --json writes for one), summary.csv "
+                             "(effects, rmse, fitted parameters, time per recording; errors of bad recordings) and "
+                             "summary.html (each parameter's spread over the fleet, outliers by robust z-score > 3.5)")
+    add_batch_arguments(parser, "a fleet of recordings")
+    parser.set_defaults(handler=run, inputs=("recording", "model"), outputs=("json",), output_dirs=("report", "out"))
 
 
 def run(args) -> int:
     import sys
+    from pathlib import Path
 
+    from mechanism.cli._batch import check_batch_arguments
     from mechanism.cli.identify import progress_bar, write_outputs
     from mechanism.sysid.diagnosis import diagnose, not_identifiable_json
     from mechanism.sysid.effects import effect
@@ -41,7 +55,11 @@ def run(args) -> int:
     candidates = None
     if args.effects:
         candidates = [effect(name.strip()).name for name in args.effects.split(",") if name.strip()]
-    rec = read_recording(args.recording)
+    fleet = args.out is not None or len(args.recording) > 1 or Path(args.recording[0]).is_dir()
+    check_batch_arguments(args, fleet, "a fleet (several recordings, a folder, or --out)")
+    if fleet:
+        return run_fleet(args, candidates)
+    rec = read_recording(args.recording[0])
     try:
         bar, tick = progress_bar("diagnose")
         with bar:
@@ -61,4 +79,33 @@ def run(args) -> int:
     for item in data["effects"]:
         print(f"+ {item['name']}: rmse {item['rmse']:.4g} rad/s -- {item['evidence']}")
     print(f"final: rmse {data['final']['rmse']:.4g} rad/s")
+    return 0
+
+
+def run_fleet(args, candidates) -> int:
+    """Several recordings: one JSON each and a summary in --out; exit 2 if none was diagnosed."""
+    import sys
+
+    from mechanism.errors import UserError
+    from mechanism.sysid.fleet import SUMMARY_CSV, SUMMARY_HTML, diagnose_fleet
+
+    if args.out is None:
+        raise UserError("several recordings need --out DIR (one JSON per recording and a summary)")
+    if args.json or args.report:
+        raise UserError("--json and --report are for one recording; a fleet writes them per recording into --out")
+    result = diagnose_fleet(args.recording, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
+                            progress=sys.stderr.isatty(), baseline=args.baseline, candidates=candidates, model_path=args.model)
+    for row in result.rows:
+        if row["status"] == "ok":
+            print(f"{row['recording']}: effects {row['effects'] or 'none'}, rmse {row['baseline_rmse_rad_s']:.4g} -> "
+                  f"{row['final_rmse_rad_s']:.4g} rad/s ({row['time_s']:.1f} s)")
+        else:
+            print(f"{row['recording']}: not diagnosed: {row['error']}")
+    for item in result.outliers:
+        print(f"outlier: {item['recording']} {item['parameter']} = {item['value']:.5g} (robust z {item['robust_z']:.1f})")
+    print(f"{result.diagnosed} of {len(result.rows)} recordings diagnosed in {result.seconds:.1f} s; "
+          f"wrote {args.out}/{SUMMARY_CSV}, {args.out}/{SUMMARY_HTML} and one JSON per recording")
+    if not result.diagnosed:
+        sys.stderr.write(f"error: none of the {len(result.rows)} recordings could be diagnosed (see {args.out}/{SUMMARY_CSV})\n")
+        return 2
     return 0

@@ -27,7 +27,8 @@ local positions and the pose solver re-assembles the changed linkage.
 
 A **variants file** (JSON, or CSV with one column per parameter) lists the variants; see
 :func:`read_variants`. :func:`run_variants` checks every variant's clearances in parallel
-(processes, each compiling the model and building the fcl BVHs once) or on Ray.
+(``mechanism.batch``: local processes or a Ray cluster, each worker copying the model and
+building the fcl BVHs once).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -490,17 +491,8 @@ def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
     return copy.deepcopy(model)
 
 
-_WORKER: VariantChecker | None = None
-
-
-def _init_worker(config: BatchConfig) -> None:
-    global _WORKER
-    _WORKER = VariantChecker(config)
-
-
-def _work(task: tuple[int, np.ndarray]) -> tuple[int, dict]:
-    index, values = task
-    return index, _WORKER(values)
+def _check(checker: VariantChecker, values: np.ndarray) -> dict:
+    return checker(values)
 
 
 @dataclass
@@ -539,73 +531,20 @@ def run_variants(
     workers: int = 1,
     backend: str = "local",
     progress: bool = True,
+    ray_address: str | None = None,
+    on_row: Callable[[int, dict], None] | None = None,
 ) -> BatchResult:
-    """Check every variant's clearances; one result row per variant, in file order."""
+    """Check every variant's clearances; one result row per variant, in file order. Each
+    worker builds one :class:`VariantChecker` (model copy, fcl BVHs) from the config it
+    receives once (``mechanism.batch``); ``on_row(index, row)`` sees rows as they complete."""
     import time
 
-    from tqdm import tqdm
+    from mechanism.batch import check_options, run_batch
 
-    if backend not in ("local", "ray"):
-        raise UserError(f"backend {backend!r}: expected local or ray")
-    if not 1 <= workers <= 1024:
-        raise UserError(f"workers must be between 1 and 1024, got {workers}")
+    check_options(backend, workers)
     variants.check(model)
     config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm)
-    tasks = list(enumerate(variants.values))
-    rows: list[dict | None] = [None] * len(tasks)
     start = time.perf_counter()
-    bar = tqdm(total=len(tasks), unit="variant", desc="variants", disable=not progress, mininterval=0.5)
-    if backend == "ray":
-        for index, row in _run_ray(config, tasks, workers):
-            rows[index] = row
-            bar.update()
-    elif workers == 1:
-        _init_worker(config)
-        for task in tasks:
-            index, row = _work(task)
-            rows[index] = row
-            bar.update()
-    else:
-        from concurrent.futures import ProcessPoolExecutor
-
-        import multiprocessing
-
-        # fork where there is one (Linux): no re-import of the caller's main module, so a
-        # script without an ``if __name__ == "__main__"`` guard works; spawn elsewhere
-        methods = multiprocessing.get_all_start_methods()
-        context = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
-        chunk = max(1, min(16, len(tasks) // (8 * workers)))
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_worker, initargs=(config,)) as pool:
-            for index, row in pool.map(_work, tasks, chunksize=chunk):
-                rows[index] = row
-                bar.update()
-    bar.close()
+    rows = run_batch(_check, list(variants.values), shared=config, setup=VariantChecker, workers=workers, backend=backend,
+                     ray_address=ray_address, on_result=on_row, progress=progress, desc="variants", unit="variant")
     return BatchResult(variants, rows, list(pairs), required_mm, workers, backend, time.perf_counter() - start)
-
-
-def _run_ray(config: BatchConfig, tasks, workers: int):
-    try:
-        import ray
-    except ImportError:
-        raise UserError("the ray backend needs Ray: pip install 'mechanism[ray]'") from None
-    started = False
-    if not ray.is_initialized():
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
-        started = True
-    try:
-        Checker = ray.remote(_RayChecker)
-        actors = [Checker.remote(config) for _ in range(workers)]
-        pool = ray.util.ActorPool(actors)
-        yield from pool.map_unordered(lambda actor, task: actor.run.remote(task), tasks)
-    finally:
-        if started:
-            ray.shutdown()
-
-
-class _RayChecker:
-    def __init__(self, config: BatchConfig):
-        self.checker = VariantChecker(config)
-
-    def run(self, task):
-        index, values = task
-        return index, self.checker(values)

@@ -1,0 +1,278 @@
+"""Apply one function to many items, on local worker processes or on a Ray cluster.
+
+``run_batch(function, items, shared=..., setup=...)`` calls ``function(state, item)`` for
+every item and returns the results in item order. ``state`` is built once per worker
+process by ``setup(shared)`` (default: ``shared`` itself), so a heavy payload (a compiled
+model, meshes, their collision trees) travels and is prepared once per worker, never
+once per item. Results reach ``on_result(index, result)`` as they complete, so a caller
+can write a CSV row by row and resume an interrupted batch later.
+
+- ``backend="local"``: ``workers`` processes (``workers=1``: in this process). The payload
+  goes to each worker once through the pool's initializer. Everything handed over is
+  pickled, so the pool works with the ``spawn`` start method too (functions must be
+  module-level); ``fork`` is used where the platform has it: no re-import of the caller's
+  main module, and scripts without a ``__main__`` guard work.
+- ``backend="ray"``: with ``ray_address`` (or the ``RAY_ADDRESS`` environment variable)
+  connect to a running cluster, with no resource arguments (the cluster owns its
+  resources; Ray refuses ``num_cpus`` when connecting); without one, start a private
+  local instance with ``workers`` CPUs and stop it afterwards. The payload goes once into
+  the object store (``ray.put``); each worker process builds its state from it once and
+  keeps it for the next items. Items run in chunks as Ray tasks with ``max_retries``: a
+  worker (or node) that dies mid-batch has its chunk run again elsewhere, and the results
+  stay complete and in order.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from collections import deque
+from typing import Any, Callable, Sequence
+
+from mechanism.errors import UserError
+
+BACKENDS = ("local", "ray")
+MAX_WORKERS = 1024
+RAY_TASK_RETRIES = 3  # reruns of a chunk whose worker process or node died
+RAY_INSTALL_HINT = "pip install 'mechanism[ray]'"
+
+
+def check_options(backend: str, workers: int) -> None:
+    """Raise UserError for an unknown backend or a worker count out of range."""
+    if backend not in BACKENDS:
+        raise UserError(f"backend {backend!r}: expected one of {', '.join(BACKENDS)}")
+    if not 1 <= workers <= MAX_WORKERS:
+        raise UserError(f"workers must be between 1 and {MAX_WORKERS}, got {workers}")
+
+
+def run_batch(
+    function: Callable[[Any, Any], Any],
+    items: Sequence,
+    *,
+    shared: Any = None,
+    setup: Callable[[Any], Any] | None = None,
+    workers: int = 1,
+    backend: str = "local",
+    ray_address: str | None = None,
+    on_result: Callable[[int, Any], None] | None = None,
+    progress: bool = True,
+    desc: str = "items",
+    unit: str = "item",
+    chunk_size: int | None = None,
+    start_method: str | None = None,
+) -> list:
+    """``[function(state, item) for item in items]`` with ``state = setup(shared)`` built
+    once per worker; see the module docstring. Exceptions raised by ``function`` reach the
+    caller (a UserError stays a UserError)."""
+    from tqdm import tqdm
+
+    check_options(backend, workers)
+    ray = _import_ray() if backend == "ray" else None
+    items = list(items)
+    results: list = [None] * len(items)
+    chunks = _chunks(len(items), workers, chunk_size)
+    if ray is not None:
+        # connected here, before the bar: a connection error line stands alone
+        done = _ray_chunks(ray, function, setup, shared, items, chunks, workers, _connect(ray, workers, ray_address))
+    elif workers == 1 or len(chunks) <= 1:
+        done = _serial_chunks(function, setup, shared, items, chunks)
+    else:
+        done = _pool_chunks(function, setup, shared, items, chunks, workers, start_method)
+    bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not progress, file=sys.stderr, mininterval=0.5)
+    try:
+        for pairs in done:
+            for index, result in pairs:
+                results[index] = result
+                if on_result is not None:
+                    on_result(index, result)
+            bar.update(len(pairs))
+    finally:
+        bar.close()  # ends the bar's line before any error message
+        done.close()  # stops the workers (or disconnects from Ray) also on an error
+    return results
+
+
+def _chunks(count: int, workers: int, chunk_size: int | None) -> list[range]:
+    # about 8 chunks per worker (load balance) of at most 16 items (progress, lost work)
+    size = chunk_size or max(1, min(16, count // (8 * workers)))
+    return [range(start, min(start + size, count)) for start in range(0, count, size)]
+
+
+def _apply(function, state, items, chunk) -> list[tuple[int, Any]]:
+    return [(index, function(state, items[index])) for index in chunk]
+
+
+def _build_state(setup, shared):
+    return setup(shared) if setup is not None else shared
+
+
+# -- local ------------------------------------------------------------------------------------
+
+def _serial_chunks(function, setup, shared, items, chunks):
+    state = _build_state(setup, shared)
+    for chunk in chunks:
+        yield _apply(function, state, items, chunk)
+
+
+_LOCAL_STATE: Any = None
+
+
+def _init_local_worker(setup, shared) -> None:
+    global _LOCAL_STATE
+    _LOCAL_STATE = _build_state(setup, shared)
+
+
+def _local_chunk(function, chunk_items: list[tuple[int, Any]]) -> list[tuple[int, Any]]:
+    return [(index, function(_LOCAL_STATE, item)) for index, item in chunk_items]
+
+
+def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    method = start_method or ("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=multiprocessing.get_context(method),
+                               initializer=_init_local_worker, initargs=(setup, shared))
+    try:
+        # the items of a chunk travel with it; the payload went once, through the initializer
+        pending = {pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]) for chunk in chunks}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                try:
+                    yield future.result()
+                except BrokenProcessPool:
+                    raise UserError("a worker process died mid-batch (out of memory, or killed); "
+                                    "run again, or use --backend ray, which reruns the lost items") from None
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+# -- Ray --------------------------------------------------------------------------------------
+
+def _import_ray():
+    try:
+        import ray
+    except ImportError:
+        raise UserError(f"the ray backend needs Ray: {RAY_INSTALL_HINT}") from None
+    return ray
+
+
+def ray_address_from(ray_address: str | None) -> str | None:
+    """The cluster to connect to: the argument, else ``RAY_ADDRESS``, else None (start a local one)."""
+    return ray_address or os.environ.get("RAY_ADDRESS") or None
+
+
+def _connect(ray, workers: int, ray_address: str | None) -> bool:
+    """Connect (or start a local instance); True when this call did it and must disconnect."""
+    import logging
+
+    if ray.is_initialized():  # the caller's own session: use it as it is
+        return False
+    address = ray_address_from(ray_address)
+    quiet = {"logging_level": logging.WARNING, "log_to_driver": False}
+    if address:
+        _check_reachable(address)
+        try:
+            with _native_stderr_muted():  # Ray's C++ core logs every failed attempt to reach the cluster
+                ray.init(address=address, **quiet)  # no resource arguments: the cluster has its own
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            # Ray sends its token (~/.ray/auth_token, or RAY_AUTH_TOKEN) to an address named
+            # explicitly only when told to: say so, since clusters use tokens by default
+            hint = "" if os.environ.get("RAY_AUTH_MODE") else "; a cluster with token authentication also needs RAY_AUTH_MODE=token"
+            raise UserError(f"cannot connect to the Ray cluster at {address}: {first}{hint}") from None
+    else:
+        # "local": a private instance even when a `ray start` cluster runs on this machine
+        ray.init(address="local", num_cpus=workers, include_dashboard=False, **quiet)
+    return True
+
+
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast on a HOST:PORT where nothing listens (Ray would retry for minutes)."""
+    import socket
+
+    host, _, port = address.rpartition(":")
+    if "://" in address or not host or not port.isdigit():
+        return  # "auto", ray://..., or no port: left to Ray
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise UserError(f"cannot connect to the Ray cluster at {address}: {exc.strerror or exc} "
+                        "(start one with `ray start --head`, see the README)") from None
+
+
+@contextlib.contextmanager
+def _native_stderr_muted():
+    """Send file descriptor 2 (where native code writes) to /dev/null for the duration."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as sink:
+            os.dup2(sink.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, started: bool):
+    pending: dict = {}
+    try:
+        shared_ref = ray.put(shared)
+        task = ray.remote(max_retries=RAY_TASK_RETRIES, num_cpus=1)(_ray_chunk)
+        # a bounded number of chunks in flight: the rest wait here, not in the object store
+        limit = 2 * max(1, int(ray.cluster_resources().get("CPU", workers)))
+        queue = deque(chunks)
+        while queue or pending:
+            while queue and len(pending) < limit:
+                chunk = queue.popleft()
+                # the payload's reference rides in a list so that Ray does not fetch and
+                # unpickle it for every chunk: the worker does that once (_ray_state)
+                ref = task.remote(function, setup, [shared_ref], [(i, items[i]) for i in chunk])
+                pending[ref] = chunk
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                chunk = pending.pop(ref)
+                yield _ray_result(ray, ref, chunk)
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()
+
+
+def _ray_result(ray, ref, chunk):
+    try:
+        return ray.get(ref)
+    except ray.exceptions.RayTaskError as exc:
+        cause = exc.cause
+        if isinstance(cause, UserError):
+            raise UserError(str(cause)) from None
+        raise cause if isinstance(cause, Exception) else exc
+    except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError, ray.exceptions.ObjectLostError) as exc:
+        raise UserError(f"items {chunk.start}-{chunk.stop - 1}: their worker died {RAY_TASK_RETRIES + 1} times "
+                        f"({type(exc).__name__})") from None
+
+
+_RAY_STATE: dict = {}  # per Ray worker process: payload id -> state built from it
+
+
+def _ray_state(setup, shared_box):
+    (ref,) = shared_box
+    key = ref.hex()
+    if key not in _RAY_STATE:
+        import ray
+
+        _RAY_STATE.clear()  # one batch at a time per worker: drop an earlier payload
+        _RAY_STATE[key] = _build_state(setup, ray.get(ref))
+    return _RAY_STATE[key]
+
+
+def _ray_chunk(function, setup, shared_box, chunk_items):
+    state = _ray_state(setup, shared_box)
+    return [(index, function(state, item)) for index, item in chunk_items]
+
+

@@ -1,0 +1,195 @@
+"""The batch runner (mechanism.batch): local processes and a real Ray cluster started with
+`ray start`; payload once per worker, ordered and complete results, workers that die."""
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mechanism.batch import run_batch
+from mechanism.errors import UserError
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# -- item functions (module level: workers import them by name) -------------------------------
+
+_SETUPS = []  # per process: how often setup ran here
+
+
+def _setup(payload):
+    _SETUPS.append(payload["token"])
+    return {"offset": payload["offset"], "pid": os.getpid()}
+
+
+def _shifted(state, item):
+    return {"value": item + state["offset"], "pid": state["pid"], "setups_here": len(_SETUPS)}
+
+
+def _refuse_seven(state, item):
+    if item == 7:
+        raise UserError("item 7 is bad")
+    return item
+
+
+def _die_once(marker_dir, item):
+    """Kill the whole worker process the first time item 5 is attempted."""
+    marker = Path(marker_dir) / f"died_{item}"
+    if item == 5 and not marker.exists():
+        marker.write_text(str(os.getpid()))
+        os._exit(1)
+    import ray
+
+    return item * item, ray.get_runtime_context().gcs_address  # which cluster ran it
+
+
+# -- local ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("start_method", ["spawn", None])
+def test_local_pool_orders_results_and_sets_up_once_per_worker(start_method):
+    seen = []
+    items = list(range(40))
+    results = run_batch(_shifted, items, shared={"offset": 1000, "token": "x"}, setup=_setup, workers=2, chunk_size=3,
+                        on_result=lambda i, r: seen.append(i), progress=False, start_method=start_method)
+    assert [r["value"] for r in results] == [i + 1000 for i in items]
+    assert sorted(seen) == items  # every result streamed once
+    assert all(r["setups_here"] == 1 for r in results)  # the payload was prepared once per worker, not per item
+    assert 1 <= len({r["pid"] for r in results}) <= 2 and os.getpid() not in {r["pid"] for r in results}
+
+
+def test_serial_runs_in_this_process():
+    _SETUPS.clear()
+    results = run_batch(_shifted, [1, 2, 3], shared={"offset": 10, "token": "s"}, setup=_setup, progress=False)
+    assert [r["value"] for r in results] == [11, 12, 13]
+    assert _SETUPS == ["s"] and {r["pid"] for r in results} == {os.getpid()}
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_user_error_in_an_item_reaches_the_caller_after_the_bar(workers, capsys):
+    with pytest.raises(UserError, match="item 7 is bad"):
+        run_batch(_refuse_seven, range(20), workers=workers, chunk_size=4)
+    err = capsys.readouterr().err
+    assert err == "" or err.endswith("\n")  # the bar's line is ended: an error line printed next stands alone
+
+
+def test_bad_options_and_missing_ray(monkeypatch, capsys):
+    with pytest.raises(UserError, match="backend 'dask'"):
+        run_batch(_shifted, [1], backend="dask")
+    with pytest.raises(UserError, match="workers must be between"):
+        run_batch(_shifted, [1], workers=0)
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails
+    with pytest.raises(UserError, match="needs Ray"):
+        run_batch(_shifted, [1], backend="ray")
+    assert capsys.readouterr().err == ""  # no bar was started
+
+
+def test_ray_missing_on_the_command_line_is_one_error_line(cli, tmp_path):
+    """A `ray` package that cannot be imported (first on the path) stands for Ray not installed."""
+    (tmp_path / "ray").mkdir()
+    (tmp_path / "ray" / "__init__.py").write_text("raise ImportError('no ray here')\n")
+    variants = tmp_path / "v.csv"
+    variants.write_text("coupling:hook_drive:hook_deg\n1\n")
+    model = tmp_path / "m.xml"
+    import mechanisms as M
+
+    model.write_text(M.needle_and_plate().to_xml())
+    path = os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")])
+    result = cli("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants,
+                 "--backend", "ray", "--csv", tmp_path / "out.csv", env={"PYTHONPATH": path})
+    assert "the ray backend needs Ray: pip install 'mechanism[ray]'" in result.assert_bad_input()
+    assert result.stderr.startswith("error:")  # no progress-bar fragment before it
+    assert not (tmp_path / "out.csv").exists()
+
+
+# -- Ray: a real cluster on 127.0.0.1 ---------------------------------------------------------
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _ray_cli() -> str:
+    pytest.importorskip("ray", reason="Ray is not installed (it is in the test extra: pip install -e '.[test]')")
+    beside = Path(sys.executable).parent / "ray"
+    return str(beside) if beside.exists() else shutil.which("ray") or pytest.skip("no `ray` command")
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """`ray start --head` on free ports, with a token (Ray's default since 2.5x; older Rays
+    ignore RAY_AUTH_MODE); its workers import mechanism and this test module. The driver
+    sends the token to an address only in token mode: RAY_AUTH_MODE=token, as a user would."""
+    saved = os.environ.get("RAY_AUTH_MODE")
+    os.environ["RAY_AUTH_MODE"] = "token"
+    ray_cli = _ray_cli()
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]),
+               RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="token")
+    env.pop("RAY_ADDRESS", None)
+    port = _free_port()
+    ports = {flag: _free_port() for flag in ("--node-manager-port", "--object-manager-port", "--dashboard-agent-listen-port",
+                                             "--dashboard-agent-grpc-port", "--runtime-env-agent-port",
+                                             "--metrics-export-port")}
+    command = [ray_cli, "start", "--head", f"--port={port}", "--node-ip-address=127.0.0.1", "--num-cpus=2",
+               "--include-dashboard=false", "--disable-usage-stats", *(f"{flag}={value}" for flag, value in ports.items())]
+    started = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
+    try:
+        assert started.returncode == 0, started.stderr[-2000:]
+        yield f"127.0.0.1:{port}"
+    finally:
+        subprocess.run([ray_cli, "stop", "--grace-period", "10"], env=env, capture_output=True, timeout=60)
+        os.environ.pop("RAY_AUTH_MODE") if saved is None else os.environ.update(RAY_AUTH_MODE=saved)
+
+
+def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_path):
+    """The CLI connects to the cluster by address (no num_cpus: Ray would refuse) and the
+    rows equal the local run's."""
+    import mechanisms as M
+
+    model = tmp_path / "m.xml"
+    model.write_text(M.needle_and_plate().to_xml())
+    variants = tmp_path / "v.json"
+    variants.write_text(json.dumps({"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, -2, 0]}}))
+    common = ("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants)
+    on_ray = cli(*common, "--backend", "ray", "--ray-address", ray_cluster, "--csv", tmp_path / "ray.csv")
+    assert on_ray.returncode == 0, on_ray.stderr
+    assert "warning" not in on_ray.stderr  # nothing of Ray's own logging reaches the user
+    local = cli(*common, "--csv", tmp_path / "local.csv")
+    assert local.returncode == 0, local.stderr
+    assert (tmp_path / "ray.csv").read_text() == (tmp_path / "local.csv").read_text()
+    assert "pass" in (tmp_path / "ray.csv").read_text()
+
+
+def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray")
+    monkeypatch.setenv("RAY_ADDRESS", ray_cluster)  # the cluster named by the environment, not the argument
+    seen = []
+    items = list(range(12))
+    results = run_batch(_die_once, items, shared=str(tmp_path), workers=2, backend="ray",
+                        chunk_size=2, on_result=lambda i, r: seen.append(i), progress=False)
+    assert (tmp_path / "died_5").exists()  # a worker process really died mid-batch
+    assert [square for square, _ in results] == [i * i for i in items]  # nothing lost, in item order
+    assert {address.rpartition(":")[2] for _, address in results} == {ray_cluster.rpartition(":")[2]}
+    assert sorted(seen) == items
+    assert not ray.is_initialized()  # disconnected from the cluster it did not start
+
+
+def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster, tmp_path):
+    """The options travel once, each recording's path per job; a bad recording is reported."""
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.fleet import diagnose_fleet
+    from mechanism.sysid.recording import read_recording
+
+    recording = ROOT / "assets" / "recordings" / "torque_ripple_seed3.csv"
+    broken = tmp_path / "broken.csv"
+    broken.write_text("time,voltage,arm_angle\n0,1,0\n")
+    result = diagnose_fleet([recording, broken], tmp_path / "out", backend="ray", ray_address=ray_cluster, progress=False,
+                            candidates=["torque_ripple"])
+    assert [row["status"] for row in result.rows] == ["ok", "error"] and result.rows[1]["error"]
+    here = diagnose(read_recording(recording), candidates=["torque_ripple"]).to_json()
+    assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
+    assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it
