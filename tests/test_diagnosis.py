@@ -5,11 +5,14 @@ import json
 
 import pytest
 
-from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank, diagnose
-from mechanism.sysid.effects import EFFECTS
+from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank
 from mechanism.sysid.identification import FitResult, ModelStructure
 from mechanism.dynamics.lumped import LumpedBaseline
 from mechanism.sysid.recording import make_recording, read_recording
+
+from support.nominal import SAPPHIRE, bench_recording, diagnose, effects
+
+EFFECTS = effects()
 
 from synthetic_truth import simulate_truth
 
@@ -18,7 +21,7 @@ SHORT_S = 30.0  # most tests: half the benchmark's length, to keep the suite fas
 
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory):
-    from mechanism.testbench import make_recording as bench_recording, write_recording
+    from mechanism.testbench import write_recording
 
     folder = tmp_path_factory.mktemp("bench")
     made = {}
@@ -70,7 +73,7 @@ def test_independent_truth_is_named_too(effects):
 
 
 def test_ranking_prefers_fewer_parameters_within_the_tie_band():
-    base = FitResult(ModelStructure(LumpedBaseline()), {}, {}, 1.0, 1.0)
+    base = FitResult(ModelStructure(LumpedBaseline(SAPPHIRE)), {}, {}, 1.0, 1.0)
 
     def result(name, rmse):
         return FitResult(base.structure.with_effect(EFFECTS[name]), {}, {}, rmse, rmse)
@@ -108,3 +111,14 @@ def test_cli_rejects_unknown_effect_and_baseline(bench, cli, tmp_path):
     rec = bench("none", seed=26, duration=5.0)
     assert "unknown effect" in cli("diagnose", rec, "--effects", "cogging").assert_bad_input()
     cli("diagnose", rec, "--baseline", "finite_element").assert_bad_input()
+
+
+@pytest.mark.parametrize("effect", ["torque_ripple", "none"])
+def test_a_press_is_diagnosed_like_the_sewing_machine(tmp_path, effect):
+    """20x the inertia, a 12:1 gear, another motor: the ripple 12 times per shaft turn is
+    named, the clean press has no finding."""
+    from mechanism.testbench import write_recording
+    from support.nominal import PRESS
+
+    csv = write_recording(bench_recording(effect, seed=5, duration_s=SHORT_S, nominal=PRESS), tmp_path / "p.csv")[0]
+    check(diagnose(read_recording(csv), nominal=PRESS), set() if effect == "none" else {effect})

@@ -18,7 +18,9 @@ from scipy.optimize import curve_fit
 from mechanism.errors import UserError
 from mechanism.data.reference import thesis
 from mechanism.files.tables import check_increasing, read_table
-from mechanism.testbench import ANGLE_STEP_RAD, EFFECTS, make_recording, write_recording
+from mechanism.testbench import ANGLE_STEP_RAD, EFFECTS, write_recording
+
+from support.nominal import bench_recording as make_recording
 
 from conftest import REPO_ROOT
 
@@ -436,8 +438,12 @@ def test_truth_model_never_imports_the_diagnosis_side():
                 assert not name.startswith(FORBIDDEN), f"{path.name} imports {name}"
     code = (
         "import sys, mechanism.testbench, mechanism.cli.testbench\n"
+        "from types import SimpleNamespace as N\n"
         "from mechanism.testbench import make_recording\n"
-        "make_recording(['torque_ripple'], duration_s=0.05)\n"
+        "motor = N(resistance_ohm=1.1, torque_constant_Nm_per_A=0.017, back_emf_V_s_per_rad=0.021)\n"
+        "nominal = N(motor=motor, ratio=8.0, inertia_kgm2=1.8e-3, inertia_motor_side_kgm2=2.8e-5, viscous_motor_side=2.2e-5,\n"
+        "            torque_scale_Nm=0.18, supply_V=24.0)\n"
+        "make_recording(['torque_ripple'], duration_s=0.05, nominal=nominal)\n"
         f"bad = [m for m in sys.modules if m.startswith({FORBIDDEN!r})]\n"
         "assert not bad, bad\n"
     )

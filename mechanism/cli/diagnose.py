@@ -32,6 +32,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import sys
 
+    from mechanism.cli._nominal import drive_nominal
     from mechanism.cli.identify import progress_bar, write_outputs
     from mechanism.sysid.diagnosis import diagnose, not_identifiable_json
     from mechanism.sysid.effects import effect
@@ -45,7 +46,7 @@ def run(args) -> int:
     try:
         bar, tick = progress_bar("diagnose")
         with bar:
-            result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model)
+            result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model, nominal=drive_nominal(args))
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
         write_outputs(args, not_identifiable_json(rec.source, str(exc)))

@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mechanism.sysid.parameters import Parameter
-from mechanism.data.reference import thesis
 
 
 @dataclass(frozen=True)
@@ -46,18 +45,7 @@ class MotorConstants:
     resistance_ohm: float
     torque_constant_Nm_per_A: float
     back_emf_V_s_per_rad: float
-    ratio: float  # motor turns per arm turn
-
-    @classmethod
-    def datasheet(cls) -> "MotorConstants":
-        ref = thesis()
-        motor = ref["main_motor"]
-        return cls(
-            motor["resistance_ohm"],
-            motor["torque_constant_Nm_per_A"],
-            motor["back_emf_constant_V_s_per_rad"],
-            float(ref["mechanism"]["motor_to_arm_ratio"]),
-        )
+    ratio: float  # motor turns per shaft turn
 
     @property
     def gain_arm(self) -> float:
@@ -70,6 +58,75 @@ class MotorConstants:
         return self.ratio**2 * self.torque_constant_Nm_per_A * self.back_emf_V_s_per_rad / self.resistance_ohm
 
 
+@dataclass(frozen=True)
+class DriveNominal:
+    """The described machine's drive, as identification, diagnosis and the test bench need
+    it: the one seam through which a machine's numbers enter them (bounds, starting values
+    and truth ranges all scale from these, never from a particular machine's).
+
+    ``inertia_kgm2`` is the total inertia seen at the described shaft (the motor's, reflected
+    through ``ratio``, included); friction is the shaft-side Coulomb level and viscous
+    coefficient. ``joint_ratios`` names the other shafts (turns per shaft turn) whose
+    periodic residuals the diagnosis looks for; the motor and the shaft are always there.
+    """
+
+    motor: MotorConstants
+    inertia_kgm2: float
+    coulomb_shaft_Nm: float
+    viscous_shaft_Nm_s_per_rad: float
+    joint_ratios: tuple[tuple[str, float], ...] = ()
+    supply_V: float | None = None
+
+    def __post_init__(self):
+        if isinstance(self.joint_ratios, dict):
+            object.__setattr__(self, "joint_ratios", tuple(self.joint_ratios.items()))
+        if not (self.motor.ratio > 0 and self.inertia_kgm2 > 0):
+            raise ValueError("a drive needs a positive motor ratio and a positive inertia")
+
+    @property
+    def ratio(self) -> float:
+        return self.motor.ratio
+
+    @property
+    def inertia_motor_side_kgm2(self) -> float:
+        return self.inertia_kgm2 / self.ratio**2
+
+    @property
+    def viscous_motor_side(self) -> float:
+        """Viscous friction on the motor side; when the description gives none, a tenth of the
+        back-emf damping sets its scale."""
+        if self.viscous_shaft_Nm_s_per_rad > 0:
+            return self.viscous_shaft_Nm_s_per_rad / self.ratio**2
+        m = self.motor
+        return 0.1 * m.torque_constant_Nm_per_A * m.back_emf_V_s_per_rad / m.resistance_ohm
+
+    @property
+    def torque_scale_Nm(self) -> float:
+        """The shaft-side torque every torque bound scales with: the Coulomb level, or (when
+        the description gives none) the motor's stall torque at 1.5 V."""
+        if self.coulomb_shaft_Nm > 0:
+            return self.coulomb_shaft_Nm
+        return 1.5 * self.motor.gain_arm
+
+    def shafts(self) -> dict[str, float]:
+        """Every shaft whose angle a periodic residual can follow: turns per described-shaft turn."""
+        out = {"motor": self.ratio, "shaft": 1.0}
+        for name, r in self.joint_ratios:
+            if abs(r) > 1e-9 and all(abs(abs(r) - abs(v)) > 1e-6 * abs(v) for v in out.values()):
+                out[name] = abs(float(r))
+        return out
+
+    def scaled(self, inertia: float = 1.0, ratio: float | None = None, torque: float = 1.0, **motor) -> "DriveNominal":
+        """Another machine of the same kind (tests, benches): inertia and friction scaled,
+        another ratio, other motor constants."""
+        from dataclasses import replace
+
+        m = replace(self.motor, ratio=ratio or self.motor.ratio, **motor)
+        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia,
+                       coulomb_shaft_Nm=self.coulomb_shaft_Nm * torque,
+                       viscous_shaft_Nm_s_per_rad=self.viscous_shaft_Nm_s_per_rad * torque)
+
+
 MOTOR_PARAMETER_NAMES = {
     "R": "resistance_ohm",
     "Kt": "torque_constant_Nm_per_A",
@@ -77,9 +134,8 @@ MOTOR_PARAMETER_NAMES = {
 }
 
 
-def motor_parameters(free: tuple[str, ...] = ()) -> list[Parameter]:
+def motor_parameters(motor: MotorConstants, free: tuple[str, ...] = ()) -> list[Parameter]:
     """The motor constants named in ``free`` as fittable parameters (datasheet nominal, +-50 %)."""
-    motor = MotorConstants.datasheet()
     out = []
     for short in free:
         key = MOTOR_PARAMETER_NAMES[short]
@@ -405,7 +461,10 @@ def lagged_voltage(voltage: np.ndarray, tau_s: float, dt: float) -> np.ndarray:
 
 class LumpedBaseline:
     """The thesis's lumped model without ripple: constant inertia, viscous and Coulomb
-    friction, DC motor through the 8:1 belt. Parameters in the thesis's conventions.
+    friction, DC motor through the belt (ratio from the nominal drive). Parameters in the
+    thesis's conventions (inertia and viscous motor side, Coulomb on the described shaft,
+    keys kept from the sewing machine's ``arm``); starting values are the description's,
+    bounds a wide factor around them.
 
     One addition to eq. 15-16: the winding's electrical time constant L/R. The thesis
     neglects it (L dI/dt is small against the mechanical time constant), but at a voltage
@@ -416,25 +475,33 @@ class LumpedBaseline:
 
     name = "lumped"
     linear = ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
-    meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the 8:1 belt"
+    meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the belt"
 
-    def __init__(self, free: tuple[str, ...] = ()):
-        ref = thesis()["identified_parameters"]
+    # bounds as factors of the description's values: wide enough for a machine 14x lighter or
+    # 18x heavier than described, and friction from none to an order of magnitude more
+    INERTIA_RANGE = (0.072, 18.0)
+    VISCOUS_UPPER = 200 / 11
+    COULOMB_UPPER = 100 / 9
+
+    def __init__(self, nominal: DriveNominal, free: tuple[str, ...] = ()):
+        self.nominal = nominal
+        j, d, fc = nominal.inertia_motor_side_kgm2, nominal.viscous_motor_side, nominal.torque_scale_Nm
+        lo, hi = self.INERTIA_RANGE
         self.parameters = (
-            Parameter("inertia_motor_side_kgm2", ref["total_inertia_kgm2"], 2e-6, 5e-4,
-                      "total inertia seen by the motor (thesis 2.78e-5)", log=True),
-            Parameter("viscous_motor_side_Nm_s_per_rad", ref["viscous_cold_Nm_s_per_rad"], 0.0, 4e-4,
-                      "viscous friction on the motor side (thesis 2.2e-5 cold, 1.0e-5 warm)", scale=2e-5),
-            Parameter("coulomb_arm_Nm", ref["kinetic_friction_arm_Nm"], 0.0, 2.0,
-                      "kinetic (Coulomb) friction on the arm shaft (thesis 0.18)", scale=0.2),
+            Parameter("inertia_motor_side_kgm2", j, lo * j, hi * j,
+                      f"total inertia seen by the motor (described {j:.3g})", log=True),
+            Parameter("viscous_motor_side_Nm_s_per_rad", d, 0.0, self.VISCOUS_UPPER * d,
+                      f"viscous friction on the motor side (described {d:.3g})", scale=10 / 11 * d),
+            Parameter("coulomb_arm_Nm", fc, 0.0, self.COULOMB_UPPER * fc,
+                      f"kinetic (Coulomb) friction on the described shaft (described {fc:.3g})", scale=10 / 9 * fc),
             Parameter("electrical_time_constant_s", 5e-4, 1e-5, 0.03,
                       "winding inductance over resistance, L/R (neglected in the thesis)", log=True),
-            *motor_parameters(free),
+            *motor_parameters(nominal.motor, free),
         )
         self.free = tuple(free)
 
     def motor(self, values: dict[str, float]) -> MotorConstants:
-        base = MotorConstants.datasheet()
+        base = self.nominal.motor
         changes = {key: values[f"motor_{key}"] for key in MOTOR_PARAMETER_NAMES.values() if f"motor_{key}" in values}
         return MotorConstants(**{**base.__dict__, **changes}) if changes else base
 

@@ -17,7 +17,8 @@ physics from the candidate library, choose by validation, and show the fit impro
   one part of the recording does not lower the validation error. When no single candidate
   passes, pairs of the best few are fitted together (a motor ripple exciting an elastic
   belt shows only as a pair). After each acceptance a backward step drops an earlier effect
-  that the later ones made redundant. Stop when nothing passes, or after :data:`MAX_EFFECTS`.
+  that the later ones made redundant. Stop when nothing passes (no cap on the number of
+  effects: a machine in service carries several at once).
 - **show**: :meth:`Diagnosis.to_json` (the contract) and :mod:`mechanism.sysid.report`.
 """
 
@@ -33,10 +34,10 @@ import numpy as np
 from scipy.signal import find_peaks, welch
 
 from mechanism.sysid.report import Traces
-from mechanism.sysid.effects import EFFECTS, Effect, Located
+from mechanism.sysid.effects import Effect, Located, library as effect_library
 from mechanism.sysid.identification import (FitResult, ModelStructure, Problem, blas_single_threaded, damping_below_datasheet,
                                       equation_error_start, fit, fit_baseline, require_identifiable)
-from mechanism.dynamics.lumped import MotorConstants
+from mechanism.dynamics.lumped import DriveNominal
 from mechanism.sysid.recording import Recording
 
 # An effect must cut the validation rmse by at least 35 %. The contract asks every effect
@@ -49,7 +50,6 @@ from mechanism.sysid.recording import Recording
 MIN_RELATIVE_GAIN = 0.35
 TIE_BAND = 0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
-MAX_EFFECTS = 3
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
 
@@ -225,7 +225,7 @@ class Diagnosis:
         ke = self.baseline.values.get("motor_back_emf_V_s_per_rad")
         if ke is None:
             return []
-        sheet = MotorConstants.datasheet()
+        sheet = self.problem.nominal.motor
         return [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
                 f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
                 f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"]
@@ -251,7 +251,7 @@ class Diagnosis:
                 "rule": (f"greedy forward selection: refit every candidate added to the current model on the fit "
                          f"segments; rank by validation rmse x (1 + {PARAMETER_PENALTY} per added parameter), "
                          f"near-ties within {TIE_BAND:.0%} go to fewer parameters; accept only if the validation rmse "
-                         f"falls by at least {MIN_RELATIVE_GAIN:.0%}; at most {MAX_EFFECTS} effects"),
+                         f"falls by at least {MIN_RELATIVE_GAIN:.0%}; continue while a candidate passes"),
                 "rounds": self.rounds,
             },
             "rmse_definition": "RMS of measured minus simulated arm velocity [rad/s] on the validation segments (interleaved 1 s segments, half of the recording); both by the same Savitzky-Golay differentiator (21 ms, degree 4) of an angle; each segment restarts from the measured velocity after a 0.25 s burn-in",
@@ -299,12 +299,13 @@ def _evidence(effect: Effect, result: FitResult, before: float, problem: Problem
 def _starts(effect: Effect, current: FitResult, problem: Problem, located: Located) -> list[dict]:
     """Where the fit of ``effect`` starts: the equation-error estimate for effects with a
     torque form (no simulation needed), otherwise the effect's own guesses."""
+    null = {**current.values, **effect.null()}
     if effect.linear is not None:
         structure = current.structure.with_effect(effect)
         base = {**{p.name: p.nominal for p in effect.parameters}, **current.values}
         start, _ = equation_error_start(problem, structure, base, effect, effect.grid(problem.signals, located))
-        return [start]
-    return [{**current.values, **start} for start in effect.starts(problem.signals, located)]
+        return [start, null]
+    return [*({**current.values, **start} for start in effect.starts(problem.signals, located)), null]
 
 
 def _rank(results: dict[str, FitResult], current: FitResult) -> str:
@@ -337,27 +338,44 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
              {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen"}) for e in effects]
     tick(f"screening {len(effects)} candidates")
     results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
+    by_name = {e.name: e for e in effects}
+    for name, result in results.items():
+        # never worse than the model it extends: the effect switched off is a candidate fit too
+        null = switched_off(problem, current, by_name[name])
+        if null.rmse_fit < result.rmse_fit:
+            results[name] = null
     top = sorted(results, key=lambda n: results[n].rmse_val)[:REFINE_TOP]
     tick(f"refitting {', '.join(top)}")
-    refits = _fit_all([(problem, results[n].structure, [results[n].values], {"max_nfev": 25}) for n in top], workers)
+    refits = _fit_all([(problem, results[n].structure, [results[n].values, {**current.values, **by_name[n].null()}],
+                        {"max_nfev": 25}) for n in top], workers)
     for name, refined in zip(top, refits):
         if refined.rmse_fit <= results[name].rmse_fit:
             results[name] = refined
     return results
 
 
+def switched_off(problem: Problem, current: FitResult, effect: Effect) -> FitResult:
+    """``current`` plus ``effect`` at its null values (the model it extends), as a fit result."""
+    structure = current.structure.with_effect(effect)
+    values = {**current.values, **effect.null()}
+    unc = {**current.uncertainties, **{p.name: math.nan for p in effect.parameters}}
+    return FitResult(structure, values, unc, problem.rmse(structure, values, "fit"), problem.rmse(structure, values, "val"))
+
+
 def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None, model_path=None, workers: int | None = None) -> Diagnosis:
+             progress: Callable[[str], None] | None = None, model_path=None, workers: int | None = None, *,
+             nominal: DriveNominal) -> Diagnosis:
     """Fit the baseline, locate its residual, and add candidate effects while the validation
-    error falls clearly (see the module docstring for the rule)."""
+    error falls clearly (see the module docstring for the rule). ``nominal``: the described
+    drive, from which every bound and starting value scales."""
     require_identifiable(recording)
     with blas_single_threaded():
-        return _diagnose(recording, baseline, candidates, progress, model_path, workers)
+        return _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers)
 
 
-def _diagnose(recording, baseline, candidates, progress, model_path, workers) -> Diagnosis:
+def _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers) -> Diagnosis:
     workers = workers or min(4, os.cpu_count() or 1)
-    problem = Problem(recording)
+    problem = Problem(recording, nominal)
     tick = (lambda what: progress(what)) if progress else (lambda what: None)
     tick("baseline")
     base = fit_baseline(problem, baseline, model_path=model_path)
@@ -370,12 +388,12 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
             base = freed
     where = locate(problem, base)
     located = where.located()
-    library = [EFFECTS[name] for name in (candidates or EFFECTS)]
+    lib = effect_library(nominal, candidates)
     current = base
     findings: list[Finding] = []
     rounds = []
-    for _ in range(MAX_EFFECTS):
-        remaining = [e for e in library if e.name not in current.structure.names]
+    for _ in range(len(lib)):
+        remaining = [e for e in lib.values() if e.name not in current.structure.names]
         if not remaining:
             break
         results = _screen_and_refit(problem, current, remaining, located, tick, workers)
@@ -384,10 +402,10 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
         passing = {name: r for name, r in results.items() if _clear_gain(problem, current, r)}
         if passing:
             best = _rank(passing, current)
-            findings.append(Finding(EFFECTS[best], passing[best], current.rmse_val, "", tried))
+            findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
-        elif len(current.structure.effects) + 2 <= MAX_EFFECTS:
-            pair = _best_pair(problem, current, results, tick, workers)
+        elif len(remaining) >= 2:
+            pair = _best_pair(problem, current, results, lib, tick, workers)
             if pair is None:
                 break
             (first, second), together = pair
@@ -397,8 +415,8 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
             if not _clear_gain(problem, current, together) or together.rmse_val > (1 - MIN_RELATIVE_GAIN) * alone:
                 break
             rounds.append({f"{first}+{second}": together.rmse_val})
-            findings.append(Finding(EFFECTS[first], results[first], current.rmse_val, "", tried))
-            findings.append(Finding(EFFECTS[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
+            findings.append(Finding(lib[first], results[first], current.rmse_val, "", tried))
+            findings.append(Finding(lib[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
             current = together
         else:
             break
@@ -445,7 +463,8 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
 
 
-def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], tick, workers, top: int = PAIR_TOP):
+def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], lib: dict[str, Effect], tick, workers,
+               top: int = PAIR_TOP):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
     of which explains much alone. When no single candidate passes, refit the pairs of the
     best few singles together; returns ((first, second), fit) for the best pair, first being
@@ -456,7 +475,7 @@ def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], tick,
         return None
     jobs = []
     for a, b in pairs:
-        structure = current.structure.with_effect(EFFECTS[a]).with_effect(EFFECTS[b])
+        structure = current.structure.with_effect(lib[a]).with_effect(lib[b])
         start = {**singles[b].values, **singles[a].values}
         jobs.append((problem, structure, [start], {"max_nfev": 25}))
     tick(f"refitting {len(pairs)} pairs")

@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
-from mechanism.dynamics.lumped import Drive, LumpedBaseline, MotorConstants, Signals, make_segments, simulate
+from mechanism.dynamics.lumped import Drive, DriveNominal, LumpedBaseline, MotorConstants, Signals, make_segments, simulate
 from mechanism.sysid.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
 from mechanism.sysid.recording import Recording, check_excitation, smoothed_velocity, velocity_coefficients
 
@@ -95,12 +95,13 @@ class Problem:
 
     FIT_STRIDE = 3
 
-    def __init__(self, rec: Recording, segment_s: float = 1.0, burn_in_s: float = 0.25):
+    def __init__(self, rec: Recording, nominal: DriveNominal, segment_s: float = 1.0, burn_in_s: float = 0.25):
         self.recording = rec
+        self.nominal = nominal
         self.dt = rec.dt
         self.coefficients = velocity_coefficients(rec.dt)
         self.pad = (len(self.coefficients) - 1) // 2
-        self.signals = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=8.0)
+        self.signals = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=nominal.ratio)
         self.segments = make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad)
         fit_part = self.segments.subset(self.segments.is_fit)
         screen = np.zeros(len(fit_part), bool)
@@ -219,12 +220,13 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
                                  max_nfev=nfev, xtol=1e-5, ftol=1e-5, gtol=1e-8)
 
     candidates = [internal_vector(params, s) for s in starts] or [internal_vector(params, {})]
+    scouts = []
     if len(candidates) > 1:
         scouts = [run(x0, scout_nfev) for x0 in candidates]
         x_start = min(scouts, key=lambda r: r.cost).x
     else:
         x_start = candidates[0]
-    result = run(x_start, max_nfev)
+    result = min([run(x_start, max_nfev), *scouts], key=lambda r: r.cost)  # never worse than a start
     values = values_of(result.x)
     r_fit = result.fun if part == "fit" else problem.residual(structure, values, "fit")
     rmse_fit = float(np.sqrt(np.mean(r_fit**2)))
@@ -315,26 +317,26 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
     return best, best_cost
 
 
-def baseline_model(baseline: str = "lumped", free: Sequence[str] = (), model_path=None):
+def baseline_model(nominal: DriveNominal, baseline: str = "lumped", free: Sequence[str] = (), model_path=None):
     """The baseline model object by name: ``lumped`` or ``multibody`` (the reduced CAD
-    model at ``model_path``, default the shipped sewing machine)."""
+    model at ``model_path``, default the shipped sewing machine), around the described drive."""
     free = tuple(free)
     unknown = [f for f in free if f not in ("R", "Kt", "Ke")]
     if unknown:
         raise UserError(f"--free: unknown motor constant(s) {', '.join(unknown)}; choose from R, Kt, Ke")
     if baseline == "lumped":
-        return LumpedBaseline(free)
+        return LumpedBaseline(nominal, free)
     if baseline == "multibody":
         from mechanism.sysid.multibody_baseline import MultibodyBaseline
 
-        return MultibodyBaseline(free, model_path)
+        return MultibodyBaseline(nominal, free, model_path)
     raise UserError(f"unknown baseline {baseline!r}; choose lumped or multibody")
 
 
 def fit_baseline(problem: Problem, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
                  progress: Callable[[], None] | None = None) -> FitResult:
     """The baseline fitted from its equation-error start (and from the nominal values)."""
-    model = baseline_model(baseline, free, model_path)
+    model = baseline_model(problem.nominal, baseline, free, model_path)
     start = initial_baseline_values(problem, model)
     return fit(problem, ModelStructure(model), [start, {p.name: p.nominal for p in model.parameters}], progress=progress)
 
@@ -445,11 +447,12 @@ class NotIdentifiable(UserError):
 
 
 def identify(recording: Recording, baseline: str = "lumped", free: Sequence[str] = (),
-             progress: Callable[[], None] | None = None, model_path=None) -> IdentificationResult:
+             progress: Callable[[], None] | None = None, model_path=None, *, nominal: DriveNominal) -> IdentificationResult:
     """Fit the baseline (inertia, viscous and Coulomb friction; the motor constants named in
-    ``free``) by simulation-error minimisation; rmse on the validation segments."""
+    ``free``) by simulation-error minimisation; rmse on the validation segments. ``nominal``:
+    the described drive (starting values and bounds scale from it)."""
     require_identifiable(recording)
     with blas_single_threaded():
-        problem = Problem(recording)
+        problem = Problem(recording, nominal)
         result = fit_baseline(problem, baseline, free, model_path, progress)
     return IdentificationResult(recording, baseline, result, problem)

@@ -15,7 +15,6 @@ from mechanism.files.outputs import atomic_file
 from mechanism.files.tables import write_table
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
-    ANGLE_STEP_RAD,
     ENCODER_COUNTS_PER_REV,
     TWO_PI,
     draw_baseline,
@@ -83,9 +82,9 @@ def draw_plateaus(seed: int, duration_s: float) -> list[tuple[float, float]]:
     return plateaus
 
 
-def voltage_samples(plateaus, n: int) -> np.ndarray:
-    """Commanded voltage at each 1 kHz sample (held from each plateau's start)."""
-    edges = np.round(np.cumsum([0.0] + [d for d, _ in plateaus]) * SAMPLE_RATE_HZ).astype(np.int64)
+def voltage_samples(plateaus, n: int, rate_hz: float = SAMPLE_RATE_HZ) -> np.ndarray:
+    """Commanded voltage at each sample (held from each plateau's start)."""
+    edges = np.round(np.cumsum([0.0] + [d for d, _ in plateaus]) * rate_hz).astype(np.int64)
     levels = np.array([v for _, v in plateaus] + [plateaus[-1][1]], dtype=float)
     index = np.searchsorted(edges, np.arange(n), side="right") - 1
     return levels[np.clip(index, 0, len(levels) - 1)]
@@ -107,14 +106,14 @@ def applied_voltage(logged: np.ndarray, params: dict | None) -> np.ndarray:
 
 # --- truth model assembly ------------------------------------------------------------------
 
-def _model_parameters(base: dict, effects: dict[str, dict], substeps: int) -> tuple[dict, dict]:
+def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_hz: float = SAMPLE_RATE_HZ) -> tuple[dict, dict]:
     """Integrator parameters (simulate.PARAM_FIELDS) and the derived truth values."""
     ratio = base["belt_ratio"]
     total = base["inertia_motor_side_kgm2"]
     r, rod = base["crank_radius_m"], base["rod_length_m"]
     p = dict.fromkeys(sim.PARAM_FIELDS, 0.0)
     p.update(
-        dt=1.0 / SAMPLE_RATE_HZ, n_sub=float(substeps), R=base["resistance_ohm"], L=base["inductance_H"],
+        dt=1.0 / rate_hz, n_sub=float(substeps), R=base["resistance_ohm"], L=base["inductance_H"],
         Kt=base["torque_constant_Nm_per_A"], Ke=base["back_emf_constant_V_s_per_rad"], ratio=ratio,
         d_motor=base["viscous_motor_side_Nm_s_per_rad"], coulomb=base["coulomb_arm_Nm"], lk_r=r, lk_l=rod,
         rp_nc=12.0, st_velocity=1.0, st_exponent=1.0, th_tau_cool=1.0,
@@ -186,11 +185,14 @@ def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> d
     return options
 
 
-OPTIONS = ("randomize_baseline", "voltage_plateaus", "start_angle_rad", "current_noise_A", "substeps_per_ms", "integrator")
+OPTIONS = ("randomize_baseline", "voltage_plateaus", "start_angle_rad", "current_noise_A", "substeps_per_ms", "integrator",
+           "sample_rate_hz", "encoder_counts_per_rev")
 
 
-def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overrides) -> Recording:
-    """A 1 kHz bench recording of the truth model with the named concealed effects.
+def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nominal, **overrides) -> Recording:
+    """A bench recording (1 kHz unless ``sample_rate_hz``) of the truth model of the described
+    drive ``nominal`` (a :class:`~mechanism.dynamics.lumped.DriveNominal`) with the named
+    concealed effects.
 
     ``effects``: names from :data:`mechanism.testbench.EFFECTS` (a list or ``"a,b"``;
     ``()`` or ``"none"`` is the clean machine). Overrides (keyword arguments):
@@ -200,7 +202,8 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
     - an effect's parameters as a dict (``torque_ripple={"cogging_Nm": 0.0}``);
     - ``voltage_plateaus=[(duration_s, volts), ...]`` instead of the drawn profile,
       ``start_angle_rad``, ``current_noise_A`` (sensor standard deviation),
-      ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build).
+      ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build),
+      ``sample_rate_hz`` (100-10000), ``encoder_counts_per_rev`` (default 20000).
     """
     names = parse_effects(effects)
     seed = int(seed)
@@ -208,21 +211,29 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
     if not math.isfinite(duration_s) or not 0.01 <= duration_s <= 3600:
         raise UserError(f"duration must be between 0.01 and 3600 s, not {duration_s}")
     randomize = bool(overrides.pop("randomize_baseline", True))
-    base = draw_baseline(seed, randomize=randomize)
+    base = draw_baseline(seed, nominal, randomize=randomize)
     effect_params = draw_effects(seed, names, base)
     options = _apply_overrides(effect_params, base, overrides)
-    substeps = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
-    params, derived = _model_parameters(base, effect_params, substeps)
+    rate = float(options.get("sample_rate_hz", SAMPLE_RATE_HZ))
+    if not 100 <= rate <= 10000:
+        raise UserError(f"sample rate must be between 100 Hz and 10 kHz, not {rate:g}")
+    counts = int(options.get("encoder_counts_per_rev", ENCODER_COUNTS_PER_REV))
+    if counts < 16:
+        raise UserError(f"an encoder needs at least 16 counts per revolution, not {counts}")
+    step = TWO_PI / counts
+    substeps_per_ms = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
+    substeps = max(1, int(round(substeps_per_ms * 1000.0 / rate)))
+    params, derived = _model_parameters(base, effect_params, substeps, rate)
     for name, values in derived.items():
         effect_params[name].update(values)
 
-    n = int(round(duration_s * SAMPLE_RATE_HZ))
-    time = np.arange(n) / SAMPLE_RATE_HZ
+    n = int(round(duration_s * rate))
+    time = np.arange(n) / rate
     plateaus = options.get("voltage_plateaus") or draw_plateaus(seed, duration_s)
     plateaus = [(float(d), float(v)) for d, v in plateaus]
     if any(d <= 0 or not math.isfinite(v) or v < 0 for d, v in plateaus):
         raise UserError("voltage plateaus need positive durations and non-negative voltages")
-    logged_voltage = voltage_samples(plateaus, n)
+    logged_voltage = voltage_samples(plateaus, n, rate)
     motor_voltage = applied_voltage(logged_voltage, effect_params.get("voltage_nonlinearity"))
 
     sensors = stream(seed, "sensors")
@@ -239,7 +250,7 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
         e = effect_params["encoder_eccentricity"]
         # the count is reset at the index pulse (needle TDC), so the error vanishes there
         sensed = true_angle + e["amplitude_rad"] * (np.sin(true_angle + e["phase_rad"]) - math.sin(e["phase_rad"]))
-    arm_angle = np.floor(sensed / ANGLE_STEP_RAD) * ANGLE_STEP_RAD
+    arm_angle = np.floor(sensed / step) * step
     current = np.round((traces["current_A"] + sensors.normal(0.0, noise, n)) / CURRENT_RESOLUTION_A) * CURRENT_RESOLUTION_A
 
     truth = {
@@ -247,7 +258,7 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
         "generator": f"mechanism {__version__} testbench",
         "seed": seed,
         "duration_s": duration_s,
-        "sample_rate_Hz": SAMPLE_RATE_HZ,
+        "sample_rate_Hz": rate,
         "effects": names,
         "effect_params": effect_params,
         "baseline": base,
@@ -255,12 +266,12 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
         "start_arm_angle_rad": start,
         "voltage_plateaus": [[d, v] for d, v in plateaus],
         "sensors": {
-            "encoder_counts_per_rev": ENCODER_COUNTS_PER_REV,
-            "angle_step_rad": ANGLE_STEP_RAD,
+            "encoder_counts_per_rev": counts,
+            "angle_step_rad": step,
             "current_noise_std_A": noise,
             "current_resolution_A": CURRENT_RESOLUTION_A,
         },
-        "integrator": {"substeps_per_ms": substeps, "solver": sim.solver(solver_name).name},
+        "integrator": {"substeps_per_ms": substeps_per_ms, "solver": sim.solver(solver_name).name},
     }
     return Recording(time, logged_voltage, arm_angle, current, truth, traces)
 
@@ -278,10 +289,12 @@ def write_recording(recording: Recording, csv_path: str | Path) -> tuple[Path, P
     csv_path = Path(csv_path)
     truth_path = truth_path_for(csv_path)
     truth = dict(recording.truth, recording=csv_path.name)
+    counts = recording.truth["sensors"]["encoder_counts_per_rev"]
     comments = [
-        f"mechanism virtual test bench recording ({SAMPLE_RATE_HZ} Hz); what is concealed in it is in {truth_path.name}",
+        f"mechanism virtual test bench recording ({recording.truth['sample_rate_Hz']:g} Hz); what is concealed in it is in {truth_path.name}",
         "columns: time [s], voltage [V, commanded], arm_angle [rad, unwrapped, 0 = needle top dead centre, "
-        f"{ENCODER_COUNTS_PER_REV} counts/rev], current [A]",
+        f"{counts} counts/rev], current [A]",
+        f"counts_per_rev: {counts}",
     ]
     write_table(csv_path, recording.columns(), comments=comments, fmt="%.10g")
     try:
