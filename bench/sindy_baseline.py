@@ -17,7 +17,7 @@ import numpy as np
 
 from mechanism.sysid.effects import library as effect_library
 from mechanism.sysid.identification import ModelStructure, Problem, torque_balance
-from mechanism.dynamics.lumped import LumpedBaseline
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.recording import Recording, smoothed_velocity
 
 THRESHOLD = 0.02  # on coefficients of unit-variance columns, relative to the target's std

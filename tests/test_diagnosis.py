@@ -7,7 +7,7 @@ import pytest
 
 from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank
 from mechanism.sysid.identification import FitResult, ModelStructure
-from mechanism.dynamics.lumped import LumpedBaseline
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.recording import make_recording, read_recording
 
 from support.nominal import SAPPHIRE, bench_recording, diagnose, effects

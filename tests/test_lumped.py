@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.dynamics.lumped import (Drive, LumpedBaseline, MotorConstants, Segments, Signals, lagged_voltage,
+from mechanism.dynamics.lumped import (Drive, MotorConstants, Segments, Signals, lagged_voltage,
                               simulate, simulate_numpy)
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.data.reference import thesis
 
 from support.nominal import SAPPHIRE

@@ -35,7 +35,8 @@ from scipy.optimize import least_squares
 
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
-from mechanism.dynamics.lumped import Drive, DriveNominal, LumpedBaseline, MotorConstants, Signals, make_segments, simulate
+from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Signals, make_segments, simulate
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
 from mechanism.sysid.recording import Recording, check_excitation, smoothed_velocity, velocity_coefficients
 

@@ -14,7 +14,8 @@ in the lumped baseline. A ``linkage_dynamics`` finding on top of it means the li
 from __future__ import annotations
 
 
-from mechanism.dynamics.lumped import Drive, LumpedBaseline, Signals
+from mechanism.dynamics.lumped import Drive, Signals
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter
 
 
