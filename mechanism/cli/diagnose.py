@@ -62,4 +62,6 @@ def run(args) -> int:
     for item in data["effects"]:
         print(f"+ {item['name']}: rmse {item['rmse']:.4g} rad/s -- {item['evidence']}")
     print(f"final: rmse {data['final']['rmse']:.4g} rad/s")
+    if "unexplained" in data:
+        print(f"unexplained: {data['unexplained']['times_noise_floor']:.1f}x the noise floor -- {data['unexplained']['sentence']}")
     return 0

@@ -38,7 +38,9 @@ from mechanism.sysid.effects import Effect, Located, library as effect_library
 from mechanism.sysid.identification import (FitResult, ModelStructure, Problem, blas_single_threaded, damping_below_datasheet,
                                       equation_error_start, fit, fit_baseline, require_identifiable)
 from mechanism.dynamics.lumped import DriveNominal
+from mechanism.sysid.generic import candidates as generic_candidates, evidence as generic_evidence
 from mechanism.sysid.recording import Recording
+from mechanism.sysid.residual import UNEXPLAINED_FACTOR, NoiseFloor, Signature, describe, noise_floor, signature
 
 # An effect must cut the validation rmse by at least 35 %. The contract asks every effect
 # recording to end at <= 0.7 of the baseline rmse (a 30 % cut), so a smaller gain is never
@@ -193,6 +195,7 @@ class Finding:
         own = {p.name for p in self.effect.parameters}
         return {
             "name": self.effect.name,
+            "generic": self.effect.generic,
             "evidence": self.evidence,
             "params": {k: v for k, v in self.fit.values.items() if k in own},
             "uncertainty_1sigma": {k: v for k, v in self.fit.uncertainties.items() if k in own},
@@ -200,6 +203,23 @@ class Finding:
             "meaning": self.effect.meaning,
             "candidates_rmse": self.candidates,
         }
+
+
+LONG_WINDING_LAG_S = 3e-3
+
+
+@dataclass
+class Unexplained:
+    """A final residual clearly above the recording's noise floor, and what it looks like."""
+
+    rmse: float
+    floor: NoiseFloor
+    signature: Signature
+    sentence: str
+
+    def to_json(self) -> dict:
+        return {"rmse": self.rmse, "noise_floor_rad_s": self.floor.rmse, "times_noise_floor": self.rmse / self.floor.rmse,
+                "signature": self.signature.to_json(), "sentence": self.sentence}
 
 
 @dataclass
@@ -212,6 +232,8 @@ class Diagnosis:
     problem: Problem = field(repr=False)
     rounds: list = field(default_factory=list)  # per round: {candidate: rmse_val}
     traces: "Traces | None" = field(default=None, repr=False)
+    noise: NoiseFloor | None = None  # the recording's own noise floor
+    unexplained: "Unexplained | None" = None  # set when the final residual is clearly above it
 
     @property
     def final(self) -> FitResult:
@@ -222,11 +244,17 @@ class Diagnosis:
         return [f.effect.name for f in self.findings]
 
     def _baseline_notes(self) -> list[str]:
+        notes = []
+        lag = self.baseline.values.get("electrical_time_constant_s", 0.0)
+        if lag > LONG_WINDING_LAG_S:
+            r = self.problem.nominal.motor.resistance_ohm
+            notes.append(f"winding lag L/R fitted {1e3 * lag:.3g} ms (L = {1e3 * lag * r:.3g} mH at {r:g} ohm): a small DC motor's is "
+                         f"0.2-2 ms; a lag this long more likely is a delay elsewhere (the angle or voltage logged late)")
         ke = self.baseline.values.get("motor_back_emf_V_s_per_rad")
         if ke is None:
-            return []
+            return notes
         sheet = self.problem.nominal.motor
-        return [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
+        return notes + [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
                 f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
                 f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"]
 
@@ -245,6 +273,8 @@ class Diagnosis:
                 "notes": self._baseline_notes(),
             },
             "effects": [f.to_json() for f in self.findings],
+            **({"noise_floor": self.noise.to_json()} if self.noise else {}),
+            **({"unexplained": self.unexplained.to_json()} if self.unexplained else {}),
             "final": {"params": self.final.values, "uncertainty_1sigma": self.final.uncertainties,
                       "rmse": self.final.rmse_val, "effects": self.effect_names},
             "selection": {
@@ -389,7 +419,45 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
     where = locate(problem, base)
     located = where.located()
     lib = effect_library(nominal, candidates)
-    current = base
+    findings, current, rounds = _select(problem, base, base, lib, located, tick, workers)
+    floor = noise_floor(recording)
+    shafts = nominal.shafts()
+    description = ""
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
+        # the library leaves a structured error: model it anyway, with families that name nothing
+        tick("characterising the residual")
+        sig = signature(recording, locate(problem, current).residual, shafts)
+        description = describe(sig, shafts)
+        generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
+        more, current, more_rounds = _select(problem, base, current, generic, located, tick, workers, backward=False)
+        findings += more
+        rounds += more_rounds
+    previous, loc_previous = base, where
+    for finding in findings:
+        loc = locate(problem, finding.fit)
+        finding.rmse_before = previous.rmse_val
+        if finding.effect.generic:
+            finding.evidence = generic_evidence(finding.effect, finding.fit.values, description, previous.rmse_val, finding.fit.rmse_val)
+        else:
+            finding.evidence = _evidence(finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc)
+        previous, loc_previous = finding.fit, loc
+    unexplained = None
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
+        sig = signature(recording, loc_previous.residual, shafts)
+        unexplained = Unexplained(current.rmse_val, floor, sig, describe(sig, shafts))
+    result = Diagnosis(recording, baseline, base, findings, where, problem, rounds, noise=floor, unexplained=unexplained)
+    predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
+    if findings:
+        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
+    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
+    return result
+
+
+def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect], located: Located, tick, workers,
+            backward: bool = True) -> tuple[list["Finding"], FitResult, list]:
+    """Greedy forward selection from ``current`` over ``lib`` while a candidate passes the
+    rule (pairs when no single one does; with ``backward``, drop earlier findings that later
+    ones made redundant)."""
     findings: list[Finding] = []
     rounds = []
     for _ in range(len(lib)):
@@ -420,7 +488,8 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
             current = together
         else:
             break
-        findings, current = _drop_redundant(problem, base, findings, current, tick, workers)
+        if backward:
+            findings, current = _drop_redundant(problem, base, findings, current, tick, workers)
         # converge the accepted model before the next round: otherwise the next candidates'
         # refits finish this optimisation and get the credit for it
         tick("converging")
@@ -428,18 +497,7 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
         if polished.rmse_fit < current.rmse_fit:
             current = polished
             findings[-1].fit = polished
-    previous, loc_previous = base, where
-    for finding in findings:
-        loc = locate(problem, finding.fit)
-        finding.rmse_before = previous.rmse_val
-        finding.evidence = _evidence(finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc)
-        previous, loc_previous = finding.fit, loc
-    result = Diagnosis(recording, baseline, base, findings, where, problem, rounds)
-    predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
-    if findings:
-        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
-    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
-    return result
+    return findings, current, rounds
 
 
 def _clear_gain(problem: Problem, current: FitResult, candidate: FitResult) -> bool:

@@ -470,9 +470,89 @@ class EncoderEccentricity(Effect):
         return {"amp_mrad": 1e3 * _amplitude(v, "encoder_order1_cos_rad", "encoder_order1_sin_rad")[0]}
 
 
+class SensorDelay(Effect):
+    name = "sensor_delay"
+    meaning = ("the angle is logged late by a fixed delay (an encoder interface that filters or buffers, a logger that "
+               "time-stamps late): a phase lag that grows with frequency, no effect on the machine")
+    enters = "measurement"
+    feature = "transient"
+    sentence = ("the angle logged {delay_ms:.3g} ms late (a phase lag that grows with frequency, no torque) explains the "
+                "error that follows every change of speed")
+
+    def make_parameters(self, nominal):
+        return (Parameter("sensor_delay_s", 2e-3, 0.0, 0.05, "how late the angle is logged", scale=2e-3),)
+
+    def null(self):
+        return {"sensor_delay_s": 0.0}
+
+    def starts(self, s, located):
+        return [{"sensor_delay_s": d} for d in (1e-3, 4e-3, 12e-3)]
+
+    def measure(self, v, s, angle):
+        shift = v["sensor_delay_s"] / s.dt
+        whole = int(math.floor(shift))
+        frac = shift - whole
+        n = angle.shape[1]
+        if whole >= n - 1 or shift <= 0:
+            return angle
+        idx = np.arange(n) - whole
+        a0 = angle[:, np.clip(idx, 0, n - 1)]
+        a1 = angle[:, np.clip(idx - 1, 0, n - 1)]
+        return (1 - frac) * a0 + frac * a1
+
+    def summary(self, v, s=None):
+        return {"delay_ms": 1e3 * v["sensor_delay_s"]}
+
+
+class WindingHeating(Effect):
+    name = "winding_heating"
+    meaning = ("the winding's resistance rises with the copper temperature (copper: +0.39 % per kelvin), heated by the "
+               "current squared with a thermal time constant: less torque per volt and less back-emf damping as the "
+               "motor warms, R(t) = R (1 + a x(t)), x a first-order lag of I^2 / mean I^2, cold at the start")
+    enters = "voltage"
+    linear = ("winding_resistance_rise_fraction",)
+    feature = "drift"
+    sentence = ("a winding that warms under the current squared, its resistance {end_pct:.0f}% higher by the end of the "
+                "recording (time constant {tau:.3g} s), explains a residual that drifts as the motor delivers less torque per volt")
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter("winding_resistance_rise_fraction", 0.0, -0.05, 0.8, "resistance rise at the mean heating, steady state", scale=0.05),
+            Parameter("winding_time_constant_s", 60.0, 5.0, 3000.0, "thermal time constant of the winding", log=True),
+        )
+
+    def heating(self, v, s):
+        """x' = (I^2 / mean I^2 - x) / tau, x(0) = 0; the current from the datasheet motor at the
+        logged voltage and measured speed (a steady-state estimate, independent of any current log)."""
+        from scipy.signal import lfilter
+
+        tau = v["winding_time_constant_s"]
+        m = self.nominal.motor
+
+        def compute():
+            current = (s.voltage_V - m.back_emf_V_s_per_rad * m.ratio * s.velocity_rad_s) / m.resistance_ohm
+            power = current * current
+            a = math.exp(-s.dt / tau)
+            return lfilter([0.0, 1.0 - a], [1.0, -a], power / max(float(power.mean()), 1e-12))
+
+        return s.memo("copper", tau, compute)
+
+    def apply(self, v, s, drive):
+        factor = 1.0 / (1.0 + v["winding_resistance_rise_fraction"] * self.heating(v, s))
+        drive.voltage_V = drive.voltage_V * factor
+        drive.viscous_Nm_s -= self.nominal.motor.emf_damping_arm * (1.0 - factor)
+
+    def grid(self, s, located):
+        return [{"winding_time_constant_s": tau} for tau in (10.0, 30.0, 100.0, 300.0, 1000.0)]
+
+    def summary(self, v, s=None):
+        end = float(self.heating(v, s)[-1]) if s is not None else 1.0
+        return {"end_pct": 100 * v["winding_resistance_rise_fraction"] * end, "tau": v["winding_time_constant_s"]}
+
+
 EFFECTS: dict[str, type[Effect]] = {e.name: e for e in (
     TorqueRipple, LinkageDynamics, PositionFriction, Stribeck, ThermalDrift, NeedlePenetration,
-    BeltCompliance, VoltageNonlinearity, EncoderEccentricity)}
+    BeltCompliance, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating)}
 
 
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:

@@ -164,6 +164,37 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_
     return p, derived
 
 
+HEATING_CHUNK_S = 0.1  # the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
+
+
+def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_name: str, heat: dict, rate: float) -> dict:
+    """The truth model with the winding's resistance following its copper temperature:
+    dT/dt = (I^2 R - T / R_th) / C_th, R = R0 (1 + alpha T), integrated chunk by chunk (the
+    resistance held over each 0.1 s chunk, the temperature updated from the chunk's I^2 R)."""
+    n = len(voltage)
+    chunk = max(1, int(round(HEATING_CHUNK_S * rate)))
+    r0, rth, tau, alpha = params["R"], heat["thermal_resistance_K_per_W"], heat["thermal_time_constant_s"], heat["copper_coefficient_per_K"]
+    kelvin = 0.0
+    parts: list[dict] = []
+    resistance = np.empty(n)
+    for k0 in range(0, n, chunk):
+        k1 = min(n, k0 + chunk)
+        r = r0 * (1.0 + alpha * kelvin)
+        # one sample more than the chunk: its first trace row is the state the next chunk starts from
+        u = voltage[k0:k1 + 1]
+        out = sim.simulate({**params, "R": r}, u, state, prefer=solver_name)
+        if k1 < n:
+            state = {name: float(out[trace][k1 - k0]) for name, trace in zip(sim.STATE_FIELDS, sim.TRACE_NAMES)}
+        parts.append({key: value[: k1 - k0] for key, value in out.items()})
+        resistance[k0:k1] = r
+        power = float(np.mean(out["current_A"][: k1 - k0] ** 2)) * r
+        decay = math.exp(-(k1 - k0) / rate / tau)
+        kelvin = kelvin * decay + power * rth * (1.0 - decay)
+    traces = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    traces["winding_resistance_ohm"] = resistance
+    return traces
+
+
 def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> dict:
     """Merge user overrides into baseline and effect parameters; return the remaining options."""
     options = {}
@@ -241,11 +272,17 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     noise = float(options.get("current_noise_A", sensors.uniform(0.01, 0.03)))
     state = dict(theta_arm=start, omega_arm=0.0, theta_motor=base["belt_ratio"] * start, omega_motor=0.0, current=0.0, warmth=0.0)
     solver_name = options.get("integrator", "native")
-    traces = sim.simulate(params, motor_voltage, state, prefer=solver_name)
+    if "winding_heating" in effect_params:
+        traces = _simulate_heating(params, motor_voltage, state, solver_name, effect_params["winding_heating"], rate)
+    else:
+        traces = sim.simulate(params, motor_voltage, state, prefer=solver_name)
     traces["applied_voltage_V"] = motor_voltage
 
     true_angle = traces["arm_angle_rad"]
     sensed = true_angle
+    if "sensor_delay" in effect_params:
+        # the log shows the angle of delay_s ago (linear interpolation; the rest angle before the start)
+        sensed = np.interp(time - effect_params["sensor_delay"]["delay_s"], time, sensed)
     if "encoder_eccentricity" in effect_params:
         e = effect_params["encoder_eccentricity"]
         # the count is reset at the index pulse (needle TDC), so the error vanishes there

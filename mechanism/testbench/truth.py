@@ -192,6 +192,17 @@ def _voltage_nonlinearity(u, rng, base):
             "low_duty_loss_exponent": exponent, "error_at_4.5V_fraction": errors[0], "error_at_12V_fraction": errors[1]}
 
 
+COPPER_PER_KELVIN = 0.00393  # temperature coefficient of copper's resistance
+
+
+def _winding_heating(u, rng, base):
+    # a winding's thermal resistance scales with the motor: per watt of a reference loss, the
+    # motor stalled at a tenth of the supply voltage
+    reference_W = (0.1 * base["supply_V"]) ** 2 / base["resistance_ohm"]
+    return {"thermal_resistance_K_per_W": u("kelvin_per_reference_watt") / reference_W,
+            "thermal_time_constant_s": u("thermal_time_constant_s"), "copper_coefficient_per_K": COPPER_PER_KELVIN}
+
+
 def _encoder_eccentricity(u, rng, base):
     return {"amplitude_rad": u("amplitude_rad"), "phase_rad": u("phase_rad")}
 
@@ -236,6 +247,15 @@ EFFECTS: dict[str, Effect] = {
                "the PWM switch's applied voltage differs from the logged one: 3-10 % below it at 4.5 V, 2-6 % above it at 12 V",
                {"error_at_4.5V_fraction": (-0.10, -0.03), "error_at_12V_fraction": (0.02, 0.06), "low_duty_loss_exponent": (2.0, 4.0)},
                _voltage_nonlinearity),
+        Effect("sensor_delay",
+               "the angle reaches the log 2-15 ms late (a filtering encoder interface, a buffering logger); the machine is unaffected",
+               {"delay_s": (2e-3, 15e-3)},
+               lambda u, rng, base: {"delay_s": u("delay_s")}),
+        Effect("winding_heating",
+               "the copper warms under I^2 R (thermal time constant 20-90 s): its resistance rises at 0.39 %/K, "
+               "the motor gives less torque per volt and less back-emf damping",
+               {"kelvin_per_reference_watt": (25.0, 60.0), "thermal_time_constant_s": (20.0, 90.0)},
+               _winding_heating),
         Effect("encoder_eccentricity",
                "the arm encoder's disc is off-centre: a once-per-revolution angle error of 2.5-8 mrad in the log only",
                {"amplitude_rad": (2.5e-3, 8e-3), "phase_rad": _PHASE},
