@@ -385,11 +385,12 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
 
 
 def switched_off(problem: Problem, current: FitResult, effect: Effect) -> FitResult:
-    """``current`` plus ``effect`` at its null values (the model it extends), as a fit result."""
+    """``current`` plus ``effect`` switched off (its null values): the model it extends, whose
+    rmse it has exactly."""
     structure = current.structure.with_effect(effect)
     values = {**current.values, **effect.null()}
     unc = {**current.uncertainties, **{p.name: math.nan for p in effect.parameters}}
-    return FitResult(structure, values, unc, problem.rmse(structure, values, "fit"), problem.rmse(structure, values, "val"))
+    return FitResult(structure, values, unc, current.rmse_fit, current.rmse_val)
 
 
 def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequence[str] | None = None,

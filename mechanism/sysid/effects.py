@@ -382,19 +382,23 @@ class BeltCompliance(Effect):
     enters = "belt"
     def make_parameters(self, nominal):
         return (
-            Parameter("belt_resonance_Hz", 30.0, 2.0, 250.0, "resonance frequency of motor against arm on the belt", log=True),
+            Parameter("belt_resonance_Hz", 30.0, 2.0, self.RIGID_HZ, "resonance frequency of motor against arm on the belt", log=True),
             Parameter("belt_damping_ratio", 0.1, 0.003, 2.0, "damping ratio of the belt mode", log=True),
             Parameter("motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia (thesis: 8.6e-6 of 2.78e-5)", scale=1.0),
         )
 
     def null(self):
         # the stiffest, best-damped belt is the rigid one to within the fit's resolution
-        return {"belt_resonance_Hz": 250.0, "belt_damping_ratio": 1.0, "motor_inertia_fraction": 0.31}
+        return {"belt_resonance_Hz": self.RIGID_HZ, "belt_damping_ratio": 1.0, "motor_inertia_fraction": 0.31}
     feature = "transient"
     sentence = ("an elastic belt between motor and arm (resonance {f:.3g} Hz, damping ratio {zeta:.2g}, unrelated to the "
                 "shaft rates) explains the ringing after voltage steps")
 
+    RIGID_HZ = 250.0  # the upper bound: a belt this stiff is the rigid one (the null)
+
     def apply(self, v, s, drive):
+        if v["belt_resonance_Hz"] >= self.RIGID_HZ:
+            return
         total = float(np.median(drive.inertia_kgm2))
         jm = v["motor_inertia_fraction"] * total
         ja = total - jm

@@ -137,7 +137,7 @@ class Signature:
     def to_json(self) -> dict:
         return {
             "periodic": self.periodic.to_json() if self.periodic else None,
-            "acceleration_share": self.delay_share, "delay_s": self.delay_s,
+            "acceleration_share": self.delay_share,
             "change_at_s": self.step_time_s, "change_rad_s": self.step_rad_s, "change_share": self.step_share,
             "drift_share": self.drift_share,
             "after_voltage_rise_rms_rad_s": self.after_rise_rms, "after_voltage_fall_rms_rad_s": self.after_fall_rms,
@@ -181,8 +181,8 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
     if total <= 0:
         return None
     corr = _correlation_length(rr)
-    best = None
-    for name, ratio in sorted(shafts.items(), key=lambda kv: -kv[1]):
+    found = []
+    for name, ratio in shafts.items():
         amps, counts = _order_amplitudes(rr, ratio * th, sp, ratio, dt)
         # an order counts when it stands out of what noise of this residual gives (4 sigma)
         noise = 4 * np.sqrt(total * corr / np.maximum(counts, 1)) * 2 / math.sqrt(2)
@@ -190,14 +190,15 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
         if not sig:
             continue
         share = float(sum(0.5 * amps[k] ** 2 for k in sig) / total)
-        lowest = min(sig)
-        # an integer multiple of a slower shaft's order is the same structure: keep the
-        # fastest shaft that shows it at the lowest order
-        if best is None or share > 1.2 * best[2] or (share > 0.8 * best[2] and lowest < min(best[1])):
-            best = (name, [int(k) for k in sig], share, ratio, amps)
-    if best is None or best[2] < 0.05:
+        found.append((name, [int(k) for k in sig], share, ratio, amps))
+    if not found or max(f[2] for f in found) < 0.05:
         return None
-    name, orders, share, ratio, amps = best
+    # integer ratios make one structure periodic in several shafts: among those that explain
+    # about as much, say the motor (its orders are the drive's), then the described shaft
+    strongest = max(f[2] for f in found)
+    preference = {"motor": 0, "shaft": 1}
+    name, orders, share, ratio, amps = min((f for f in found if f[2] > 0.8 * strongest),
+                                          key=lambda f: (preference.get(f[0], 2), min(f[1])))
     exponent = _speed_exponent(rr, ratio * th, sp, orders[0])
     kind = "sensor-like" if exponent > 0.5 else ("torque-like" if exponent < -0.4 else "mixed")
     return Periodic(name, float(ratio), orders, [float(amps[k]) for k in orders], min(share, 1.0), exponent, kind)
@@ -258,7 +259,13 @@ def signature(rec: Recording, r: np.ndarray, shafts: dict[str, float]) -> Signat
     speed = np.abs(w)
     periodic = periodic_part(r, rec.arm_angle_rad, speed, shafts, dt)
     acc = smoothed_velocity(w, dt)
-    b, delay_share = _explained(r, acc)
+    # an angle logged late by d reads w(t - d) = w - d w' + d^2/2 w'': the residual is the
+    # acceleration and its rate of change, in whatever share the baseline's winding lag left
+    timing = np.column_stack([acc, smoothed_velocity(acc, dt)])
+    coef, *_ = np.linalg.lstsq(timing, r, rcond=None)
+    rr = float(np.dot(r, r))
+    delay_share = float(1 - np.sum((r - timing @ coef) ** 2) / rr) if rr > 0 else 0.0
+    b = float(coef[0])
     jumps = np.diff(u)
     rise, fall = np.zeros(len(r), bool), np.zeros(len(r), bool)
     span = max(int(0.15 / dt), 1)
@@ -303,19 +310,19 @@ def describe(sig: Signature, shafts: dict[str, float]) -> str:
     if sig.periodic is not None:
         parts.append(f"{_shaft_words(sig.periodic, shafts)} ({100 * sig.periodic.share:.0f}% of the residual)")
     if sig.delay_share > 0.3:
-        lag = f"{1e3 * sig.delay_s:.1f} ms late" if sig.delay_s > 0 else f"{-1e3 * sig.delay_s:.1f} ms early"
-        parts.append(f"an error proportional to the acceleration ({100 * sig.delay_share:.0f}% of the residual), as if the "
-                     f"angle were logged {lag}: a phase lag that grows with frequency")
+        parts.append(f"an error shaped like the acceleration and its rate of change ({100 * sig.delay_share:.0f}% of the "
+                     f"residual): a timing error, a phase lag that grows with frequency (a delay in the log, a lag in the drive)")
     if sig.step_share > 0.3 and sig.step_share > 1.5 * sig.drift_share and sig.step_time_s is not None:
         parts.append(f"a change at t = {sig.step_time_s:.1f} s: the speed error steps by {sig.step_rad_s:+.2g} rad/s "
                      f"at the same voltages ({100 * sig.step_share:.0f}% of the steady residual)")
     elif sig.drift_share > 0.3:
         parts.append(f"a drift over the recording ({100 * sig.drift_share:.0f}% of the steady residual)")
     if max(sig.after_rise_rms, sig.after_fall_rms) > 2.5 * max(sig.steady_rms, 1e-12):
-        which = "falls" if sig.after_fall_rms > 1.5 * sig.after_rise_rms else (
-            "rises" if sig.after_rise_rms > 1.5 * sig.after_fall_rms else "changes")
+        falls = sig.after_fall_rms > 1.5 * sig.after_rise_rms
+        which = "falls" if falls else ("rises" if sig.after_rise_rms > 1.5 * sig.after_fall_rms else "changes")
+        where = ", where the load on the transmission reverses (the motor brakes the shaft)" if falls else ""
         parts.append(f"concentrated after the voltage {which} ({max(sig.after_rise_rms, sig.after_fall_rms):.2g} rad/s rms against "
-                     f"{sig.steady_rms:.2g} in steady running), where the load on the transmission reverses")
+                     f"{sig.steady_rms:.2g} in steady running){where}")
     if sig.low_speed_rms > 2.5 * max(sig.steady_rms, 1e-12):
         parts.append(f"largest at low speed ({sig.low_speed_rms:.2g} rad/s rms)")
     if not parts:
