@@ -65,6 +65,10 @@ def library(problem: Problem) -> tuple[np.ndarray, np.ndarray, list[str]]:
         owners.append("encoder_eccentricity")
     columns.append(jerk)  # an elastic belt adds a jerk term to first order
     owners.append("belt_compliance")
+    # an angle logged d late reads w - d w': seen as a torque through J d/dt + c (backlash, a
+    # dead zone, has no such linear column: the sparse regression cannot express it)
+    columns.append(j * jerk + c * acc)
+    owners.append("sensor_delay")
     X = np.column_stack(columns)[sel]
     return target[sel], X, owners
 

@@ -223,6 +223,7 @@ class Drive:
     belt_stiffness_Nm_rad: float = 0.0  # 0 = rigid belt
     belt_damping_Nm_s: float = 0.0
     motor_inertia_kgm2: float = 0.0  # motor-side share of the inertia (arm units), belt mode
+    belt_gap_rad: float = 0.0  # half the belt's free play (backlash), belt mode
 
     @classmethod
     def constant(cls, signals: Signals, voltage: np.ndarray, inertia: float, viscous: float, coulomb: float) -> "Drive":
@@ -303,6 +304,7 @@ class _DriveParams(ctypes.Structure):
         ("j_motor", ctypes.c_double),
         ("dt", ctypes.c_double),
         ("substeps", ctypes.c_int),
+        ("gap", ctypes.c_double),
     ]
 
 
@@ -341,7 +343,7 @@ def simulate(drive: Drive, motor: MotorConstants, segments: Segments, w0: np.nda
     w0 = np.ascontiguousarray(w0, dtype=np.float64)
     params = _DriveParams(motor.gain_arm, motor.emf_damping_arm, drive.stribeck_velocity_rad_s,
                           drive.stribeck_exponent, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s,
-                          drive.motor_inertia_kgm2, dt, int(substeps))
+                          drive.motor_inertia_kgm2, dt, int(substeps), drive.belt_gap_rad)
     dp = ctypes.POINTER(ctypes.c_double)
     ip = ctypes.POINTER(ctypes.c_int)
     kernel(ctypes.byref(params), *[a.ctypes.data_as(dp) for a in arrays], n_seg,
@@ -406,13 +408,14 @@ def _simulate_belt_numpy(drive: Drive, motor: MotorConstants, idx: np.ndarray, w
     load = cv[k0] * w + ta[k0] + q[k0] * w * w + np.where(w != 0, fk[k0] * np.sign(w), 0.0)
     lim = fk[k0] + fx[k0]
     load = np.where(w == 0, np.clip(gain * u[k0] - tm[k0], -lim, lim), load)
-    x = load / kb
+    gap = drive.belt_gap_rad
+    x = load / kb + gap * np.sign(load)
     for i in range(length):
         k = idx[:, i]
         out[:, i] = w
         ja = jt[k] - jm
         for _ in range(nsub):
-            fb = kb * x + cb * (wm - w)
+            fb = np.where(np.abs(x) > gap, kb * (x - gap * np.sign(x)) + cb * (wm - w), 0.0)
             wm = wm + h * (gain * u[k] - c_emf * wm - tm[k] - fb) / jm
             f = fb - cv[k] * w - ta[k] - q[k] * w * w
             at_rest = w == 0.0

@@ -39,7 +39,7 @@ from mechanism.sysid.identification import (FitResult, ModelStructure, Problem, 
                                       equation_error_start, fit, fit_baseline, require_identifiable)
 from mechanism.dynamics.lumped import DriveNominal
 from mechanism.sysid.generic import candidates as generic_candidates, evidence as generic_evidence
-from mechanism.sysid.recording import Recording
+from mechanism.sysid.recording import Recording, at_fitting_rate
 from mechanism.sysid.residual import UNEXPLAINED_FACTOR, NoiseFloor, Signature, describe, noise_floor, signature
 
 # An effect must cut the validation rmse by at least 35 %. The contract asks every effect
@@ -365,7 +365,8 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
     the best few again with every parameter free."""
     base_names = [p.name for p in current.structure.baseline.parameters]
     jobs = [(problem, current.structure.with_effect(e), _starts(e, current, problem, located),
-             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen"}) for e in effects]
+             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen", "scout_nfev": 0})
+            for e in effects]
     tick(f"screening {len(effects)} candidates")
     results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
     by_name = {e.name: e for e in effects}
@@ -377,7 +378,7 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
     top = sorted(results, key=lambda n: results[n].rmse_val)[:REFINE_TOP]
     tick(f"refitting {', '.join(top)}")
     refits = _fit_all([(problem, results[n].structure, [results[n].values, {**current.values, **by_name[n].null()}],
-                        {"max_nfev": 25}) for n in top], workers)
+                        {"max_nfev": 25, "scout_nfev": 0}) for n in top], workers)
     for name, refined in zip(top, refits):
         if refined.rmse_fit <= results[name].rmse_fit:
             results[name] = refined
@@ -399,6 +400,7 @@ def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequenc
     """Fit the baseline, locate its residual, and add candidate effects while the validation
     error falls clearly (see the module docstring for the rule). ``nominal``: the described
     drive, from which every bound and starting value scales."""
+    recording = at_fitting_rate(recording)
     require_identifiable(recording)
     with blas_single_threaded():
         return _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers)

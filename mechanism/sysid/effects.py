@@ -418,6 +418,45 @@ class BeltCompliance(Effect):
         return {"f": v["belt_resonance_Hz"], "zeta": v["belt_damping_ratio"]}
 
 
+class Backlash(BeltCompliance):
+    name = "backlash"
+    meaning = ("free play in the belt or gear between motor and shaft: a dead zone the motor crosses unloaded "
+               "whenever the torque through the transmission reverses (braking, stops), then an elastic contact")
+    feature = "transient"
+    sentence = ("free play of {play_deg:.2g} deg at the shaft between motor and shaft (a dead zone crossed whenever the "
+                "torque through the transmission reverses) explains the error after the motor starts braking")
+    AS_BELT = {"contact_resonance_Hz": "belt_resonance_Hz", "contact_damping_ratio": "belt_damping_ratio",
+               "backlash_motor_inertia_fraction": "motor_inertia_fraction"}
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter("backlash_free_play_rad", 0.005, 0.0, 0.1, "free play of the transmission, shaft-side angle", scale=0.005),
+            Parameter("contact_resonance_Hz", 100.0, 10.0, self.RIGID_HZ, "resonance of motor against shaft in contact", log=True),
+            Parameter("contact_damping_ratio", 0.1, 0.003, 2.0, "damping ratio in contact", log=True),
+            Parameter("backlash_motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia", scale=1.0),
+        )
+
+    def null(self):
+        return {"backlash_free_play_rad": 0.0, "contact_resonance_Hz": self.RIGID_HZ, "contact_damping_ratio": 1.0,
+                "backlash_motor_inertia_fraction": 0.31}
+
+    def apply(self, v, s, drive):
+        play = v["backlash_free_play_rad"]
+        belt = {b: v[a] for a, b in self.AS_BELT.items()}
+        if play > 0:  # free play needs the two-mass model: the contact is stiff, never rigid
+            belt["belt_resonance_Hz"] = min(belt["belt_resonance_Hz"], 0.999 * self.RIGID_HZ)
+        super().apply(belt, s, drive)
+        if drive.belt_stiffness_Nm_rad > 0:
+            drive.belt_gap_rad = 0.5 * play
+
+    def starts(self, s, located):
+        return [{"backlash_free_play_rad": play, "contact_resonance_Hz": f, "contact_damping_ratio": 0.1,
+                 "backlash_motor_inertia_fraction": 0.31} for play in (0.01, 0.03) for f in (60.0, 120.0)]
+
+    def summary(self, v, s=None):
+        return {"play_deg": math.degrees(v["backlash_free_play_rad"])}
+
+
 class VoltageNonlinearity(Effect):
     name = "voltage_nonlinearity"
     meaning = ("the voltage reaching the motor is a nonlinear function of the logged one (the thesis's PWM power "
@@ -556,7 +595,7 @@ class WindingHeating(Effect):
 
 EFFECTS: dict[str, type[Effect]] = {e.name: e for e in (
     TorqueRipple, LinkageDynamics, PositionFriction, Stribeck, ThermalDrift, NeedlePenetration,
-    BeltCompliance, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating)}
+    BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating)}
 
 
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:

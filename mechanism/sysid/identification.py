@@ -38,7 +38,7 @@ from mechanism.errors import UserError
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Signals, make_segments, simulate
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
-from mechanism.sysid.recording import Recording, check_excitation, smoothed_velocity, velocity_coefficients
+from mechanism.sysid.recording import Recording, at_fitting_rate, check_excitation, smoothed_velocity, velocity_coefficients
 
 REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
@@ -193,7 +193,7 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
     """Least-squares fit of the parameters of ``structure`` on the fit segments.
 
     ``starts`` are initial guesses (missing names take the nominal value). With several,
-    each gets a few iterations (``scout_nfev``) and only the best is refined. ``free``
+    each gets a few iterations (``scout_nfev``; 0: one evaluation) and only the best is refined. ``free``
     names the parameters to fit (default: all); the others stay at the first start's values.
     """
     every = structure.parameters
@@ -222,7 +222,10 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
 
     candidates = [internal_vector(params, s) for s in starts] or [internal_vector(params, {})]
     scouts = []
-    if len(candidates) > 1:
+    if len(candidates) > 1 and scout_nfev <= 0:
+        # the start with the lowest cost, one evaluation each
+        x_start = min(candidates, key=lambda x0: float(np.sum(fun(np.clip(x0, lo, hi)) ** 2)))
+    elif len(candidates) > 1:
         scouts = [run(x0, scout_nfev) for x0 in candidates]
         x_start = min(scouts, key=lambda r: r.cost).x
     else:
@@ -452,6 +455,7 @@ def identify(recording: Recording, baseline: str = "lumped", free: Sequence[str]
     """Fit the baseline (inertia, viscous and Coulomb friction; the motor constants named in
     ``free``) by simulation-error minimisation; rmse on the validation segments. ``nominal``:
     the described drive (starting values and bounds scale from it)."""
+    recording = at_fitting_rate(recording)
     require_identifiable(recording)
     with blas_single_threaded():
         problem = Problem(recording, nominal)

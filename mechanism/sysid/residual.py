@@ -152,6 +152,7 @@ def _order_amplitudes(r, phase, speed, ratio, dt, max_order=MAX_ORDER):
     zk = np.ones_like(z)
     out = np.zeros(max_order + 1)
     counts = np.zeros(max_order + 1, dtype=int)
+    power = np.zeros(max_order + 1)
     for k in range(1, max_order + 1):
         zk *= z
         ok = k * ratio * speed < 2 * math.pi * PASSBAND_HZ
@@ -160,7 +161,8 @@ def _order_amplitudes(r, phase, speed, ratio, dt, max_order=MAX_ORDER):
             break
         out[k] = 2 * abs(np.mean(r[ok] * np.conj(zk[ok])))
         counts[k] = n
-    return out, counts
+        power[k] = float(np.mean(r[ok] ** 2))
+    return out, counts, power
 
 
 def _correlation_length(r: np.ndarray) -> float:
@@ -183,13 +185,14 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
     corr = _correlation_length(rr)
     found = []
     for name, ratio in shafts.items():
-        amps, counts = _order_amplitudes(rr, ratio * th, sp, ratio, dt)
-        # an order counts when it stands out of what noise of this residual gives (4 sigma)
-        noise = 4 * np.sqrt(total * corr / np.maximum(counts, 1)) * 2 / math.sqrt(2)
-        sig = [k for k in np.argsort(-amps) if amps[k] > noise[k] and counts[k] > 0][:4]
+        amps, counts, power = _order_amplitudes(rr, ratio * th, sp, ratio, dt)
+        # an order counts when it stands out of what noise of the residual it was measured on
+        # gives (4 sigma), over at least a fifth of the moving samples
+        noise = 4 * np.sqrt(power * corr / np.maximum(counts, 1)) * math.sqrt(2)
+        sig = [k for k in np.argsort(-amps) if amps[k] > noise[k] and counts[k] > 0.2 * len(rr)][:4]
         if not sig:
             continue
-        share = float(sum(0.5 * amps[k] ** 2 for k in sig) / total)
+        share = float(sum(0.5 * amps[k] ** 2 * counts[k] for k in sig) / (total * len(rr)))
         found.append((name, [int(k) for k in sig], share, ratio, amps))
     if not found or max(f[2] for f in found) < 0.05:
         return None

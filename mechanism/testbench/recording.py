@@ -119,7 +119,7 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_
         rp_nc=12.0, st_velocity=1.0, st_exponent=1.0, th_tau_cool=1.0,
     )
     derived: dict[str, dict] = {}
-    belt = effects.get("belt_compliance")
+    belt = effects.get("belt_compliance") or effects.get("backlash")  # backlash: a belt with free play
     motor_share = belt["motor_inertia_fraction"] if belt else 0.0
     arm_side = ratio**2 * (1.0 - motor_share) * total  # mean inertia carried by the arm shaft
     link = effects.get("linkage_dynamics")
@@ -135,8 +135,11 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_
         reduced = motor * arm_side / (motor + arm_side)
         p.update(belt=1.0, J_motor=motor_share * total, belt_k=stiffness,
                  belt_c=2.0 * belt["damping_ratio"] * math.sqrt(stiffness * reduced))
-        derived["belt_compliance"] = {"stiffness_arm_side_Nm_per_rad": stiffness, "damping_arm_side_Nm_s_per_rad": p["belt_c"],
-                                      "rotor_inertia_arm_side_kgm2": motor, "arm_inertia_kgm2": arm_side}
+        derived["belt_compliance" if "belt_compliance" in effects else "backlash"] = {
+            "stiffness_arm_side_Nm_per_rad": stiffness, "damping_arm_side_Nm_s_per_rad": p["belt_c"],
+            "rotor_inertia_arm_side_kgm2": motor, "arm_inertia_kgm2": arm_side}
+    if "backlash" in effects:
+        p["bl_gap"] = 0.5 * effects["backlash"]["free_play_rad"]
     if "torque_ripple" in effects:
         e = effects["torque_ripple"]
         p.update(rp_a1=e["once_per_motor_rev_Nm"], rp_p1=e["once_per_motor_rev_phase_rad"], rp_ac=e["cogging_Nm"],

@@ -247,6 +247,12 @@ EFFECTS: dict[str, Effect] = {
                "the PWM switch's applied voltage differs from the logged one: 3-10 % below it at 4.5 V, 2-6 % above it at 12 V",
                {"error_at_4.5V_fraction": (-0.10, -0.03), "error_at_12V_fraction": (0.02, 0.06), "low_duty_loss_exponent": (2.0, 4.0)},
                _voltage_nonlinearity),
+        Effect("backlash",
+               "free play of 0.5-2 deg (at the shaft) in the belt or gear between motor and shaft: a dead zone the "
+               "motor crosses unloaded whenever the torque through the transmission reverses",
+               {"free_play_rad": (0.009, 0.035), "motor_inertia_fraction": (0.25, 0.4), "resonance_Hz": (60.0, 120.0),
+                "damping_ratio": (0.05, 0.12)},
+               lambda u, rng, base: {key: u(key) for key in ("free_play_rad", "motor_inertia_fraction", "resonance_Hz", "damping_ratio")}),
         Effect("sensor_delay",
                "the angle reaches the log 2-15 ms late (a filtering encoder interface, a buffering logger); the machine is unaffected",
                {"delay_s": (2e-3, 15e-3)},
