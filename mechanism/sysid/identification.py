@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
-from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Signals, make_segments, simulate
+from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Segments, Signals, make_segments, simulate
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
 from mechanism.sysid.recording import Recording, at_fitting_rate, check_excitation, smoothed_velocity, velocity_coefficients
@@ -95,6 +95,7 @@ class Problem:
     """
 
     FIT_STRIDE = 3
+    MAX_SEGMENTS = 360  # a long recording is scored on this many segments spread over it (6 min of 1 s)
 
     def __init__(self, rec: Recording, nominal: DriveNominal, segment_s: float = 1.0, burn_in_s: float = 0.25):
         self.recording = rec
@@ -103,7 +104,7 @@ class Problem:
         self.coefficients = velocity_coefficients(rec.dt)
         self.pad = (len(self.coefficients) - 1) // 2
         self.signals = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=nominal.ratio)
-        self.segments = make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad)
+        self.segments = _spread(make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad), self.MAX_SEGMENTS)
         fit_part = self.segments.subset(self.segments.is_fit)
         screen = np.zeros(len(fit_part), bool)
         screen[::2] = True
@@ -155,6 +156,20 @@ class Problem:
         out = np.full(len(self.recording), np.nan)
         out[self.scored["all"]] = self.simulate(structure, values, "all")
         return out
+
+
+def _spread(segments: Segments, most: int) -> Segments:
+    """At most ``most`` segments, in whole fit/validation groups of four spread evenly over
+    the recording: beyond some minutes more segments add time, not information, and the
+    time a fit takes stops growing with the recording's length."""
+    if len(segments) <= most:
+        return segments
+    groups = len(segments) // 4
+    chosen = np.unique(np.linspace(0, groups - 1, most // 4).round().astype(int))
+    keep = np.zeros(len(segments), bool)
+    for g in chosen:
+        keep[4 * g:4 * g + 4] = True
+    return segments.subset(keep)
 
 
 @dataclass
