@@ -180,3 +180,11 @@ def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
     assert "4 times per shaft turn" in data["effects"][0]["evidence"]
     assert any(k.startswith("generic_shaft_order4") for k in data["effects"][0]["params"])
+
+
+@pytest.mark.slow
+def test_three_effects_at_once_are_all_named(bench):
+    """No cap on the number of effects: a machine with a ripple, a Stribeck breakaway and a late
+    angle log gets all three."""
+    check(diagnose(read_recording(bench("torque_ripple,stribeck,sensor_delay", seed=4, duration=60.0))),
+          {"torque_ripple", "stribeck", "sensor_delay"})

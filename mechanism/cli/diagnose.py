@@ -15,7 +15,7 @@ def register(subparsers) -> None:
             "Fit the baseline, locate where its velocity residual lives (time, arm angle, motor angle, speed, "
             "frequency; dynamics vs sensor artefact), then add candidate effects one at a time -- torque_ripple, "
             "linkage_dynamics, position_friction, stribeck, thermal_drift, needle_penetration, belt_compliance, "
-            "voltage_nonlinearity, encoder_eccentricity -- refitting on one half of the recording and keeping an "
+            "voltage_nonlinearity, encoder_eccentricity, backlash, sensor_delay, winding_heating -- refitting on one half of the recording and keeping an "
             "effect only if it lowers the error on the other half by at least 35%. JSON: baseline params and rmse, "
             "the effects found in order (name, one-sentence evidence, params, rmse), final params and rmse; every "
             "rmse is the RMS arm-velocity residual [rad/s] on the held-out half. A recording at one constant "

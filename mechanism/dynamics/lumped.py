@@ -136,13 +136,16 @@ class Signals:
     velocity_rad_s: np.ndarray
     dt: float
     ratio: float
+    source_index: np.ndarray | None = None  # windows of a long recording: their samples in it
+    whole: "Signals | None" = None  # ... and the whole recording's signals
     _cache: dict = field(default_factory=dict, repr=False)
     _memos: dict = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def memo(self, kind: str, key, compute, keep: int = 16):
         """A small per-kind LRU of derived arrays (lagged voltages, warmth curves), safe for
-        the diagnosis's parallel fits."""
+        the diagnosis's parallel fits; fewer kept for a long recording (memory)."""
+        keep = max(2, min(keep, int(4e6 // max(len(self), 1))))
         with self._lock:
             store = self._memos.setdefault(kind, OrderedDict())
             if key in store:
@@ -157,6 +160,13 @@ class Signals:
 
     def __len__(self) -> int:
         return len(self.time_s)
+
+    def history(self, kind: str, key, compute):
+        """A quantity that integrates over the recording's past (warmth, copper temperature):
+        ``compute(signals)`` on the whole recording, read at these samples."""
+        if self.whole is None:
+            return self.memo(kind, key, lambda: compute(self))
+        return self.memo(kind, key, lambda: compute(self.whole)[self.source_index])
 
     @property
     def drive_angle_rad(self) -> np.ndarray:

@@ -109,16 +109,16 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     rec = problem.recording
     s = problem.signals
     pred = problem.full_prediction(fitted.structure, fitted.values)
-    r = np.nan_to_num(s.velocity_rad_s - pred)  # the few unscored samples at the ends count as zero
-    t, w = rec.time_s, s.velocity_rad_s
+    r = np.nan_to_num(rec.velocity_rad_s - pred)  # unscored samples (the ends, unused windows) count as zero
+    t, w = rec.time_s, rec.velocity_rad_s
     speed = np.abs(w)
     top = max(np.percentile(speed, 99), 1e-6)
     moving = speed > 0.1 * top
-    phase = s.arm_phase
+    phase = np.mod(rec.arm_angle_rad, 2 * np.pi)
     edges = np.linspace(0, 2 * np.pi, 73)
     centres = 0.5 * (edges[1:] + edges[:-1])
     arm_profile, _ = _bin_mean(phase[moving], r[moving], edges)
-    motor_profile, _ = _bin_mean(np.mod(s.ratio * s.arm_angle_rad[moving], 2 * np.pi), r[moving], edges)
+    motor_profile, _ = _bin_mean(np.mod(s.ratio * rec.arm_angle_rad[moving], 2 * np.pi), r[moving], edges)
     speed_edges = np.linspace(0, top * 1.001, 16)
     sq, _ = _bin_mean(speed, r * r, speed_edges)
     speed_rms = np.sqrt(sq)
@@ -131,8 +131,8 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
             sel = moving & (speed >= lo) & (speed <= hi)
             if sel.sum() < 500:
                 continue
-            c = np.cos(k * s.arm_angle_rad[sel])
-            sn = np.sin(k * s.arm_angle_rad[sel])
+            c = np.cos(k * rec.arm_angle_rad[sel])
+            sn = np.sin(k * rec.arm_angle_rad[sel])
             rr = r[sel] - r[sel].mean()
             amps.append(2 * math.hypot(np.mean(rr * c), np.mean(rr * sn)))
             centres_b.append(float(np.median(speed[sel])))

@@ -294,13 +294,13 @@ class ThermalDrift(Effect):
 
         tau, b = v["warmup_time_constant_s"], v["speed_heating_share"]
 
-        def compute():
-            speed = np.abs(s.velocity_rad_s)
+        def compute(whole):
+            speed = np.abs(whole.velocity_rad_s)
             heating = 1.0 - b + b * speed / max(float(speed.mean()), 1e-9)
-            a = math.exp(-s.dt / tau)
+            a = math.exp(-whole.dt / tau)
             return lfilter([0.0, 1.0 - a], [1.0, -a], heating)
 
-        return s.memo("warmth", (tau, b), compute)
+        return s.history("warmth", (tau, b), compute)
 
     def apply(self, v, s, drive):
         w = self.warmth(v, s)
@@ -572,13 +572,13 @@ class WindingHeating(Effect):
         tau = v["winding_time_constant_s"]
         m = self.nominal.motor
 
-        def compute():
-            current = (s.voltage_V - m.back_emf_V_s_per_rad * m.ratio * s.velocity_rad_s) / m.resistance_ohm
+        def compute(whole):
+            current = (whole.voltage_V - m.back_emf_V_s_per_rad * m.ratio * whole.velocity_rad_s) / m.resistance_ohm
             power = current * current
-            a = math.exp(-s.dt / tau)
+            a = math.exp(-whole.dt / tau)
             return lfilter([0.0, 1.0 - a], [1.0, -a], power / max(float(power.mean()), 1e-12))
 
-        return s.memo("copper", tau, compute)
+        return s.history("copper", tau, compute)
 
     def apply(self, v, s, drive):
         factor = 1.0 / (1.0 + v["winding_resistance_rise_fraction"] * self.heating(v, s))

@@ -103,13 +103,20 @@ class Problem:
         self.dt = rec.dt
         self.coefficients = velocity_coefficients(rec.dt)
         self.pad = (len(self.coefficients) - 1) // 2
-        self.signals = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=nominal.ratio)
-        self.segments = _spread(make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad), self.MAX_SEGMENTS)
-        fit_part = self.segments.subset(self.segments.is_fit)
-        screen = np.zeros(len(fit_part), bool)
-        screen[::2] = True
-        self.parts = {"fit": fit_part, "val": self.segments.subset(~self.segments.is_fit), "all": self.segments,
-                      "screen": fit_part.subset(screen) if len(fit_part) > 3 else fit_part}
+        whole = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=nominal.ratio)
+        every = make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad)
+        self.segments = _spread(every, self.MAX_SEGMENTS)
+        self.signals, simulated = whole, self.segments
+        if len(self.segments) * self.segments.length < len(rec):
+            # a long recording: the model runs on its scored windows laid end to end (per-sample
+            # work then no longer grows with the length; history effects read the whole one)
+            index = self.segments.window_indices().ravel()
+            self.signals = Signals(rec.time_s[index], rec.voltage_V[index], rec.arm_angle_rad[index], rec.velocity_rad_s[index],
+                                   rec.dt, ratio=nominal.ratio, source_index=index, whole=whole)
+            s = self.segments
+            simulated = Segments(np.arange(len(s), dtype=np.int64) * s.length, s.length, s.score_begin, s.score_end, s.is_fit)
+        original = _parts(self.segments)
+        self.parts = _parts(simulated)
         self.strides = {"fit": self.FIT_STRIDE, "screen": self.FIT_STRIDE, "val": 1, "all": 1}
         self._gather = {}
         self.measured, self.scored = {}, {}
@@ -121,7 +128,7 @@ class Problem:
                 cols.append(offsets)
             rows, cols = np.concatenate(rows), np.concatenate(cols)
             self._gather[name] = (rows, cols - self.pad)
-            self.scored[name] = seg.starts[rows] + cols
+            self.scored[name] = original[name].starts[rows] + cols
             self.measured[name] = rec.velocity_rad_s[self.scored[name]]
 
     def simulate(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
@@ -156,6 +163,14 @@ class Problem:
         out = np.full(len(self.recording), np.nan)
         out[self.scored["all"]] = self.simulate(structure, values, "all")
         return out
+
+
+def _parts(segments: Segments) -> dict[str, Segments]:
+    fit_part = segments.subset(segments.is_fit)
+    screen = np.zeros(len(fit_part), bool)
+    screen[::2] = True
+    return {"fit": fit_part, "val": segments.subset(~segments.is_fit), "all": segments,
+            "screen": fit_part.subset(screen) if len(fit_part) > 3 else fit_part}
 
 
 def _spread(segments: Segments, most: int) -> Segments:
