@@ -184,7 +184,7 @@ def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp
 
 @pytest.mark.slow
 def test_three_effects_at_once_are_all_named(bench):
-    """No cap on the number of effects: a machine with a ripple, a Stribeck breakaway and a late
-    angle log gets all three."""
-    check(diagnose(read_recording(bench("torque_ripple,stribeck,sensor_delay", seed=4, duration=60.0))),
-          {"torque_ripple", "stribeck", "sensor_delay"})
+    """No cap on the number of effects: a machine with a ripple, a warming winding and an
+    eccentric encoder gets all three."""
+    check(diagnose(read_recording(bench("torque_ripple,winding_heating,encoder_eccentricity", seed=4, duration=60.0))),
+          {"torque_ripple", "winding_heating", "encoder_eccentricity"})

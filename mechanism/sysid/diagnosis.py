@@ -435,6 +435,13 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
         more, current, more_rounds = _select(problem, base, current, generic, located, tick, workers, backward=False)
         findings += more
         rounds += more_rounds
+        findings, current = _prefer_library(problem, base, findings, current, lib, located, tick, workers)
+        if not all(f.effect.generic for f in more):
+            # library physics took a generic's place: what else of the library now passes on top
+            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
+            again, current, again_rounds = _select(problem, base, current, rest, located, tick, workers, backward=False)
+            findings += again
+            rounds += again_rounds
     previous, loc_previous = base, where
     for finding in findings:
         loc = locate(problem, finding.fit)
@@ -501,6 +508,38 @@ def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect]
             current = polished
             findings[-1].fit = polished
     return findings, current, rounds
+
+
+def _prefer_library(problem, base: FitResult, findings: list["Finding"], current: FitResult, lib: dict[str, Effect],
+                    located: Located, tick, workers) -> tuple[list["Finding"], FitResult]:
+    """A generic finding may stand for library physics that needed company to pass (two
+    effects each below the margin alone): replace each generic effect by the library effect
+    that, in its place, fits as well (within the tie band on both halves)."""
+    for i, finding in enumerate(findings):
+        if not finding.effect.generic:
+            continue
+        others = [f.effect for f in findings if f is not finding]
+        names = {e.name for e in others}
+        options = [e for e in lib.values() if e.name not in names]
+        if not options:
+            continue
+        jobs = []
+        for e in options:
+            structure = ModelStructure(base.structure.baseline, [*others, e])
+            start = {k: v for k, v in current.values.items() if k not in {p.name for p in finding.effect.parameters}}
+            jobs.append((problem, structure, [{**start, **s} for s in _starts(e, current, problem, located)],
+                         {"max_nfev": 25, "scout_nfev": 0}))
+        tick(f"a library name for {finding.effect.name}?")
+        fits = _fit_all(jobs, workers)
+        j = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
+        if fits[j].rmse_val <= current.rmse_val * (1 + TIE_BAND) and fits[j].rmse_fit <= current.rmse_fit * (1 + TIE_BAND):
+            findings[i] = Finding(options[j], fits[j], 0.0, "", finding.candidates)
+            current = fits[j]
+            for f in findings[i + 1:]:
+                f.fit = current
+    if findings:
+        findings[-1].fit = current
+    return findings, current
 
 
 def _clear_gain(problem: Problem, current: FitResult, candidate: FitResult) -> bool:
