@@ -72,7 +72,9 @@ def main() -> None:
     print(f"recording: 60 s at 1 kHz ({len(rec)} samples), {os.cpu_count()} CPU(s)")
     print(f"reference: one baseline simulation of all segments  {t_sim * 1e3:8.2f} ms   1")
     print(f"identify (baseline fit, uncertainties)               {t_identify:8.2f} s  {t_identify / t_sim:8.0f} x reference")
-    print(f"diagnose (9 candidates, rounds, report data)         {t_diag:8.2f} s  {t_diag / t_sim:8.0f} x reference")
+    from mechanism.sysid.effects import EFFECTS
+
+    print(f"diagnose ({len(EFFECTS)} candidates, rounds, report)        {t_diag:8.2f} s  {t_diag / t_sim:8.0f} x reference")
 
     # --- accuracy ------------------------------------------------------------------
     print()
