@@ -66,12 +66,15 @@ def encoder_counts(rec: Recording) -> int | None:
     steps = steps[steps > 1e-6]
     if len(steps) < 100:
         return None
-    q = float(np.min(steps))
-    multiple = steps / q
-    if np.mean(np.abs(multiple - np.round(multiple)) < 0.02) < 0.95:
-        return None
-    counts = 2 * math.pi / q
-    return int(round(counts)) if abs(counts - round(counts)) < 0.02 * counts else None
+    smallest = float(np.min(steps))
+    # the smallest step may be several counts (a shaft that never moves by one count per sample)
+    for parts in range(1, 33):
+        q = smallest / parts
+        multiple = steps / q
+        if np.mean(np.abs(multiple - np.round(multiple)) < 0.02) >= 0.95:
+            counts = 2 * math.pi / q
+            return int(round(counts)) if abs(counts - round(counts)) < 0.02 * counts else None
+    return None
 
 
 def noise_floor(rec: Recording) -> NoiseFloor:
