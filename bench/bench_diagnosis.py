@@ -39,10 +39,17 @@ def _timed(fn, repeat: int = 1):
 
 
 def main() -> None:
-    from mechanism.sysid.diagnosis import diagnose
-    from mechanism.sysid.identification import ModelStructure, Problem, identify
+    from functools import partial
+
+    from mechanism.api import drive_nominal
+    from mechanism.sysid import diagnosis, identification
+    from mechanism.sysid.identification import ModelStructure, Problem
     from mechanism.sysid.recording import read_recording
     from mechanism.testbench import make_recording, write_recording
+
+    nominal = drive_nominal(None)
+    diagnose = partial(diagnosis.diagnose, nominal=nominal)
+    identify = partial(identification.identify, nominal=nominal)
 
     from bench.sindy_baseline import discover
 
@@ -52,20 +59,22 @@ def main() -> None:
     def recording(effects: str, seed: int):
         path = folder / f"{effects.replace(',', '+')}_{seed}.csv"
         if not path.exists():
-            write_recording(make_recording(effects, seed=seed, duration_s=60.0), path)
+            write_recording(make_recording(effects, seed=seed, duration_s=60.0, nominal=nominal), path)
         return read_recording(path)
 
     # --- timing --------------------------------------------------------------------
     rec = recording("torque_ripple", seeds[0])
     ident, t_identify = _timed(lambda: identify(rec))
-    problem = Problem(rec)
+    problem = Problem(rec, nominal)
     structure = ModelStructure(ident.fit.structure.baseline)
     _, t_sim = _timed(lambda: problem.simulate(structure, ident.params, "all"), repeat=20)
     _, t_diag = _timed(lambda: diagnose(rec))
     print(f"recording: 60 s at 1 kHz ({len(rec)} samples), {os.cpu_count()} CPU(s)")
     print(f"reference: one baseline simulation of all segments  {t_sim * 1e3:8.2f} ms   1")
     print(f"identify (baseline fit, uncertainties)               {t_identify:8.2f} s  {t_identify / t_sim:8.0f} x reference")
-    print(f"diagnose (9 candidates, rounds, report data)         {t_diag:8.2f} s  {t_diag / t_sim:8.0f} x reference")
+    from mechanism.sysid.effects import EFFECTS
+
+    print(f"diagnose ({len(EFFECTS)} candidates, rounds, report)        {t_diag:8.2f} s  {t_diag / t_sim:8.0f} x reference")
 
     # --- accuracy ------------------------------------------------------------------
     print()
@@ -78,7 +87,7 @@ def main() -> None:
         result = diagnose(rec)
         found = result.effect_names
         ratio = result.final.rmse_val / result.baseline.rmse_val
-        sparse = discover(rec)
+        sparse = discover(rec, nominal)
         ok = set(found) == truth and len(found) == len(truth)
         ok_ratio = (not truth) or ratio <= 0.7
         ok_sparse = set(sparse) == truth

@@ -87,6 +87,7 @@ def _member_detectability(cache, variant, seed, effects, member, truth, duration
 
 
 def run(variants, seeds, effects=None, pairs=True, duration=60.0, cache=None, out_json=None, quiet=False):
+    from mechanism.api import drive_nominal
     from mechanism.sysid.diagnosis import diagnose
     from mechanism.sysid.recording import make_recording
 
@@ -101,7 +102,7 @@ def run(variants, seeds, effects=None, pairs=True, duration=60.0, cache=None, ou
         current = z["current"] if z["current"].size else None
         rec = make_recording(z["time"], z["voltage"], z["angle"], current, source=key)
         start = time.perf_counter()
-        result = diagnose(rec)
+        result = diagnose(rec, nominal=drive_nominal(None))
         seconds = time.perf_counter() - start
         found = result.effect_names
         ratio = result.final.rmse_val / result.baseline.rmse_val

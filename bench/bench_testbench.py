@@ -5,7 +5,13 @@ from __future__ import annotations
 
 import time
 
-from mechanism.testbench import EFFECTS, make_recording
+from functools import partial
+
+from mechanism.api import drive_nominal
+from mechanism.testbench import EFFECTS
+from mechanism.testbench import make_recording as _make_recording
+
+make_recording = partial(_make_recording, nominal=drive_nominal(None))
 
 
 def _best_of(repeats, function):

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from mechanism.sysid.effects import EFFECTS
+from mechanism.sysid.effects import library as effect_library
 from mechanism.sysid.identification import ModelStructure, Problem, torque_balance
-from mechanism.dynamics.lumped import LumpedBaseline
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.recording import Recording, smoothed_velocity
 
 THRESHOLD = 0.02  # on coefficients of unit-variance columns, relative to the target's std
@@ -36,7 +36,7 @@ def library(problem: Problem) -> tuple[np.ndarray, np.ndarray, list[str]]:
     for k in np.flatnonzero(np.abs(np.diff(s.voltage_V)) > 0.5):
         near_step[max(0, k - 20):k + 60] = True
     sel = np.flatnonzero((np.abs(w) > 1.0) & ~near_step)[::2]
-    base = LumpedBaseline()
+    base = LumpedBaseline(problem.nominal)
     values = {p.name: p.nominal for p in base.parameters}
     structure = ModelStructure(base)
     motor = base.motor(values)
@@ -45,7 +45,7 @@ def library(problem: Problem) -> tuple[np.ndarray, np.ndarray, list[str]]:
     target = motor.gain_arm * structure.drive(values, s).voltage_V
     columns = [acc, w, np.sign(w)]
     owners = ["baseline"] * 3
-    for effect in EFFECTS.values():
+    for effect in effect_library(problem.nominal).values():
         if effect.linear is not None:
             st = structure.with_effect(effect)
             shape = effect.grid(s, None)[0]
@@ -58,13 +58,17 @@ def library(problem: Problem) -> tuple[np.ndarray, np.ndarray, list[str]]:
                 columns.append((b0 - torque_balance(st.drive({**v0, name: step}, s), motor, w, acc)) / step)
                 owners.append(effect.name)
     c = motor.emf_damping_arm
-    j = values["inertia_motor_side_kgm2"] * 64
+    j = values["inertia_motor_side_kgm2"] * s.ratio**2
     for k in ("cos", "sin"):  # sensor error e w cos(theta): seen as a torque through J d/dt + c
         err = w * s.harmonic(1, k)
         columns.append(j * smoothed_velocity(err, s.dt) + c * err)
         owners.append("encoder_eccentricity")
     columns.append(jerk)  # an elastic belt adds a jerk term to first order
     owners.append("belt_compliance")
+    # an angle logged d late reads w - d w': seen as a torque through J d/dt + c (backlash, a
+    # dead zone, has no such linear column: the sparse regression cannot express it)
+    columns.append(j * jerk + c * acc)
+    owners.append("sensor_delay")
     X = np.column_stack(columns)[sel]
     return target[sel], X, owners
 
@@ -87,9 +91,9 @@ def stlsq(X: np.ndarray, y: np.ndarray, threshold: float, iterations: int = 10) 
     return coef / scale
 
 
-def discover(rec: Recording) -> list[str]:
+def discover(rec: Recording, nominal) -> list[str]:
     """Effect names the sparse regression keeps for this recording."""
-    problem = Problem(rec)
+    problem = Problem(rec, nominal)
     y, X, owners = library(problem)
     coef = stlsq(X, y, THRESHOLD)
     base = np.array([o == "baseline" for o in owners])

@@ -98,7 +98,7 @@ def write_bench_recording(machine: Machine | None, effects: Sequence[str], seed:
     it, whose path is returned)."""
     from mechanism.testbench import make_recording, write_recording
 
-    recording = make_recording(list(effects), seed=seed, duration_s=duration_s)
+    recording = make_recording(list(effects), seed=seed, duration_s=duration_s, nominal=drive_nominal(machine))
     return write_recording(recording, Path(path))[1]
 
 
@@ -107,7 +107,7 @@ def identify(machine: Machine | None, recording: str | os.PathLike, **options):
     from mechanism.sysid.identification import identify as run
     from mechanism.sysid.recording import read_recording
 
-    return run(read_recording(recording), **options)
+    return run(read_recording(recording), nominal=drive_nominal(machine), **options)
 
 
 def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
@@ -115,7 +115,29 @@ def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
     from mechanism.sysid.diagnosis import diagnose as run
     from mechanism.sysid.recording import read_recording
 
-    return run(read_recording(recording), **options)
+    return run(read_recording(recording), nominal=drive_nominal(machine), **options)
+
+
+def drive_nominal(machine: Machine | None):
+    """The machine's lumped drive numbers (:class:`~mechanism.dynamics.lumped.DriveNominal`) that
+    identification, diagnosis and the test bench scale from. Until the Machine provides
+    ``drive_nominal()``, the shipped machine's come from the thesis (TEMPORARY)."""
+    if machine is not None and hasattr(machine, "drive_nominal"):
+        return machine.drive_nominal()
+    from mechanism.data.reference import thesis
+    from mechanism.dynamics.lumped import DriveNominal, MotorConstants
+
+    ref = thesis()
+    motor, ident, mech = ref["main_motor"], ref["identified_parameters"], ref["mechanism"]
+    n = float(mech["motor_to_arm_ratio"])
+    constants = MotorConstants(motor["resistance_ohm"], motor["torque_constant_Nm_per_A"],
+                               motor["back_emf_constant_V_s_per_rad"], n)
+    return DriveNominal(constants, inertia_kgm2=ident["total_inertia_kgm2"] * n**2,
+                        coulomb_shaft_Nm=ident["kinetic_friction_arm_Nm"],
+                        viscous_shaft_Nm_s_per_rad=ident["viscous_cold_Nm_s_per_rad"] * n**2,
+                        joint_ratios={"lower_shaft": float(mech["arm_to_lower_shaft_ratio"]),
+                                      "hook": float(mech["arm_to_lower_shaft_ratio"] * mech["lower_shaft_to_hook_ratio"])},
+                        supply_V=float(motor["operating_voltage_V"][1]))
 
 
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:

@@ -5,11 +5,14 @@ import json
 
 import pytest
 
-from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank, diagnose
-from mechanism.sysid.effects import EFFECTS
+from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank
 from mechanism.sysid.identification import FitResult, ModelStructure
-from mechanism.dynamics.lumped import LumpedBaseline
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.recording import make_recording, read_recording
+
+from support.nominal import SAPPHIRE, bench_recording, diagnose, effects
+
+EFFECTS = effects()
 
 from synthetic_truth import simulate_truth
 
@@ -18,7 +21,7 @@ SHORT_S = 30.0  # most tests: half the benchmark's length, to keep the suite fas
 
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory):
-    from mechanism.testbench import make_recording as bench_recording, write_recording
+    from mechanism.testbench import write_recording
 
     folder = tmp_path_factory.mktemp("bench")
     made = {}
@@ -70,7 +73,7 @@ def test_independent_truth_is_named_too(effects):
 
 
 def test_ranking_prefers_fewer_parameters_within_the_tie_band():
-    base = FitResult(ModelStructure(LumpedBaseline()), {}, {}, 1.0, 1.0)
+    base = FitResult(ModelStructure(LumpedBaseline(SAPPHIRE)), {}, {}, 1.0, 1.0)
 
     def result(name, rmse):
         return FitResult(base.structure.with_effect(EFFECTS[name]), {}, {}, rmse, rmse)
@@ -108,3 +111,80 @@ def test_cli_rejects_unknown_effect_and_baseline(bench, cli, tmp_path):
     rec = bench("none", seed=26, duration=5.0)
     assert "unknown effect" in cli("diagnose", rec, "--effects", "cogging").assert_bad_input()
     cli("diagnose", rec, "--baseline", "finite_element").assert_bad_input()
+
+
+@pytest.mark.parametrize("effect", ["torque_ripple", "none"])
+def test_a_press_is_diagnosed_like_the_sewing_machine(tmp_path, effect):
+    """20x the inertia, a 12:1 gear, another motor: the ripple 12 times per shaft turn is
+    named, the clean press has no finding."""
+    from mechanism.testbench import write_recording
+    from support.nominal import PRESS
+
+    csv = write_recording(bench_recording(effect, seed=5, duration_s=SHORT_S, nominal=PRESS), tmp_path / "p.csv")[0]
+    check(diagnose(read_recording(csv), nominal=PRESS), set() if effect == "none" else {effect})
+
+
+@pytest.mark.parametrize("effects, overrides", [
+    ("stribeck", {"stribeck": {"static_over_kinetic_fraction": 0.33, "stribeck_velocity_arm_rad_s": 7.0, "model": "hess_soom"}}),
+    ("none", {}),
+    ("sensor_delay", {}),
+])
+def test_no_candidate_fits_worse_than_the_model_it_extends(tmp_path, effects, overrides):
+    """Every candidate contains the model it extends (its null values): after screening and
+    refitting, its fit-half rmse is never above the baseline's."""
+    from mechanism.sysid.diagnosis import _screen_and_refit
+    from mechanism.sysid.identification import Problem, fit_baseline
+    from mechanism.testbench import write_recording
+
+    csv = write_recording(bench_recording(effects, seed=8, duration_s=20, **overrides), tmp_path / "r.csv")[0]
+    problem = Problem(read_recording(csv), SAPPHIRE)
+    base = fit_baseline(problem)
+    from mechanism.sysid.effects import Located
+
+    results = _screen_and_refit(problem, base, list(EFFECTS.values()), Located(), lambda what: None, 2)
+    worse = {name: r.rmse_fit for name, r in results.items() if r.rmse_fit > base.rmse_fit * (1 + 1e-9)}
+    assert not worse, (base.rmse_fit, worse)
+
+
+def test_unexplained_is_said_only_above_the_noise_floor(bench, tmp_path):
+    """A clean recording has no 'unexplained' section (its residual sits at the noise floor the
+    recording itself shows); a recording whose effect the candidates may not use gets one, with
+    a signature and a sentence, even though no effect is accepted."""
+    clean = diagnose(read_recording(bench("none", seed=2)))
+    data = clean.to_json()
+    assert "unexplained" not in data
+    assert clean.final.rmse_val < 2 * data["noise_floor"]["rmse_rad_s"]
+    hidden = diagnose(read_recording(bench("sensor_delay", seed=2)), candidates=["encoder_eccentricity"])
+    data = hidden.to_json()
+    assert data["effects"] == [] or all(e["generic"] for e in data["effects"])
+    left = data["unexplained"]
+    assert left["times_noise_floor"] > 3 and left["sentence"]
+    # the delay's error has the acceleration's shape: the signature reads it out, and the
+    # baseline says that the winding lag it absorbed is too long for a small motor
+    assert left["signature"]["acceleration_share"] > 0.3 and "timing error" in left["sentence"]
+    assert any("winding lag" in note for note in data["baseline"]["notes"])
+
+
+def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp_path):
+    """A torque four times per shaft turn is in no library effect (the motor ripple's orders
+    are 1, 2, 12, 24 per motor turn; the Coulomb variation's 1-3 per shaft turn): the
+    diagnosis models it with a generic shaft-angle torque of order 4, flagged generic, and
+    names nothing from the library."""
+    from mechanism.testbench import write_recording
+
+    quarter_turn = {"cogging_per_motor_rev": 0.5, "once_per_motor_rev_Nm": 0.0, "cogging_Nm": 0.008}
+    csv = write_recording(bench_recording("torque_ripple", seed=3, duration_s=SHORT_S, torque_ripple=quarter_turn), tmp_path / "r.csv")[0]
+    result = diagnose(read_recording(csv))
+    data = result.to_json()
+    assert [e["name"] for e in data["effects"]] == ["generic_shaft_torque"] and data["effects"][0]["generic"]
+    assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
+    assert "4 times per shaft turn" in data["effects"][0]["evidence"]
+    assert any(k.startswith("generic_shaft_order4") for k in data["effects"][0]["params"])
+
+
+@pytest.mark.slow
+def test_three_effects_at_once_are_all_named(bench):
+    """No cap on the number of effects: a machine with a ripple, a warming winding and an
+    eccentric encoder gets all three."""
+    check(diagnose(read_recording(bench("torque_ripple,winding_heating,encoder_eccentricity", seed=4, duration=60.0))),
+          {"torque_ripple", "winding_heating", "encoder_eccentricity"})

@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.sysid.diagnosis import diagnose
 from mechanism.data.reference import thesis
+
+from support.nominal import diagnose, effects
 
 from truth_variants import VARIANTS, draw_machine, make_case, simulate_truth
 
@@ -91,9 +92,7 @@ def test_supply_dead_band_is_not_taken_for_stribeck():
 
 
 def test_supply_model_loses_voltage_but_never_reverses_it():
-    from mechanism.sysid.effects import EFFECTS
-
-    supply = EFFECTS["voltage_nonlinearity"]
+    supply = effects()["voltage_nonlinearity"]
     values = {"supply_offset_V": -1.0, "supply_linear_V": 0.0, "supply_quadratic_V": 0.0, "supply_cubic_V": 0.0}
     logged = np.array([-10.0, -0.8, 0.0, 0.3, 0.8, 10.0])
     applied = supply.applied(values, logged)

@@ -7,17 +7,23 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.sysid.identification import identify
 from mechanism.sysid.recording import make_recording, read_recording
-from mechanism.sysid.steady_state import fit_steady_state, thesis_table2
+from mechanism.sysid.steady_state import fit_steady_state, table2
 from mechanism.data.reference import thesis
+
+from support.nominal import SAPPHIRE, bench_recording, identify
+
+
+def thesis_table2():
+    ref = thesis()
+    return table2(ref["steady_state_speed_table_2"], SAPPHIRE.motor, ref["main_motor"]["model_validity_V"][1])
 
 from synthetic_truth import simulate_truth
 
 
 @pytest.fixture(scope="module")
 def clean_bench(tmp_path_factory):
-    from mechanism.testbench import make_recording as bench_recording, write_recording
+    from mechanism.testbench import write_recording
 
     folder = tmp_path_factory.mktemp("bench")
     csv, truth = write_recording(bench_recording("none", seed=11, duration_s=30), folder / "clean.csv")
@@ -42,15 +48,13 @@ def equivalent(truth, motor):
 
 
 def test_identify_recovers_the_bench_machine(clean_bench):
-    from mechanism.dynamics.lumped import MotorConstants
-
     csv, truth = clean_bench
     result = identify(read_recording(csv))
-    expect = equivalent(truth, MotorConstants.datasheet())
+    expect = equivalent(truth, SAPPHIRE.motor)
     p = result.params
     assert p["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
     assert p["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
-    motor = MotorConstants.datasheet()
+    motor = SAPPHIRE.motor
     total = motor.emf_damping_arm + 64 * p["viscous_motor_side_Nm_s_per_rad"]
     assert total == pytest.approx(expect["total_damping"], rel=0.02)
     assert p["electrical_time_constant_s"] == pytest.approx(expect["electrical_time_constant_s"], rel=0.25)
@@ -89,13 +93,11 @@ def test_free_motor_constant_is_fitted(clean_bench):
 
 
 def test_steady_state_fit_is_exact_on_synthetic_points():
-    from mechanism.dynamics.lumped import MotorConstants
-
-    motor = MotorConstants.datasheet()
+    motor = SAPPHIRE.motor
     d, fc = 3e-5, 0.2
     volts = np.array([5.0, 10.0, 15.0, 20.0])
     w = (motor.gain_arm * volts - fc) / (motor.emf_damping_arm + 64 * d)
-    fit = fit_steady_state(volts, w * 60 / (2 * math.pi))
+    fit = fit_steady_state(volts, w * 60 / (2 * math.pi), motor)
     assert fit.viscous_motor_side_Nm_s_per_rad == pytest.approx(d, rel=1e-9)
     assert fit.coulomb_arm_Nm == pytest.approx(fc, rel=1e-9)
 
@@ -120,7 +122,7 @@ def test_thesis_table2_friction_and_what_24V_says():
 def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
     from pathlib import Path
 
-    from mechanism.testbench import make_recording as bench_recording, write_recording
+    from mechanism.testbench import write_recording
 
     toy = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
     linkage = read_recording(write_recording(bench_recording("linkage_dynamics", seed=12, duration_s=20), tmp_path / "l.csv")[0])
@@ -138,7 +140,7 @@ def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
 
 
 def test_multibody_without_a_model_is_a_user_error(tmp_path, cli):
-    from mechanism.testbench import make_recording as bench_recording, write_recording
+    from mechanism.testbench import write_recording
 
     rec = write_recording(bench_recording("none", seed=13, duration_s=5), tmp_path / "c.csv")[0]
     line = cli("identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml").assert_bad_input()
@@ -154,3 +156,38 @@ def test_table2_cli(cli, tmp_path):
     assert data["cold"]["coulomb_arm_Nm"] == pytest.approx(thesis_table2()["cold"].fit.coulomb_arm_Nm)
     assert "cold" in done.stdout
     cli("identify").assert_bad_input()
+
+
+def test_identify_a_press_as_well_as_the_sewing_machine(tmp_path):
+    """A machine of another size (20x the inertia, 12:1, another motor): bounds and starts
+    come from its description, and the fit recovers its truth as closely as the Sapphire's."""
+    from mechanism.testbench import write_recording
+    from support.nominal import PRESS
+
+    csv, truth_path = write_recording(bench_recording("none", seed=11, duration_s=30, nominal=PRESS), tmp_path / "p.csv")
+    truth = json.loads(truth_path.read_text())["baseline"]
+    result = identify(read_recording(csv), nominal=PRESS)
+    expect = equivalent(truth, PRESS.motor)
+    p = result.params
+    assert p["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
+    assert p["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
+    assert PRESS.motor.emf_damping_arm + 144 * p["viscous_motor_side_Nm_s_per_rad"] == pytest.approx(expect["total_damping"], rel=0.02)
+    assert result.rmse < 0.03
+
+
+def test_a_long_recording_is_fitted_on_segments_spread_over_it(tmp_path):
+    """Beyond 360 segments the model runs on a spread subset laid end to end; the fit still
+    recovers the machine, and the rmse is measured on samples from the whole recording."""
+    from mechanism.sysid.identification import Problem
+    from mechanism.sysid.recording import make_recording as as_recording
+
+    bench = bench_recording("none", seed=6, duration_s=600)
+    rec = as_recording(bench.time, bench.voltage, bench.arm_angle, bench.current)
+    problem = Problem(rec, SAPPHIRE)
+    assert len(problem.segments) <= Problem.MAX_SEGMENTS and len(problem.signals) < len(rec)
+    assert problem.scored["all"].max() > 0.9 * len(rec)
+    result = identify(rec)
+    expect = equivalent(bench.truth["baseline"], SAPPHIRE.motor)
+    assert result.params["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
+    assert result.params["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
+    assert result.rmse < 0.03

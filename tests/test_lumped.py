@@ -5,9 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.dynamics.lumped import (Drive, LumpedBaseline, MotorConstants, Segments, Signals, lagged_voltage,
+from mechanism.dynamics.lumped import (Drive, MotorConstants, Segments, Signals, lagged_voltage,
                               simulate, simulate_numpy)
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.data.reference import thesis
+
+from support.nominal import SAPPHIRE
 
 DT = 1e-3
 
@@ -32,7 +35,7 @@ def thesis_drive(voltage, warm=False):
 def test_steady_state_speeds_match_the_formula_and_thesis_table_2():
     ref = thesis()
     table = np.array(ref["steady_state_speed_table_2"]["rows"], float)
-    motor = MotorConstants.datasheet()
+    motor = SAPPHIRE.motor
     for volts, rpm_cold in zip(table[:, 1], table[:, 4]):
         drive = thesis_drive(np.full(3000, volts))
         w = simulate(drive, motor, one_segment(3000), np.zeros(1), DT)[0]
@@ -46,7 +49,7 @@ def test_steady_state_speeds_match_the_formula_and_thesis_table_2():
 def test_step_response_time_constant_is_J_over_total_damping():
     drive = thesis_drive(np.full(2000, 12.0))
     drive.coulomb_Nm[:] = 0.0
-    motor = MotorConstants.datasheet()
+    motor = SAPPHIRE.motor
     w = simulate(drive, motor, one_segment(2000), np.zeros(1), DT)[0]
     c = motor.emf_damping_arm + drive.viscous_Nm_s[0]
     tau = drive.inertia_kgm2[0] / c
@@ -55,7 +58,7 @@ def test_step_response_time_constant_is_J_over_total_damping():
 
 
 def test_stick_below_breakaway_and_stop_at_zero_voltage():
-    motor = MotorConstants.datasheet()
+    motor = SAPPHIRE.motor
     fc = thesis()["identified_parameters"]["kinetic_friction_arm_Nm"]
     breakaway_V = fc / motor.gain_arm
     u = np.r_[np.full(500, 0.95 * breakaway_V), np.full(1500, 10.0), np.zeros(1500)]
@@ -80,7 +83,7 @@ def test_native_kernel_equals_numpy_fallback_with_every_term_and_a_belt():
     drive.inertia_kgm2 += 2e-5 * np.sin(2 * angle)
     seg = Segments(np.array([0, 1000, 2500]), 1400, np.array([0, 100, 100]), np.array([1100, 1200, 1400]), np.array([True] * 3))
     w0 = np.array([0.0, 30.0, 5.0])
-    motor = MotorConstants.datasheet()
+    motor = SAPPHIRE.motor
     native = simulate(drive, motor, seg, w0, DT)
     np.testing.assert_allclose(native, simulate_numpy(drive, motor, seg, w0, DT), rtol=1e-10, atol=1e-10)
     drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s, drive.motor_inertia_kgm2 = 40.0, 0.01, 5e-4
@@ -135,9 +138,22 @@ def test_lagged_voltage_is_the_exact_first_order_step_average():
 
 
 def test_baseline_parameters_carry_the_thesis_numbers():
-    base = LumpedBaseline()
+    base = LumpedBaseline(SAPPHIRE)
     nominal = {p.name: p.nominal for p in base.parameters}
     ref = thesis()["identified_parameters"]
-    assert nominal["inertia_motor_side_kgm2"] == ref["total_inertia_kgm2"]
+    assert nominal["inertia_motor_side_kgm2"] == pytest.approx(ref["total_inertia_kgm2"], rel=1e-12)
     assert nominal["coulomb_arm_Nm"] == ref["kinetic_friction_arm_Nm"]
-    assert {"R", "Kt"} <= set(LumpedBaseline(("R", "Kt")).free)
+    assert {"R", "Kt"} <= set(LumpedBaseline(SAPPHIRE, ("R", "Kt")).free)
+
+
+def test_baseline_bounds_scale_with_the_described_machine():
+    """A press of 20x the inertia and a 12:1 gear gets starting values and bounds 20x/144
+    the sewing machine's on the motor side: nothing of the sewing machine is left in them."""
+    from support.nominal import PRESS
+
+    small = {p.name: p for p in LumpedBaseline(SAPPHIRE).parameters}
+    large = {p.name: p for p in LumpedBaseline(PRESS).parameters}
+    k = 20 * 64 / 144
+    for key in ("nominal", "lower", "upper"):
+        assert getattr(large["inertia_motor_side_kgm2"], key) == pytest.approx(k * getattr(small["inertia_motor_side_kgm2"], key))
+    assert large["coulomb_arm_Nm"].upper == pytest.approx(6 * small["coulomb_arm_Nm"].upper)

@@ -102,3 +102,19 @@ def test_cli_constant_voltage_is_a_not_identifiable_finding(tmp_path, cli):
     assert "not identifiable" in line
     data = json.loads(out.read_text())
     assert data["identifiable"] is False and data["effects"] == [] and "constant" in data["reason"]
+
+
+def test_encoder_counts_from_metadata_or_the_angles_steps():
+    """Counts per turn come from a `# counts_per_rev:` line, else from the angle's quantisation
+    (every step a whole number of counts); an unquantised angle has none; a bad line is one error."""
+    from mechanism.errors import UserError
+    from mechanism.sysid.residual import encoder_counts
+
+    t = np.arange(5000) * 1e-3
+    step = 2 * np.pi / 2500
+    angle = np.floor((30 * t + 3 * np.sin(7 * t)) / step) * step
+    assert encoder_counts(make_recording(t, np.ones(len(t)), angle)) == 2500
+    assert encoder_counts(make_recording(t, np.ones(len(t)), 30 * t + 0.01 * np.sin(50 * t))) is None
+    assert encoder_counts(make_recording(t, np.ones(len(t)), angle, metadata={"counts_per_rev": "4096"})) == 4096
+    with pytest.raises(UserError, match="counts_per_rev"):
+        encoder_counts(make_recording(t, np.ones(len(t)), angle, metadata={"counts_per_rev": "many"}))

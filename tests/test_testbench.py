@@ -18,7 +18,9 @@ from scipy.optimize import curve_fit
 from mechanism.errors import UserError
 from mechanism.data.reference import thesis
 from mechanism.files.tables import check_increasing, read_table
-from mechanism.testbench import ANGLE_STEP_RAD, EFFECTS, make_recording, write_recording
+from mechanism.testbench import ANGLE_STEP_RAD, EFFECTS, write_recording
+
+from support.nominal import bench_recording as make_recording
 
 from conftest import REPO_ROOT
 
@@ -402,7 +404,7 @@ def test_every_effect_changes_the_arm_speed_visibly_somewhere():
         clean = make_recording([], seed=seed, duration_s=40)
         for name in EFFECTS:
             rec = make_recording([name], seed=seed, duration_s=40)
-            if name == "encoder_eccentricity":
+            if name in ("encoder_eccentricity", "sensor_delay"):  # the log only
                 diff = np.gradient(rec.arm_angle - clean.arm_angle, 1e-3)
                 diff = np.convolve(diff, np.ones(10) / 10, mode="same")
             else:
@@ -436,8 +438,12 @@ def test_truth_model_never_imports_the_diagnosis_side():
                 assert not name.startswith(FORBIDDEN), f"{path.name} imports {name}"
     code = (
         "import sys, mechanism.testbench, mechanism.cli.testbench\n"
+        "from types import SimpleNamespace as N\n"
         "from mechanism.testbench import make_recording\n"
-        "make_recording(['torque_ripple'], duration_s=0.05)\n"
+        "motor = N(resistance_ohm=1.1, torque_constant_Nm_per_A=0.017, back_emf_V_s_per_rad=0.021)\n"
+        "nominal = N(motor=motor, ratio=8.0, inertia_kgm2=1.8e-3, inertia_motor_side_kgm2=2.8e-5, viscous_motor_side=2.2e-5,\n"
+        "            torque_scale_Nm=0.18, supply_V=24.0)\n"
+        "make_recording(['torque_ripple'], duration_s=0.05, nominal=nominal)\n"
         f"bad = [m for m in sys.modules if m.startswith({FORBIDDEN!r})]\n"
         "assert not bad, bad\n"
     )
@@ -492,3 +498,28 @@ def test_shipped_recordings_are_reproducible_from_their_truth(truth_path):
     counts = np.round(table["arm_angle"] / ANGLE_STEP_RAD) - np.round(rec.arm_angle / ANGLE_STEP_RAD)
     assert np.abs(counts).max() <= 1
     np.testing.assert_allclose(table["current"], rec.current, atol=1.5e-3)
+
+
+def test_sensor_delay_logs_the_true_angle_late():
+    """The logged angle is the true angle of delay_s ago, to within one encoder count."""
+    rec = make_recording(["sensor_delay"], seed=3, duration_s=10)
+    delay = rec.truth["effect_params"]["sensor_delay"]["delay_s"]
+    true_then = np.interp(rec.time - delay, rec.time, rec.traces["arm_angle_rad"])
+    assert np.abs(rec.arm_angle - true_then).max() <= ANGLE_STEP_RAD * 1.001
+
+
+def test_winding_heating_follows_the_copper_energy_balance():
+    """The resistance rises by alpha x temperature, the temperature being the first-order
+    response to the I^2 R the winding dissipates (checked by integrating that balance again
+    from the logged true current), and the warm motor runs slower at the same voltage."""
+    rec = make_recording(["winding_heating"], seed=2, duration_s=40)
+    heat = rec.truth["effect_params"]["winding_heating"]
+    r = rec.traces["winding_resistance_ohm"]
+    r0 = rec.truth["baseline"]["resistance_ohm"]
+    kelvin, dt = 0.0, 1e-3
+    for k in range(len(r)):
+        kelvin += dt * (rec.traces["current_A"][k] ** 2 * r[k] - kelvin / heat["thermal_resistance_K_per_W"]) / heat["thermal_time_constant_s"] * heat["thermal_resistance_K_per_W"]
+    assert r[-1] == pytest.approx(r0 * (1 + heat["copper_coefficient_per_K"] * kelvin), rel=0.01)
+    assert r[-1] > 1.05 * r0
+    clean = make_recording([], seed=2, duration_s=40)
+    assert rec.traces["arm_velocity_rad_s"][-2000:].mean() < clean.traces["arm_velocity_rad_s"][-2000:].mean()

@@ -17,7 +17,7 @@ def register(subparsers) -> None:
             "Fit the baseline, locate where its velocity residual lives (time, arm angle, motor angle, speed, "
             "frequency; dynamics vs sensor artefact), then add candidate effects one at a time -- torque_ripple, "
             "linkage_dynamics, position_friction, stribeck, thermal_drift, needle_penetration, belt_compliance, "
-            "voltage_nonlinearity, encoder_eccentricity -- refitting on one half of the recording and keeping an "
+            "voltage_nonlinearity, encoder_eccentricity, backlash, sensor_delay, winding_heating -- refitting on one half of the recording and keeping an "
             "effect only if it lowers the error on the other half by at least 35%. JSON: baseline params and rmse, "
             "the effects found in order (name, one-sentence evidence, params, rmse), final params and rmse; every "
             "rmse is the RMS arm-velocity residual [rad/s] on the held-out half. A recording at one constant "
@@ -46,6 +46,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from mechanism.cli._batch import check_batch_arguments
+    from mechanism.cli._nominal import drive_nominal
     from mechanism.cli.identify import progress_bar, write_outputs
     from mechanism.sysid.diagnosis import diagnose, not_identifiable_json
     from mechanism.sysid.effects import effect
@@ -63,7 +64,7 @@ def run(args) -> int:
     try:
         bar, tick = progress_bar("diagnose")
         with bar:
-            result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model)
+            result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model, nominal=drive_nominal(args))
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
         write_outputs(args, not_identifiable_json(rec.source, str(exc)))
@@ -79,6 +80,8 @@ def run(args) -> int:
     for item in data["effects"]:
         print(f"+ {item['name']}: rmse {item['rmse']:.4g} rad/s -- {item['evidence']}")
     print(f"final: rmse {data['final']['rmse']:.4g} rad/s")
+    if "unexplained" in data:
+        print(f"unexplained: {data['unexplained']['times_noise_floor']:.1f}x the noise floor -- {data['unexplained']['sentence']}")
     return 0
 
 
@@ -88,13 +91,15 @@ def run_fleet(args, candidates) -> int:
 
     from mechanism.errors import UserError
     from mechanism.sysid.fleet import SUMMARY_CSV, SUMMARY_HTML, diagnose_fleet
+    from mechanism.cli._nominal import drive_nominal
 
     if args.out is None:
         raise UserError("several recordings need --out DIR (one JSON per recording and a summary)")
     if args.json or args.report:
         raise UserError("--json and --report are for one recording; a fleet writes them per recording into --out")
     result = diagnose_fleet(args.recording, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                            progress=sys.stderr.isatty(), baseline=args.baseline, candidates=candidates, model_path=args.model)
+                            progress=sys.stderr.isatty(), baseline=args.baseline, candidates=candidates, model_path=args.model,
+                            nominal=drive_nominal(args))
     for row in result.rows:
         if row["status"] == "ok":
             print(f"{row['recording']}: effects {row['effects'] or 'none'}, rmse {row['baseline_rmse_rad_s']:.4g} -> "

@@ -12,7 +12,7 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
                              "0 = needle top dead centre], optional current [A]; leading '#' lines are metadata")
     parser.add_argument("--baseline", choices=["lumped", "multibody"], default="lumped",
                         help="lumped: thesis eq. 15-16 (constant inertia, viscous + Coulomb friction, DC motor through "
-                             "the 8:1 belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
+                             "the belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
                              "and gravity) with fitted friction (default lumped)")
     parser.add_argument("--model", metavar="MJCF", help="MJCF for --baseline multibody (default: the shipped sewing machine)")
     parser.add_argument("--json", metavar="OUT.json", help=f"write the {what} as JSON (rmse in rad/s of arm velocity)")
@@ -73,6 +73,7 @@ def progress_bar(description: str):
 
 
 def run(args) -> int:
+    from mechanism.cli._nominal import drive_nominal
     from mechanism.errors import UserError
     from mechanism.sysid.identification import identify
     from mechanism.sysid.recording import read_recording
@@ -85,7 +86,7 @@ def run(args) -> int:
     rec = read_recording(args.recording)
     bar, tick = progress_bar("identify")
     with bar:
-        result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model)
+        result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model, nominal=drive_nominal(args))
     from mechanism.sysid.report import identification_report
 
     write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))
@@ -97,7 +98,7 @@ def run(args) -> int:
 
 
 def run_table2(args) -> int:
-    from mechanism.sysid.steady_state import thesis_table2
+    from mechanism.cli._nominal import thesis_table2
 
     columns = thesis_table2()
     write_outputs(args, {name: col.to_json() for name, col in columns.items()})

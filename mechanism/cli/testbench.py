@@ -24,6 +24,8 @@ def register(subparsers) -> None:
     parser.add_argument("--seed", type=number(0, 2**32 - 1, integer=True), default=0, metavar="N",
                         help="random seed: machine parameters, effect magnitudes, voltage profile, start angle, noise (default 0)")
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), default=60.0, metavar="S", help="recording length [s] (default 60)")
+    parser.add_argument("--rate", type=number(100, 10000, "Hz"), default=1000.0, metavar="HZ", help="sample rate, 100-10000 Hz (default 1000)")
+    parser.add_argument("--counts", type=number(500, 20000, integer=True), default=20000, metavar="N", help="encoder counts per shaft turn (default 20000)")
     parser.add_argument("-o", "--output", metavar="REC.csv", help="recording to write; the truth goes to REC.truth.json")
     parser.add_argument("--list", action="store_true", help="print the effect vocabulary with one line of physics each and exit")
     parser.set_defaults(handler=run, outputs=("output", _truth_output))
@@ -49,7 +51,10 @@ def run(args) -> int:
     if not args.effect or not args.output:
         raise UserError("testbench needs --effect NAME[,NAME] (or none) and -o REC.csv (or --list)")
     truth_path_for(args.output)  # a bad file name fails before the simulation runs
-    recording = make_recording(args.effect, seed=args.seed, duration_s=args.duration)
+    from mechanism.cli._nominal import drive_nominal
+
+    recording = make_recording(args.effect, seed=args.seed, duration_s=args.duration, nominal=drive_nominal(args),
+                               sample_rate_hz=args.rate, encoder_counts_per_rev=args.counts)
     csv_path, truth_path = write_recording(recording, args.output)
     what = ", ".join(recording.effects) or "no effect (clean)"
     print(f"wrote {csv_path} ({len(recording.time)} samples, {what}) and {truth_path}")

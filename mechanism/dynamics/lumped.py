@@ -37,8 +37,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mechanism.sysid.parameters import Parameter
-from mechanism.data.reference import thesis
 
 
 @dataclass(frozen=True)
@@ -46,18 +44,7 @@ class MotorConstants:
     resistance_ohm: float
     torque_constant_Nm_per_A: float
     back_emf_V_s_per_rad: float
-    ratio: float  # motor turns per arm turn
-
-    @classmethod
-    def datasheet(cls) -> "MotorConstants":
-        ref = thesis()
-        motor = ref["main_motor"]
-        return cls(
-            motor["resistance_ohm"],
-            motor["torque_constant_Nm_per_A"],
-            motor["back_emf_constant_V_s_per_rad"],
-            float(ref["mechanism"]["motor_to_arm_ratio"]),
-        )
+    ratio: float  # motor turns per shaft turn
 
     @property
     def gain_arm(self) -> float:
@@ -70,22 +57,73 @@ class MotorConstants:
         return self.ratio**2 * self.torque_constant_Nm_per_A * self.back_emf_V_s_per_rad / self.resistance_ohm
 
 
-MOTOR_PARAMETER_NAMES = {
-    "R": "resistance_ohm",
-    "Kt": "torque_constant_Nm_per_A",
-    "Ke": "back_emf_V_s_per_rad",
-}
+@dataclass(frozen=True)
+class DriveNominal:
+    """The described machine's drive, as identification, diagnosis and the test bench need
+    it: the one seam through which a machine's numbers enter them (bounds, starting values
+    and truth ranges all scale from these, never from a particular machine's).
 
+    ``inertia_kgm2`` is the total inertia seen at the described shaft (the motor's, reflected
+    through ``ratio``, included); friction is the shaft-side Coulomb level and viscous
+    coefficient. ``joint_ratios`` names the other shafts (turns per shaft turn) whose
+    periodic residuals the diagnosis looks for; the motor and the shaft are always there.
+    """
 
-def motor_parameters(free: tuple[str, ...] = ()) -> list[Parameter]:
-    """The motor constants named in ``free`` as fittable parameters (datasheet nominal, +-50 %)."""
-    motor = MotorConstants.datasheet()
-    out = []
-    for short in free:
-        key = MOTOR_PARAMETER_NAMES[short]
-        value = getattr(motor, key)
-        out.append(Parameter(f"motor_{key}", value, 0.5 * value, 1.5 * value, f"motor {short} (datasheet {value:g})", log=True))
-    return out
+    motor: MotorConstants
+    inertia_kgm2: float
+    coulomb_shaft_Nm: float
+    viscous_shaft_Nm_s_per_rad: float
+    joint_ratios: tuple[tuple[str, float], ...] = ()
+    supply_V: float | None = None
+
+    def __post_init__(self):
+        if isinstance(self.joint_ratios, dict):
+            object.__setattr__(self, "joint_ratios", tuple(self.joint_ratios.items()))
+        if not (self.motor.ratio > 0 and self.inertia_kgm2 > 0):
+            raise ValueError("a drive needs a positive motor ratio and a positive inertia")
+
+    @property
+    def ratio(self) -> float:
+        return self.motor.ratio
+
+    @property
+    def inertia_motor_side_kgm2(self) -> float:
+        return self.inertia_kgm2 / self.ratio**2
+
+    @property
+    def viscous_motor_side(self) -> float:
+        """Viscous friction on the motor side; when the description gives none, a tenth of the
+        back-emf damping sets its scale."""
+        if self.viscous_shaft_Nm_s_per_rad > 0:
+            return self.viscous_shaft_Nm_s_per_rad / self.ratio**2
+        m = self.motor
+        return 0.1 * m.torque_constant_Nm_per_A * m.back_emf_V_s_per_rad / m.resistance_ohm
+
+    @property
+    def torque_scale_Nm(self) -> float:
+        """The shaft-side torque every torque bound scales with: the Coulomb level, or (when
+        the description gives none) the motor's stall torque at 1.5 V."""
+        if self.coulomb_shaft_Nm > 0:
+            return self.coulomb_shaft_Nm
+        return 1.5 * self.motor.gain_arm
+
+    def shafts(self) -> dict[str, float]:
+        """Every shaft whose angle a periodic residual can follow: turns per described-shaft turn."""
+        out = {"motor": self.ratio, "shaft": 1.0}
+        for name, r in self.joint_ratios:
+            if abs(r) > 1e-9 and all(abs(abs(r) - abs(v)) > 1e-6 * abs(v) for v in out.values()):
+                out[name] = abs(float(r))
+        return out
+
+    def scaled(self, inertia: float = 1.0, ratio: float | None = None, torque: float = 1.0, **motor) -> "DriveNominal":
+        """Another machine of the same kind (tests, benches): inertia and friction scaled,
+        another ratio, other motor constants."""
+        from dataclasses import replace
+
+        m = replace(self.motor, ratio=ratio or self.motor.ratio, **motor)
+        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia,
+                       coulomb_shaft_Nm=self.coulomb_shaft_Nm * torque,
+                       viscous_shaft_Nm_s_per_rad=self.viscous_shaft_Nm_s_per_rad * torque)
 
 
 @dataclass
@@ -98,13 +136,16 @@ class Signals:
     velocity_rad_s: np.ndarray
     dt: float
     ratio: float
+    source_index: np.ndarray | None = None  # windows of a long recording: their samples in it
+    whole: "Signals | None" = None  # ... and the whole recording's signals
     _cache: dict = field(default_factory=dict, repr=False)
     _memos: dict = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def memo(self, kind: str, key, compute, keep: int = 16):
         """A small per-kind LRU of derived arrays (lagged voltages, warmth curves), safe for
-        the diagnosis's parallel fits."""
+        the diagnosis's parallel fits; fewer kept for a long recording (memory)."""
+        keep = max(2, min(keep, int(4e6 // max(len(self), 1))))
         with self._lock:
             store = self._memos.setdefault(kind, OrderedDict())
             if key in store:
@@ -119,6 +160,13 @@ class Signals:
 
     def __len__(self) -> int:
         return len(self.time_s)
+
+    def history(self, kind: str, key, compute):
+        """A quantity that integrates over the recording's past (warmth, copper temperature):
+        ``compute(signals)`` on the whole recording, read at these samples."""
+        if self.whole is None:
+            return self.memo(kind, key, lambda: compute(self))
+        return self.memo(kind, key, lambda: compute(self.whole)[self.source_index])
 
     @property
     def drive_angle_rad(self) -> np.ndarray:
@@ -185,6 +233,7 @@ class Drive:
     belt_stiffness_Nm_rad: float = 0.0  # 0 = rigid belt
     belt_damping_Nm_s: float = 0.0
     motor_inertia_kgm2: float = 0.0  # motor-side share of the inertia (arm units), belt mode
+    belt_gap_rad: float = 0.0  # half the belt's free play (backlash), belt mode
 
     @classmethod
     def constant(cls, signals: Signals, voltage: np.ndarray, inertia: float, viscous: float, coulomb: float) -> "Drive":
@@ -265,6 +314,7 @@ class _DriveParams(ctypes.Structure):
         ("j_motor", ctypes.c_double),
         ("dt", ctypes.c_double),
         ("substeps", ctypes.c_int),
+        ("gap", ctypes.c_double),
     ]
 
 
@@ -303,7 +353,7 @@ def simulate(drive: Drive, motor: MotorConstants, segments: Segments, w0: np.nda
     w0 = np.ascontiguousarray(w0, dtype=np.float64)
     params = _DriveParams(motor.gain_arm, motor.emf_damping_arm, drive.stribeck_velocity_rad_s,
                           drive.stribeck_exponent, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s,
-                          drive.motor_inertia_kgm2, dt, int(substeps))
+                          drive.motor_inertia_kgm2, dt, int(substeps), drive.belt_gap_rad)
     dp = ctypes.POINTER(ctypes.c_double)
     ip = ctypes.POINTER(ctypes.c_int)
     kernel(ctypes.byref(params), *[a.ctypes.data_as(dp) for a in arrays], n_seg,
@@ -368,13 +418,14 @@ def _simulate_belt_numpy(drive: Drive, motor: MotorConstants, idx: np.ndarray, w
     load = cv[k0] * w + ta[k0] + q[k0] * w * w + np.where(w != 0, fk[k0] * np.sign(w), 0.0)
     lim = fk[k0] + fx[k0]
     load = np.where(w == 0, np.clip(gain * u[k0] - tm[k0], -lim, lim), load)
-    x = load / kb
+    gap = drive.belt_gap_rad
+    x = load / kb + gap * np.sign(load)
     for i in range(length):
         k = idx[:, i]
         out[:, i] = w
         ja = jt[k] - jm
         for _ in range(nsub):
-            fb = kb * x + cb * (wm - w)
+            fb = np.where(np.abs(x) > gap, kb * (x - gap * np.sign(x)) + cb * (wm - w), 0.0)
             wm = wm + h * (gain * u[k] - c_emf * wm - tm[k] - fb) / jm
             f = fb - cv[k] * w - ta[k] - q[k] * w * w
             at_rest = w == 0.0
@@ -401,52 +452,3 @@ def lagged_voltage(voltage: np.ndarray, tau_s: float, dt: float) -> np.ndarray:
     start = lfilter([0.0, 1.0 - a], [1.0, -a], voltage - voltage[0]) + voltage[0]
     weight = tau_s / dt * (1.0 - a)  # interval average = u + (x - u) * weight
     return voltage + (start - voltage) * weight
-
-
-class LumpedBaseline:
-    """The thesis's lumped model without ripple: constant inertia, viscous and Coulomb
-    friction, DC motor through the 8:1 belt. Parameters in the thesis's conventions.
-
-    One addition to eq. 15-16: the winding's electrical time constant L/R. The thesis
-    neglects it (L dI/dt is small against the mechanical time constant), but at a voltage
-    step the arm accelerates at about 1000 rad/s^2, so a 1 ms current lag is a 1 rad/s
-    velocity error right after every step, larger than most effects the diagnosis looks
-    for. It also absorbs when a logged voltage sample takes effect (a half-sample timing
-    convention is a 0.5 ms lag)."""
-
-    name = "lumped"
-    linear = ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
-    meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the 8:1 belt"
-
-    def __init__(self, free: tuple[str, ...] = ()):
-        ref = thesis()["identified_parameters"]
-        self.parameters = (
-            Parameter("inertia_motor_side_kgm2", ref["total_inertia_kgm2"], 2e-6, 5e-4,
-                      "total inertia seen by the motor (thesis 2.78e-5)", log=True),
-            Parameter("viscous_motor_side_Nm_s_per_rad", ref["viscous_cold_Nm_s_per_rad"], 0.0, 4e-4,
-                      "viscous friction on the motor side (thesis 2.2e-5 cold, 1.0e-5 warm)", scale=2e-5),
-            Parameter("coulomb_arm_Nm", ref["kinetic_friction_arm_Nm"], 0.0, 2.0,
-                      "kinetic (Coulomb) friction on the arm shaft (thesis 0.18)", scale=0.2),
-            Parameter("electrical_time_constant_s", 5e-4, 1e-5, 0.03,
-                      "winding inductance over resistance, L/R (neglected in the thesis)", log=True),
-            *motor_parameters(free),
-        )
-        self.free = tuple(free)
-
-    def motor(self, values: dict[str, float]) -> MotorConstants:
-        base = MotorConstants.datasheet()
-        changes = {key: values[f"motor_{key}"] for key in MOTOR_PARAMETER_NAMES.values() if f"motor_{key}" in values}
-        return MotorConstants(**{**base.__dict__, **changes}) if changes else base
-
-    def drive(self, values: dict[str, float], signals: Signals) -> Drive:
-        n = signals.ratio
-        return Drive.constant(signals, signals.voltage_V, values["inertia_motor_side_kgm2"] * n**2,
-                              values["viscous_motor_side_Nm_s_per_rad"] * n**2, values["coulomb_arm_Nm"])
-
-    def finish(self, values: dict[str, float], signals: Signals, drive: Drive) -> None:
-        """After the effects: the winding lag acts on the voltage the motor finally sees."""
-        tau = values["electrical_time_constant_s"]
-        if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
-            drive.voltage_V = signals.memo("lagged", tau, lambda: lagged_voltage(drive.voltage_V, tau, signals.dt))
-        else:
-            drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)

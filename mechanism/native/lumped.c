@@ -25,6 +25,7 @@ typedef struct {
     double j_motor;   /* motor-side inertia share, arm units [kg m^2] (belt mode) */
     double dt;        /* sample step [s] */
     int substeps;
+    double gap;       /* backlash: half the belt's free play, arm units [rad] (belt mode) */
 } drive_params;
 
 static double sgn(double x) { return (x > 0) - (x < 0); }
@@ -91,13 +92,14 @@ static void run_belt(const drive_params *p, const double *u, const double *tm, c
         double lim = fk[k0] + fx[k0];
         load = drive > lim ? lim : (drive < -lim ? -lim : drive);
     }
-    double x = load / kb;
+    double x = load / kb + (load > 0 ? p->gap : (load < 0 ? -p->gap : 0.0));
     for (int i = 0; i < length; i++) {
         int k = start + i;
         out[i] = w;
         double ja = jt[k] - jm;
         for (int s = 0; s < nsub; s++) {
-            double fb = kb * x + cb * (wm - w);
+            double fb = x > p->gap ? kb * (x - p->gap) + cb * (wm - w)
+                      : (x < -p->gap ? kb * (x + p->gap) + cb * (wm - w) : 0.0);   /* free play: no torque */
             double fm = p->gain * u[k] - p->c_emf * wm - tm[k] - fb;
             wm += h * fm / jm;
             double f = fb - cv[k] * w - ta[k] - q[k] * w * w;

@@ -23,6 +23,7 @@ typedef struct {
     double lk_mass, lk_r, lk_l, gravity;
     double nd_force_per_m, nd_fabric, nd_point, nd_sliding, nd_depth_bdc;
     double belt_k, belt_c;
+    double bl_gap;   /* backlash: half the free play of the belt/gear, arm-side angle [rad] */
 } tb_params;
 
 static const double TWO_PI = 6.283185307179586;
@@ -73,6 +74,14 @@ static void friction_levels(const tb_params *p, double th, double speed, double 
     *stat = level * (1.0 + p->st_excess) + fabric;
 }
 
+/* Torque through the belt: spring-damper beyond the free play, nothing inside it. */
+static double belt_torque(const tb_params *p, double twist, double rate) {
+    double gap = p->bl_gap;
+    if (twist > gap) return p->belt_k * (twist - gap) + p->belt_c * rate;
+    if (twist < -gap) return p->belt_k * (twist + gap) + p->belt_c * rate;
+    return 0.0;
+}
+
 static double ripple(const tb_params *p, double thm) {
     return p->rp_a1 * sin(thm + p->rp_p1) + p->rp_ac * sin(p->rp_nc * thm + p->rp_pc);
 }
@@ -120,7 +129,7 @@ int tb_simulate(const tb_params *p, int n, const double *u, double *state,
                 wa = friction_step(M_arm, wa, h, tau, N * N * damping, kin, sta);
                 wm = N * wa;
             } else {
-                double belt = p->belt_k * (thm / N - tha) + p->belt_c * (wm / N - wa);
+                double belt = belt_torque(p, thm / N - tha, wm / N - wa);
                 double tau_m = drive - ripple(p, thm) - belt / N;
                 wm = (p->J_motor * wm / h + tau_m) / (p->J_motor / h + damping);
                 wa = friction_step(M_arm, wa, h, belt + tau_link, 0.0, kin, sta);

@@ -17,7 +17,8 @@ physics from the candidate library, choose by validation, and show the fit impro
   one part of the recording does not lower the validation error. When no single candidate
   passes, pairs of the best few are fitted together (a motor ripple exciting an elastic
   belt shows only as a pair). After each acceptance a backward step drops an earlier effect
-  that the later ones made redundant. Stop when nothing passes, or after :data:`MAX_EFFECTS`.
+  that the later ones made redundant. Stop when nothing passes (no cap on the number of
+  effects: a machine in service carries several at once).
 - **show**: :meth:`Diagnosis.to_json` (the contract) and :mod:`mechanism.sysid.report`.
 """
 
@@ -33,11 +34,13 @@ import numpy as np
 from scipy.signal import find_peaks, welch
 
 from mechanism.sysid.report import Traces
-from mechanism.sysid.effects import EFFECTS, Effect, Located
+from mechanism.sysid.effects import Effect, Located, library as effect_library
 from mechanism.sysid.identification import (FitResult, ModelStructure, Problem, blas_single_threaded, damping_below_datasheet,
                                       equation_error_start, fit, fit_baseline, require_identifiable)
-from mechanism.dynamics.lumped import MotorConstants
-from mechanism.sysid.recording import Recording
+from mechanism.dynamics.lumped import DriveNominal
+from mechanism.sysid.generic import candidates as generic_candidates, evidence as generic_evidence
+from mechanism.sysid.recording import Recording, at_fitting_rate
+from mechanism.sysid.residual import UNEXPLAINED_FACTOR, NoiseFloor, Signature, describe, noise_floor, signature
 
 # An effect must cut the validation rmse by at least 35 %. The contract asks every effect
 # recording to end at <= 0.7 of the baseline rmse (a 30 % cut), so a smaller gain is never
@@ -49,7 +52,6 @@ from mechanism.sysid.recording import Recording
 MIN_RELATIVE_GAIN = 0.35
 TIE_BAND = 0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
-MAX_EFFECTS = 3
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
 
@@ -107,16 +109,16 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     rec = problem.recording
     s = problem.signals
     pred = problem.full_prediction(fitted.structure, fitted.values)
-    r = np.nan_to_num(s.velocity_rad_s - pred)  # the few unscored samples at the ends count as zero
-    t, w = rec.time_s, s.velocity_rad_s
+    r = np.nan_to_num(rec.velocity_rad_s - pred)  # unscored samples (the ends, unused windows) count as zero
+    t, w = rec.time_s, rec.velocity_rad_s
     speed = np.abs(w)
     top = max(np.percentile(speed, 99), 1e-6)
     moving = speed > 0.1 * top
-    phase = s.arm_phase
+    phase = np.mod(rec.arm_angle_rad, 2 * np.pi)
     edges = np.linspace(0, 2 * np.pi, 73)
     centres = 0.5 * (edges[1:] + edges[:-1])
     arm_profile, _ = _bin_mean(phase[moving], r[moving], edges)
-    motor_profile, _ = _bin_mean(np.mod(s.ratio * s.arm_angle_rad[moving], 2 * np.pi), r[moving], edges)
+    motor_profile, _ = _bin_mean(np.mod(s.ratio * rec.arm_angle_rad[moving], 2 * np.pi), r[moving], edges)
     speed_edges = np.linspace(0, top * 1.001, 16)
     sq, _ = _bin_mean(speed, r * r, speed_edges)
     speed_rms = np.sqrt(sq)
@@ -129,8 +131,8 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
             sel = moving & (speed >= lo) & (speed <= hi)
             if sel.sum() < 500:
                 continue
-            c = np.cos(k * s.arm_angle_rad[sel])
-            sn = np.sin(k * s.arm_angle_rad[sel])
+            c = np.cos(k * rec.arm_angle_rad[sel])
+            sn = np.sin(k * rec.arm_angle_rad[sel])
             rr = r[sel] - r[sel].mean()
             amps.append(2 * math.hypot(np.mean(rr * c), np.mean(rr * sn)))
             centres_b.append(float(np.median(speed[sel])))
@@ -193,6 +195,7 @@ class Finding:
         own = {p.name for p in self.effect.parameters}
         return {
             "name": self.effect.name,
+            "generic": self.effect.generic,
             "evidence": self.evidence,
             "params": {k: v for k, v in self.fit.values.items() if k in own},
             "uncertainty_1sigma": {k: v for k, v in self.fit.uncertainties.items() if k in own},
@@ -200,6 +203,23 @@ class Finding:
             "meaning": self.effect.meaning,
             "candidates_rmse": self.candidates,
         }
+
+
+LONG_WINDING_LAG_S = 3e-3
+
+
+@dataclass
+class Unexplained:
+    """A final residual clearly above the recording's noise floor, and what it looks like."""
+
+    rmse: float
+    floor: NoiseFloor
+    signature: Signature
+    sentence: str
+
+    def to_json(self) -> dict:
+        return {"rmse": self.rmse, "noise_floor_rad_s": self.floor.rmse, "times_noise_floor": self.rmse / self.floor.rmse,
+                "signature": self.signature.to_json(), "sentence": self.sentence}
 
 
 @dataclass
@@ -212,6 +232,8 @@ class Diagnosis:
     problem: Problem = field(repr=False)
     rounds: list = field(default_factory=list)  # per round: {candidate: rmse_val}
     traces: "Traces | None" = field(default=None, repr=False)
+    noise: NoiseFloor | None = None  # the recording's own noise floor
+    unexplained: "Unexplained | None" = None  # set when the final residual is clearly above it
 
     @property
     def final(self) -> FitResult:
@@ -222,11 +244,17 @@ class Diagnosis:
         return [f.effect.name for f in self.findings]
 
     def _baseline_notes(self) -> list[str]:
+        notes = []
+        lag = self.baseline.values.get("electrical_time_constant_s", 0.0)
+        if lag > LONG_WINDING_LAG_S:
+            r = self.problem.nominal.motor.resistance_ohm
+            notes.append(f"winding lag L/R fitted {1e3 * lag:.3g} ms (L = {1e3 * lag * r:.3g} mH at {r:g} ohm): a small DC motor's is "
+                         f"0.2-2 ms; a lag this long more likely is a delay elsewhere (the angle or voltage logged late)")
         ke = self.baseline.values.get("motor_back_emf_V_s_per_rad")
         if ke is None:
-            return []
-        sheet = MotorConstants.datasheet()
-        return [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
+            return notes
+        sheet = self.problem.nominal.motor
+        return notes + [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
                 f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
                 f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"]
 
@@ -245,13 +273,15 @@ class Diagnosis:
                 "notes": self._baseline_notes(),
             },
             "effects": [f.to_json() for f in self.findings],
+            **({"noise_floor": self.noise.to_json()} if self.noise else {}),
+            **({"unexplained": self.unexplained.to_json()} if self.unexplained else {}),
             "final": {"params": self.final.values, "uncertainty_1sigma": self.final.uncertainties,
                       "rmse": self.final.rmse_val, "effects": self.effect_names},
             "selection": {
                 "rule": (f"greedy forward selection: refit every candidate added to the current model on the fit "
                          f"segments; rank by validation rmse x (1 + {PARAMETER_PENALTY} per added parameter), "
                          f"near-ties within {TIE_BAND:.0%} go to fewer parameters; accept only if the validation rmse "
-                         f"falls by at least {MIN_RELATIVE_GAIN:.0%}; at most {MAX_EFFECTS} effects"),
+                         f"falls by at least {MIN_RELATIVE_GAIN:.0%}; continue while a candidate passes"),
                 "rounds": self.rounds,
             },
             "rmse_definition": "RMS of measured minus simulated arm velocity [rad/s] on the validation segments (interleaved 1 s segments, half of the recording); both by the same Savitzky-Golay differentiator (21 ms, degree 4) of an angle; each segment restarts from the measured velocity after a 0.25 s burn-in",
@@ -299,12 +329,13 @@ def _evidence(effect: Effect, result: FitResult, before: float, problem: Problem
 def _starts(effect: Effect, current: FitResult, problem: Problem, located: Located) -> list[dict]:
     """Where the fit of ``effect`` starts: the equation-error estimate for effects with a
     torque form (no simulation needed), otherwise the effect's own guesses."""
+    null = {**current.values, **effect.null()}
     if effect.linear is not None:
         structure = current.structure.with_effect(effect)
         base = {**{p.name: p.nominal for p in effect.parameters}, **current.values}
         start, _ = equation_error_start(problem, structure, base, effect, effect.grid(problem.signals, located))
-        return [start]
-    return [{**current.values, **start} for start in effect.starts(problem.signals, located)]
+        return [start, null]
+    return [*({**current.values, **start} for start in effect.starts(problem.signals, located)), null]
 
 
 def _rank(results: dict[str, FitResult], current: FitResult) -> str:
@@ -334,30 +365,50 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
     the best few again with every parameter free."""
     base_names = [p.name for p in current.structure.baseline.parameters]
     jobs = [(problem, current.structure.with_effect(e), _starts(e, current, problem, located),
-             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen"}) for e in effects]
+             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen", "scout_nfev": 0})
+            for e in effects]
     tick(f"screening {len(effects)} candidates")
     results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
+    by_name = {e.name: e for e in effects}
+    for name, result in results.items():
+        # never worse than the model it extends: the effect switched off is a candidate fit too
+        null = switched_off(problem, current, by_name[name])
+        if null.rmse_fit < result.rmse_fit:
+            results[name] = null
     top = sorted(results, key=lambda n: results[n].rmse_val)[:REFINE_TOP]
     tick(f"refitting {', '.join(top)}")
-    refits = _fit_all([(problem, results[n].structure, [results[n].values], {"max_nfev": 25}) for n in top], workers)
+    refits = _fit_all([(problem, results[n].structure, [results[n].values, {**current.values, **by_name[n].null()}],
+                        {"max_nfev": 25, "scout_nfev": 0}) for n in top], workers)
     for name, refined in zip(top, refits):
         if refined.rmse_fit <= results[name].rmse_fit:
             results[name] = refined
     return results
 
 
+def switched_off(problem: Problem, current: FitResult, effect: Effect) -> FitResult:
+    """``current`` plus ``effect`` switched off (its null values): the model it extends, whose
+    rmse it has exactly."""
+    structure = current.structure.with_effect(effect)
+    values = {**current.values, **effect.null()}
+    unc = {**current.uncertainties, **{p.name: math.nan for p in effect.parameters}}
+    return FitResult(structure, values, unc, current.rmse_fit, current.rmse_val)
+
+
 def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None, model_path=None, workers: int | None = None) -> Diagnosis:
+             progress: Callable[[str], None] | None = None, model_path=None, workers: int | None = None, *,
+             nominal: DriveNominal) -> Diagnosis:
     """Fit the baseline, locate its residual, and add candidate effects while the validation
-    error falls clearly (see the module docstring for the rule)."""
+    error falls clearly (see the module docstring for the rule). ``nominal``: the described
+    drive, from which every bound and starting value scales."""
+    recording = at_fitting_rate(recording)
     require_identifiable(recording)
     with blas_single_threaded():
-        return _diagnose(recording, baseline, candidates, progress, model_path, workers)
+        return _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers)
 
 
-def _diagnose(recording, baseline, candidates, progress, model_path, workers) -> Diagnosis:
+def _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers) -> Diagnosis:
     workers = workers or min(4, os.cpu_count() or 1)
-    problem = Problem(recording)
+    problem = Problem(recording, nominal)
     tick = (lambda what: progress(what)) if progress else (lambda what: None)
     tick("baseline")
     base = fit_baseline(problem, baseline, model_path=model_path)
@@ -370,12 +421,57 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
             base = freed
     where = locate(problem, base)
     located = where.located()
-    library = [EFFECTS[name] for name in (candidates or EFFECTS)]
-    current = base
+    lib = effect_library(nominal, candidates)
+    findings, current, rounds = _select(problem, base, base, lib, located, tick, workers)
+    floor = noise_floor(recording)
+    shafts = nominal.shafts()
+    description = ""
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
+        # the library leaves a structured error: model it anyway, with families that name nothing
+        tick("characterising the residual")
+        sig = signature(recording, locate(problem, current).residual, shafts)
+        description = describe(sig, shafts)
+        generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
+        more, current, more_rounds = _select(problem, base, current, generic, located, tick, workers, backward=False)
+        findings += more
+        rounds += more_rounds
+        findings, current = _prefer_library(problem, base, findings, current, lib, located, tick, workers)
+        if not all(f.effect.generic for f in more):
+            # library physics took a generic's place: what else of the library now passes on top
+            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
+            again, current, again_rounds = _select(problem, base, current, rest, located, tick, workers, backward=False)
+            findings += again
+            rounds += again_rounds
+    previous, loc_previous = base, where
+    for finding in findings:
+        loc = locate(problem, finding.fit)
+        finding.rmse_before = previous.rmse_val
+        if finding.effect.generic:
+            finding.evidence = generic_evidence(finding.effect, finding.fit.values, description, previous.rmse_val, finding.fit.rmse_val)
+        else:
+            finding.evidence = _evidence(finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc)
+        previous, loc_previous = finding.fit, loc
+    unexplained = None
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
+        sig = signature(recording, loc_previous.residual, shafts)
+        unexplained = Unexplained(current.rmse_val, floor, sig, describe(sig, shafts))
+    result = Diagnosis(recording, baseline, base, findings, where, problem, rounds, noise=floor, unexplained=unexplained)
+    predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
+    if findings:
+        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
+    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
+    return result
+
+
+def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect], located: Located, tick, workers,
+            backward: bool = True) -> tuple[list["Finding"], FitResult, list]:
+    """Greedy forward selection from ``current`` over ``lib`` while a candidate passes the
+    rule (pairs when no single one does; with ``backward``, drop earlier findings that later
+    ones made redundant)."""
     findings: list[Finding] = []
     rounds = []
-    for _ in range(MAX_EFFECTS):
-        remaining = [e for e in library if e.name not in current.structure.names]
+    for _ in range(len(lib)):
+        remaining = [e for e in lib.values() if e.name not in current.structure.names]
         if not remaining:
             break
         results = _screen_and_refit(problem, current, remaining, located, tick, workers)
@@ -384,10 +480,10 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
         passing = {name: r for name, r in results.items() if _clear_gain(problem, current, r)}
         if passing:
             best = _rank(passing, current)
-            findings.append(Finding(EFFECTS[best], passing[best], current.rmse_val, "", tried))
+            findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
-        elif len(current.structure.effects) + 2 <= MAX_EFFECTS:
-            pair = _best_pair(problem, current, results, tick, workers)
+        elif len(remaining) >= 2:
+            pair = _best_pair(problem, current, results, lib, tick, workers)
             if pair is None:
                 break
             (first, second), together = pair
@@ -397,12 +493,13 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
             if not _clear_gain(problem, current, together) or together.rmse_val > (1 - MIN_RELATIVE_GAIN) * alone:
                 break
             rounds.append({f"{first}+{second}": together.rmse_val})
-            findings.append(Finding(EFFECTS[first], results[first], current.rmse_val, "", tried))
-            findings.append(Finding(EFFECTS[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
+            findings.append(Finding(lib[first], results[first], current.rmse_val, "", tried))
+            findings.append(Finding(lib[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
             current = together
         else:
             break
-        findings, current = _drop_redundant(problem, base, findings, current, tick, workers)
+        if backward:
+            findings, current = _drop_redundant(problem, base, findings, current, tick, workers)
         # converge the accepted model before the next round: otherwise the next candidates'
         # refits finish this optimisation and get the credit for it
         tick("converging")
@@ -410,18 +507,39 @@ def _diagnose(recording, baseline, candidates, progress, model_path, workers) ->
         if polished.rmse_fit < current.rmse_fit:
             current = polished
             findings[-1].fit = polished
-    previous, loc_previous = base, where
-    for finding in findings:
-        loc = locate(problem, finding.fit)
-        finding.rmse_before = previous.rmse_val
-        finding.evidence = _evidence(finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc)
-        previous, loc_previous = finding.fit, loc
-    result = Diagnosis(recording, baseline, base, findings, where, problem, rounds)
-    predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
+    return findings, current, rounds
+
+
+def _prefer_library(problem, base: FitResult, findings: list["Finding"], current: FitResult, lib: dict[str, Effect],
+                    located: Located, tick, workers) -> tuple[list["Finding"], FitResult]:
+    """A generic finding may stand for library physics that needed company to pass (two
+    effects each below the margin alone): replace each generic effect by the library effect
+    that, in its place, fits as well (within the tie band on both halves)."""
+    for i, finding in enumerate(findings):
+        if not finding.effect.generic:
+            continue
+        others = [f.effect for f in findings if f is not finding]
+        names = {e.name for e in others}
+        options = [e for e in lib.values() if e.name not in names]
+        if not options:
+            continue
+        jobs = []
+        for e in options:
+            structure = ModelStructure(base.structure.baseline, [*others, e])
+            start = {k: v for k, v in current.values.items() if k not in {p.name for p in finding.effect.parameters}}
+            jobs.append((problem, structure, [{**start, **s} for s in _starts(e, current, problem, located)],
+                         {"max_nfev": 25, "scout_nfev": 0}))
+        tick(f"a library name for {finding.effect.name}?")
+        fits = _fit_all(jobs, workers)
+        j = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
+        if fits[j].rmse_val <= current.rmse_val * (1 + TIE_BAND) and fits[j].rmse_fit <= current.rmse_fit * (1 + TIE_BAND):
+            findings[i] = Finding(options[j], fits[j], 0.0, "", finding.candidates)
+            current = fits[j]
+            for f in findings[i + 1:]:
+                f.fit = current
     if findings:
-        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
-    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
-    return result
+        findings[-1].fit = current
+    return findings, current
 
 
 def _clear_gain(problem: Problem, current: FitResult, candidate: FitResult) -> bool:
@@ -445,7 +563,8 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
 
 
-def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], tick, workers, top: int = PAIR_TOP):
+def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], lib: dict[str, Effect], tick, workers,
+               top: int = PAIR_TOP):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
     of which explains much alone. When no single candidate passes, refit the pairs of the
     best few singles together; returns ((first, second), fit) for the best pair, first being
@@ -456,7 +575,7 @@ def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], tick,
         return None
     jobs = []
     for a, b in pairs:
-        structure = current.structure.with_effect(EFFECTS[a]).with_effect(EFFECTS[b])
+        structure = current.structure.with_effect(lib[a]).with_effect(lib[b])
         start = {**singles[b].values, **singles[a].values}
         jobs.append((problem, structure, [start], {"max_nfev": 25}))
     tick(f"refitting {len(pairs)} pairs")

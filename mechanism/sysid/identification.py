@@ -35,9 +35,10 @@ from scipy.optimize import least_squares
 
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
-from mechanism.dynamics.lumped import Drive, LumpedBaseline, MotorConstants, Signals, make_segments, simulate
+from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Segments, Signals, make_segments, simulate
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
-from mechanism.sysid.recording import Recording, check_excitation, smoothed_velocity, velocity_coefficients
+from mechanism.sysid.recording import Recording, at_fitting_rate, check_excitation, smoothed_velocity, velocity_coefficients
 
 REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
@@ -94,19 +95,28 @@ class Problem:
     """
 
     FIT_STRIDE = 3
+    MAX_SEGMENTS = 360  # a long recording is scored on this many segments spread over it (6 min of 1 s)
 
-    def __init__(self, rec: Recording, segment_s: float = 1.0, burn_in_s: float = 0.25):
+    def __init__(self, rec: Recording, nominal: DriveNominal, segment_s: float = 1.0, burn_in_s: float = 0.25):
         self.recording = rec
+        self.nominal = nominal
         self.dt = rec.dt
         self.coefficients = velocity_coefficients(rec.dt)
         self.pad = (len(self.coefficients) - 1) // 2
-        self.signals = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=8.0)
-        self.segments = make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad)
-        fit_part = self.segments.subset(self.segments.is_fit)
-        screen = np.zeros(len(fit_part), bool)
-        screen[::2] = True
-        self.parts = {"fit": fit_part, "val": self.segments.subset(~self.segments.is_fit), "all": self.segments,
-                      "screen": fit_part.subset(screen) if len(fit_part) > 3 else fit_part}
+        whole = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=nominal.ratio)
+        every = make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad)
+        self.segments = _spread(every, self.MAX_SEGMENTS)
+        self.signals, simulated = whole, self.segments
+        if len(self.segments) * self.segments.length < len(rec):
+            # a long recording: the model runs on its scored windows laid end to end (per-sample
+            # work then no longer grows with the length; history effects read the whole one)
+            index = self.segments.window_indices().ravel()
+            self.signals = Signals(rec.time_s[index], rec.voltage_V[index], rec.arm_angle_rad[index], rec.velocity_rad_s[index],
+                                   rec.dt, ratio=nominal.ratio, source_index=index, whole=whole)
+            s = self.segments
+            simulated = Segments(np.arange(len(s), dtype=np.int64) * s.length, s.length, s.score_begin, s.score_end, s.is_fit)
+        original = _parts(self.segments)
+        self.parts = _parts(simulated)
         self.strides = {"fit": self.FIT_STRIDE, "screen": self.FIT_STRIDE, "val": 1, "all": 1}
         self._gather = {}
         self.measured, self.scored = {}, {}
@@ -118,7 +128,7 @@ class Problem:
                 cols.append(offsets)
             rows, cols = np.concatenate(rows), np.concatenate(cols)
             self._gather[name] = (rows, cols - self.pad)
-            self.scored[name] = seg.starts[rows] + cols
+            self.scored[name] = original[name].starts[rows] + cols
             self.measured[name] = rec.velocity_rad_s[self.scored[name]]
 
     def simulate(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
@@ -153,6 +163,28 @@ class Problem:
         out = np.full(len(self.recording), np.nan)
         out[self.scored["all"]] = self.simulate(structure, values, "all")
         return out
+
+
+def _parts(segments: Segments) -> dict[str, Segments]:
+    fit_part = segments.subset(segments.is_fit)
+    screen = np.zeros(len(fit_part), bool)
+    screen[::2] = True
+    return {"fit": fit_part, "val": segments.subset(~segments.is_fit), "all": segments,
+            "screen": fit_part.subset(screen) if len(fit_part) > 3 else fit_part}
+
+
+def _spread(segments: Segments, most: int) -> Segments:
+    """At most ``most`` segments, in whole fit/validation groups of four spread evenly over
+    the recording: beyond some minutes more segments add time, not information, and the
+    time a fit takes stops growing with the recording's length."""
+    if len(segments) <= most:
+        return segments
+    groups = len(segments) // 4
+    chosen = np.unique(np.linspace(0, groups - 1, most // 4).round().astype(int))
+    keep = np.zeros(len(segments), bool)
+    for g in chosen:
+        keep[4 * g:4 * g + 4] = True
+    return segments.subset(keep)
 
 
 @dataclass
@@ -191,7 +223,7 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
     """Least-squares fit of the parameters of ``structure`` on the fit segments.
 
     ``starts`` are initial guesses (missing names take the nominal value). With several,
-    each gets a few iterations (``scout_nfev``) and only the best is refined. ``free``
+    each gets a few iterations (``scout_nfev``; 0: one evaluation) and only the best is refined. ``free``
     names the parameters to fit (default: all); the others stay at the first start's values.
     """
     every = structure.parameters
@@ -219,12 +251,16 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
                                  max_nfev=nfev, xtol=1e-5, ftol=1e-5, gtol=1e-8)
 
     candidates = [internal_vector(params, s) for s in starts] or [internal_vector(params, {})]
-    if len(candidates) > 1:
+    scouts = []
+    if len(candidates) > 1 and scout_nfev <= 0:
+        # the start with the lowest cost, one evaluation each
+        x_start = min(candidates, key=lambda x0: float(np.sum(fun(np.clip(x0, lo, hi)) ** 2)))
+    elif len(candidates) > 1:
         scouts = [run(x0, scout_nfev) for x0 in candidates]
         x_start = min(scouts, key=lambda r: r.cost).x
     else:
         x_start = candidates[0]
-    result = run(x_start, max_nfev)
+    result = min([run(x_start, max_nfev), *scouts], key=lambda r: r.cost)  # never worse than a start
     values = values_of(result.x)
     r_fit = result.fun if part == "fit" else problem.residual(structure, values, "fit")
     rmse_fit = float(np.sqrt(np.mean(r_fit**2)))
@@ -315,26 +351,26 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
     return best, best_cost
 
 
-def baseline_model(baseline: str = "lumped", free: Sequence[str] = (), model_path=None):
+def baseline_model(nominal: DriveNominal, baseline: str = "lumped", free: Sequence[str] = (), model_path=None):
     """The baseline model object by name: ``lumped`` or ``multibody`` (the reduced CAD
-    model at ``model_path``, default the shipped sewing machine)."""
+    model at ``model_path``, default the shipped sewing machine), around the described drive."""
     free = tuple(free)
     unknown = [f for f in free if f not in ("R", "Kt", "Ke")]
     if unknown:
         raise UserError(f"--free: unknown motor constant(s) {', '.join(unknown)}; choose from R, Kt, Ke")
     if baseline == "lumped":
-        return LumpedBaseline(free)
+        return LumpedBaseline(nominal, free)
     if baseline == "multibody":
         from mechanism.sysid.multibody_baseline import MultibodyBaseline
 
-        return MultibodyBaseline(free, model_path)
+        return MultibodyBaseline(nominal, free, model_path)
     raise UserError(f"unknown baseline {baseline!r}; choose lumped or multibody")
 
 
 def fit_baseline(problem: Problem, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
                  progress: Callable[[], None] | None = None) -> FitResult:
     """The baseline fitted from its equation-error start (and from the nominal values)."""
-    model = baseline_model(baseline, free, model_path)
+    model = baseline_model(problem.nominal, baseline, free, model_path)
     start = initial_baseline_values(problem, model)
     return fit(problem, ModelStructure(model), [start, {p.name: p.nominal for p in model.parameters}], progress=progress)
 
@@ -445,11 +481,13 @@ class NotIdentifiable(UserError):
 
 
 def identify(recording: Recording, baseline: str = "lumped", free: Sequence[str] = (),
-             progress: Callable[[], None] | None = None, model_path=None) -> IdentificationResult:
+             progress: Callable[[], None] | None = None, model_path=None, *, nominal: DriveNominal) -> IdentificationResult:
     """Fit the baseline (inertia, viscous and Coulomb friction; the motor constants named in
-    ``free``) by simulation-error minimisation; rmse on the validation segments."""
+    ``free``) by simulation-error minimisation; rmse on the validation segments. ``nominal``:
+    the described drive (starting values and bounds scale from it)."""
+    recording = at_fitting_rate(recording)
     require_identifiable(recording)
     with blas_single_threaded():
-        problem = Problem(recording)
+        problem = Problem(recording, nominal)
         result = fit_baseline(problem, baseline, free, model_path, progress)
     return IdentificationResult(recording, baseline, result, problem)

@@ -14,7 +14,8 @@ in the lumped baseline. A ``linkage_dynamics`` finding on top of it means the li
 from __future__ import annotations
 
 
-from mechanism.dynamics.lumped import Drive, LumpedBaseline, Signals
+from mechanism.dynamics.lumped import Drive, Signals
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter
 
 
@@ -24,13 +25,13 @@ class MultibodyBaseline(LumpedBaseline):
               "cad_inertia_variation_scale", "cad_gravity_scale")
     meaning = "the CAD model's reduced 1-DOF dynamics (angle-dependent inertia and gravity) with viscous and Coulomb friction"
 
-    def __init__(self, free: tuple[str, ...] = (), model_path=None):
-        super().__init__(free)
+    def __init__(self, nominal, free: tuple[str, ...] = (), model_path=None):
+        super().__init__(nominal, free)
         from mechanism.kinematics.linkage import compute_tables
         from mechanism.machine.models import load_model
 
         self.tables = compute_tables(load_model(model_path), "arm_shaft", "needle_tip")
-        n = 8.0
+        n = nominal.ratio
         mean_motor_side = self.tables.mean_inertia_kgm2 / n**2
         lumped = {p.name: p for p in self.parameters}
         self.parameters = (

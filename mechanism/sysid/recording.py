@@ -161,6 +161,24 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
     return Recording(time, voltage, arm_angle, current, dict(metadata or {}), source)
 
 
+FIT_RATE_HZ = 1000.0
+
+
+def at_fitting_rate(rec: Recording) -> Recording:
+    """A recording sampled at 2 kHz or faster, brought to about 1 kHz for fitting: the
+    velocity differentiator passes nothing above ~60 Hz, so faster samples only cost time
+    (a 5 kHz minute fits in the time of a 1 kHz one). The angle is kept at every m-th sample
+    (it is exact there), the voltage averaged over each block of m (the drive holds a
+    sample's voltage over its step)."""
+    m = int((1.0 / rec.dt) // FIT_RATE_HZ)
+    if m < 2:
+        return rec
+    n = len(rec) // m * m
+    current = rec.current_A[:n:m] if rec.current_A is not None else None
+    return Recording(rec.time_s[:n:m].copy(), rec.voltage_V[:n].reshape(-1, m).mean(axis=1), rec.arm_angle_rad[:n:m].copy(),
+                     current, dict(rec.metadata), rec.source)
+
+
 @dataclass
 class Excitation:
     """Whether a recording excites the machine enough to identify anything."""

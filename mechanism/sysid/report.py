@@ -142,7 +142,8 @@ def diagnosis_report(diagnosis, folder) -> Path:
     data = diagnosis.to_json()
     findings = diagnosis.findings
     if findings:
-        items = "".join(f"<li><b>{html.escape(f.effect.name)}</b>: {html.escape(f.evidence)}</li>" for f in findings)
+        items = "".join(f"<li><b>{html.escape(f.effect.name)}</b>{' (generic)' if f.effect.generic else ''}: "
+                        f"{html.escape(f.evidence)}</li>" for f in findings)
         verdict = f"<ol>{items}</ol>"
     else:
         verdict = ("<p>Nothing is missing: no candidate effect lowered the validation error of the baseline "
@@ -154,6 +155,11 @@ def diagnosis_report(diagnosis, folder) -> Path:
     for i, r in enumerate(diagnosis.rounds, 1):
         cells = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.4g}</td></tr>" for k, v in sorted(r.items(), key=lambda kv: kv[1]))
         rounds += f"<h3>round {i}</h3><table><tr><th>candidate</th><th>validation rmse [rad/s]</th></tr>{cells}</table>"
+    left = diagnosis.unexplained
+    if left is not None:
+        rmse += (f"<h3>What is left unexplained</h3><p>The final residual, {left.rmse:.3g} rad/s, is "
+                 f"{left.rmse / left.floor.rmse:.1f} times the recording's own noise floor ({left.floor.rmse:.2g} rad/s: "
+                 f"encoder quantisation and sensor scatter). It shows {html.escape(left.sentence)}.</p>")
     sections = [("What is missing", verdict + rmse), ("Baseline parameters", _param_table(base.values, base.uncertainties)),
                 ("Final parameters", _param_table(final.values, final.uncertainties)), ("Candidates tried", rounds)]
     return write_report(folder, f"Diagnosis of {Path(diagnosis.recording.source).name}", data, diagnosis.traces, sections)

@@ -8,7 +8,7 @@ so each (voltage, speed) point is one linear equation in the viscous and Coulomb
 two or more points at different voltages give both by linear least squares (one point
 cannot: that is why a constant-voltage recording is not identifiable). The thesis's
 Table 2 gives cold, warm-30 s and warm-2 min speeds at six voltages, and its model is
-stated valid to 20 V: :func:`thesis_table2` fits each column on the 4.5-19.6 V points and
+stated valid to 20 V: :func:`table2` fits each column on the 4.5-19.6 V points and
 asks what the 24 V point says is missing.
 """
 
@@ -21,7 +21,6 @@ import numpy as np
 
 from mechanism.errors import UserError
 from mechanism.dynamics.lumped import MotorConstants
-from mechanism.data.reference import thesis
 
 RPM = 2 * math.pi / 60
 
@@ -50,9 +49,8 @@ class SteadyStateFit:
         return (c * w + self.coulomb_arm_Nm) / m.gain_arm
 
 
-def fit_steady_state(voltage_V, arm_speed_rpm, motor: MotorConstants | None = None) -> SteadyStateFit:
+def fit_steady_state(voltage_V, arm_speed_rpm, motor: MotorConstants) -> SteadyStateFit:
     """Viscous (motor side) and Coulomb (arm side) friction from steady-state points."""
-    motor = motor or MotorConstants.datasheet()
     u = np.asarray(voltage_V, float)
     w = np.asarray(arm_speed_rpm, float) * RPM
     if u.shape != w.shape or u.ndim != 1:
@@ -97,18 +95,15 @@ class Table2Column:
         }
 
 
-def thesis_table2(valid_below_V: float | None = None) -> dict[str, Table2Column]:
-    """Fit each speed column of the thesis's Table 2 (cold, warm 30 s, warm 2 min) on the
-    points inside the model's stated validity (0-20 V) and quantify the 24 V point."""
-    ref = thesis()
-    table = ref["steady_state_speed_table_2"]
+def table2(table: dict, motor: MotorConstants, valid_below_V: float) -> dict[str, Table2Column]:
+    """Fit each speed column of a Table-2-like table (the thesis's: cold, warm 30 s, warm
+    2 min; ``columns`` and ``rows``) on the points up to ``valid_below_V`` and quantify the
+    highest-voltage point."""
     cols = table["columns"]
     rows = np.array(table["rows"], dtype=float)
     voltage = rows[:, cols.index("motor_voltage_V")]
-    limit = valid_below_V if valid_below_V is not None else ref["main_motor"]["model_validity_V"][1]
-    valid = voltage <= limit
+    valid = voltage <= valid_below_V
     high = int(np.argmax(voltage))
-    motor = MotorConstants.datasheet()
     out = {}
     for name in ("rpm_cold", "rpm_warm_30s", "rpm_warm_2min"):
         rpm = rows[:, cols.index(name)]

@@ -15,7 +15,6 @@ from mechanism.files.outputs import atomic_file, transaction
 from mechanism.files.tables import write_table
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
-    ANGLE_STEP_RAD,
     ENCODER_COUNTS_PER_REV,
     TWO_PI,
     draw_baseline,
@@ -83,9 +82,9 @@ def draw_plateaus(seed: int, duration_s: float) -> list[tuple[float, float]]:
     return plateaus
 
 
-def voltage_samples(plateaus, n: int) -> np.ndarray:
-    """Commanded voltage at each 1 kHz sample (held from each plateau's start)."""
-    edges = np.round(np.cumsum([0.0] + [d for d, _ in plateaus]) * SAMPLE_RATE_HZ).astype(np.int64)
+def voltage_samples(plateaus, n: int, rate_hz: float = SAMPLE_RATE_HZ) -> np.ndarray:
+    """Commanded voltage at each sample (held from each plateau's start)."""
+    edges = np.round(np.cumsum([0.0] + [d for d, _ in plateaus]) * rate_hz).astype(np.int64)
     levels = np.array([v for _, v in plateaus] + [plateaus[-1][1]], dtype=float)
     index = np.searchsorted(edges, np.arange(n), side="right") - 1
     return levels[np.clip(index, 0, len(levels) - 1)]
@@ -107,20 +106,20 @@ def applied_voltage(logged: np.ndarray, params: dict | None) -> np.ndarray:
 
 # --- truth model assembly ------------------------------------------------------------------
 
-def _model_parameters(base: dict, effects: dict[str, dict], substeps: int) -> tuple[dict, dict]:
+def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_hz: float = SAMPLE_RATE_HZ) -> tuple[dict, dict]:
     """Integrator parameters (simulate.PARAM_FIELDS) and the derived truth values."""
     ratio = base["belt_ratio"]
     total = base["inertia_motor_side_kgm2"]
     r, rod = base["crank_radius_m"], base["rod_length_m"]
     p = dict.fromkeys(sim.PARAM_FIELDS, 0.0)
     p.update(
-        dt=1.0 / SAMPLE_RATE_HZ, n_sub=float(substeps), R=base["resistance_ohm"], L=base["inductance_H"],
+        dt=1.0 / rate_hz, n_sub=float(substeps), R=base["resistance_ohm"], L=base["inductance_H"],
         Kt=base["torque_constant_Nm_per_A"], Ke=base["back_emf_constant_V_s_per_rad"], ratio=ratio,
         d_motor=base["viscous_motor_side_Nm_s_per_rad"], coulomb=base["coulomb_arm_Nm"], lk_r=r, lk_l=rod,
         rp_nc=12.0, st_velocity=1.0, st_exponent=1.0, th_tau_cool=1.0,
     )
     derived: dict[str, dict] = {}
-    belt = effects.get("belt_compliance")
+    belt = effects.get("belt_compliance") or effects.get("backlash")  # backlash: a belt with free play
     motor_share = belt["motor_inertia_fraction"] if belt else 0.0
     arm_side = ratio**2 * (1.0 - motor_share) * total  # mean inertia carried by the arm shaft
     link = effects.get("linkage_dynamics")
@@ -136,8 +135,11 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int) -> tu
         reduced = motor * arm_side / (motor + arm_side)
         p.update(belt=1.0, J_motor=motor_share * total, belt_k=stiffness,
                  belt_c=2.0 * belt["damping_ratio"] * math.sqrt(stiffness * reduced))
-        derived["belt_compliance"] = {"stiffness_arm_side_Nm_per_rad": stiffness, "damping_arm_side_Nm_s_per_rad": p["belt_c"],
-                                      "rotor_inertia_arm_side_kgm2": motor, "arm_inertia_kgm2": arm_side}
+        derived["belt_compliance" if "belt_compliance" in effects else "backlash"] = {
+            "stiffness_arm_side_Nm_per_rad": stiffness, "damping_arm_side_Nm_s_per_rad": p["belt_c"],
+            "rotor_inertia_arm_side_kgm2": motor, "arm_inertia_kgm2": arm_side}
+    if "backlash" in effects:
+        p["bl_gap"] = 0.5 * effects["backlash"]["free_play_rad"]
     if "torque_ripple" in effects:
         e = effects["torque_ripple"]
         p.update(rp_a1=e["once_per_motor_rev_Nm"], rp_p1=e["once_per_motor_rev_phase_rad"], rp_ac=e["cogging_Nm"],
@@ -165,6 +167,37 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int) -> tu
     return p, derived
 
 
+HEATING_CHUNK_S = 0.1  # the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
+
+
+def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_name: str, heat: dict, rate: float) -> dict:
+    """The truth model with the winding's resistance following its copper temperature:
+    dT/dt = (I^2 R - T / R_th) / C_th, R = R0 (1 + alpha T), integrated chunk by chunk (the
+    resistance held over each 0.1 s chunk, the temperature updated from the chunk's I^2 R)."""
+    n = len(voltage)
+    chunk = max(1, int(round(HEATING_CHUNK_S * rate)))
+    r0, rth, tau, alpha = params["R"], heat["thermal_resistance_K_per_W"], heat["thermal_time_constant_s"], heat["copper_coefficient_per_K"]
+    kelvin = 0.0
+    parts: list[dict] = []
+    resistance = np.empty(n)
+    for k0 in range(0, n, chunk):
+        k1 = min(n, k0 + chunk)
+        r = r0 * (1.0 + alpha * kelvin)
+        # one sample more than the chunk: its first trace row is the state the next chunk starts from
+        u = voltage[k0:k1 + 1]
+        out = sim.simulate({**params, "R": r}, u, state, prefer=solver_name)
+        if k1 < n:
+            state = {name: float(out[trace][k1 - k0]) for name, trace in zip(sim.STATE_FIELDS, sim.TRACE_NAMES)}
+        parts.append({key: value[: k1 - k0] for key, value in out.items()})
+        resistance[k0:k1] = r
+        power = float(np.mean(out["current_A"][: k1 - k0] ** 2)) * r
+        decay = math.exp(-(k1 - k0) / rate / tau)
+        kelvin = kelvin * decay + power * rth * (1.0 - decay)
+    traces = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    traces["winding_resistance_ohm"] = resistance
+    return traces
+
+
 def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> dict:
     """Merge user overrides into baseline and effect parameters; return the remaining options."""
     options = {}
@@ -186,11 +219,14 @@ def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> d
     return options
 
 
-OPTIONS = ("randomize_baseline", "voltage_plateaus", "start_angle_rad", "current_noise_A", "substeps_per_ms", "integrator")
+OPTIONS = ("randomize_baseline", "voltage_plateaus", "start_angle_rad", "current_noise_A", "substeps_per_ms", "integrator",
+           "sample_rate_hz", "encoder_counts_per_rev")
 
 
-def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overrides) -> Recording:
-    """A 1 kHz bench recording of the truth model with the named concealed effects.
+def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nominal, **overrides) -> Recording:
+    """A bench recording (1 kHz unless ``sample_rate_hz``) of the truth model of the described
+    drive ``nominal`` (a :class:`~mechanism.dynamics.lumped.DriveNominal`) with the named
+    concealed effects.
 
     ``effects``: names from :data:`mechanism.testbench.EFFECTS` (a list or ``"a,b"``;
     ``()`` or ``"none"`` is the clean machine). Overrides (keyword arguments):
@@ -200,7 +236,8 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
     - an effect's parameters as a dict (``torque_ripple={"cogging_Nm": 0.0}``);
     - ``voltage_plateaus=[(duration_s, volts), ...]`` instead of the drawn profile,
       ``start_angle_rad``, ``current_noise_A`` (sensor standard deviation),
-      ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build).
+      ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build),
+      ``sample_rate_hz`` (100-10000), ``encoder_counts_per_rev`` (default 20000).
     """
     names = parse_effects(effects)
     seed = int(seed)
@@ -208,21 +245,29 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
     if not math.isfinite(duration_s) or not 0.01 <= duration_s <= 3600:
         raise UserError(f"duration must be between 0.01 and 3600 s, not {duration_s}")
     randomize = bool(overrides.pop("randomize_baseline", True))
-    base = draw_baseline(seed, randomize=randomize)
+    base = draw_baseline(seed, nominal, randomize=randomize)
     effect_params = draw_effects(seed, names, base)
     options = _apply_overrides(effect_params, base, overrides)
-    substeps = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
-    params, derived = _model_parameters(base, effect_params, substeps)
+    rate = float(options.get("sample_rate_hz", SAMPLE_RATE_HZ))
+    if not 100 <= rate <= 10000:
+        raise UserError(f"sample rate must be between 100 Hz and 10 kHz, not {rate:g}")
+    counts = int(options.get("encoder_counts_per_rev", ENCODER_COUNTS_PER_REV))
+    if counts < 16:
+        raise UserError(f"an encoder needs at least 16 counts per revolution, not {counts}")
+    step = TWO_PI / counts
+    substeps_per_ms = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
+    substeps = max(1, int(round(substeps_per_ms * 1000.0 / rate)))
+    params, derived = _model_parameters(base, effect_params, substeps, rate)
     for name, values in derived.items():
         effect_params[name].update(values)
 
-    n = int(round(duration_s * SAMPLE_RATE_HZ))
-    time = np.arange(n) / SAMPLE_RATE_HZ
+    n = int(round(duration_s * rate))
+    time = np.arange(n) / rate
     plateaus = options.get("voltage_plateaus") or draw_plateaus(seed, duration_s)
     plateaus = [(float(d), float(v)) for d, v in plateaus]
     if any(d <= 0 or not math.isfinite(v) or v < 0 for d, v in plateaus):
         raise UserError("voltage plateaus need positive durations and non-negative voltages")
-    logged_voltage = voltage_samples(plateaus, n)
+    logged_voltage = voltage_samples(plateaus, n, rate)
     motor_voltage = applied_voltage(logged_voltage, effect_params.get("voltage_nonlinearity"))
 
     sensors = stream(seed, "sensors")
@@ -230,16 +275,22 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
     noise = float(options.get("current_noise_A", sensors.uniform(0.01, 0.03)))
     state = dict(theta_arm=start, omega_arm=0.0, theta_motor=base["belt_ratio"] * start, omega_motor=0.0, current=0.0, warmth=0.0)
     solver_name = options.get("integrator", "native")
-    traces = sim.simulate(params, motor_voltage, state, prefer=solver_name)
+    if "winding_heating" in effect_params:
+        traces = _simulate_heating(params, motor_voltage, state, solver_name, effect_params["winding_heating"], rate)
+    else:
+        traces = sim.simulate(params, motor_voltage, state, prefer=solver_name)
     traces["applied_voltage_V"] = motor_voltage
 
     true_angle = traces["arm_angle_rad"]
     sensed = true_angle
+    if "sensor_delay" in effect_params:
+        # the log shows the angle of delay_s ago (linear interpolation; the rest angle before the start)
+        sensed = np.interp(time - effect_params["sensor_delay"]["delay_s"], time, sensed)
     if "encoder_eccentricity" in effect_params:
         e = effect_params["encoder_eccentricity"]
         # the count is reset at the index pulse (needle TDC), so the error vanishes there
         sensed = true_angle + e["amplitude_rad"] * (np.sin(true_angle + e["phase_rad"]) - math.sin(e["phase_rad"]))
-    arm_angle = np.floor(sensed / ANGLE_STEP_RAD) * ANGLE_STEP_RAD
+    arm_angle = np.floor(sensed / step) * step
     current = np.round((traces["current_A"] + sensors.normal(0.0, noise, n)) / CURRENT_RESOLUTION_A) * CURRENT_RESOLUTION_A
 
     truth = {
@@ -247,7 +298,7 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
         "generator": f"mechanism {__version__} testbench",
         "seed": seed,
         "duration_s": duration_s,
-        "sample_rate_Hz": SAMPLE_RATE_HZ,
+        "sample_rate_Hz": rate,
         "effects": names,
         "effect_params": effect_params,
         "baseline": base,
@@ -255,12 +306,12 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, **overri
         "start_arm_angle_rad": start,
         "voltage_plateaus": [[d, v] for d, v in plateaus],
         "sensors": {
-            "encoder_counts_per_rev": ENCODER_COUNTS_PER_REV,
-            "angle_step_rad": ANGLE_STEP_RAD,
+            "encoder_counts_per_rev": counts,
+            "angle_step_rad": step,
             "current_noise_std_A": noise,
             "current_resolution_A": CURRENT_RESOLUTION_A,
         },
-        "integrator": {"substeps_per_ms": substeps, "solver": sim.solver(solver_name).name},
+        "integrator": {"substeps_per_ms": substeps_per_ms, "solver": sim.solver(solver_name).name},
     }
     return Recording(time, logged_voltage, arm_angle, current, truth, traces)
 
@@ -278,10 +329,12 @@ def write_recording(recording: Recording, csv_path: str | Path) -> tuple[Path, P
     csv_path = Path(csv_path)
     truth_path = truth_path_for(csv_path)
     truth = dict(recording.truth, recording=csv_path.name)
+    counts = recording.truth["sensors"]["encoder_counts_per_rev"]
     comments = [
-        f"mechanism virtual test bench recording ({SAMPLE_RATE_HZ} Hz); what is concealed in it is in {truth_path.name}",
+        f"mechanism virtual test bench recording ({recording.truth['sample_rate_Hz']:g} Hz); what is concealed in it is in {truth_path.name}",
         "columns: time [s], voltage [V, commanded], arm_angle [rad, unwrapped, 0 = needle top dead centre, "
-        f"{ENCODER_COUNTS_PER_REV} counts/rev], current [A]",
+        f"{counts} counts/rev], current [A]",
+        f"counts_per_rev: {counts}",
     ]
     with transaction():  # both files or neither; a failure never touches the previous pair
         write_table(csv_path, recording.columns(), comments=comments, fmt="%.10g")

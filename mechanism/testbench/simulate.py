@@ -29,6 +29,7 @@ PARAM_FIELDS = (
     "lk_mass", "lk_r", "lk_l", "gravity",
     "nd_force_per_m", "nd_fabric", "nd_point", "nd_sliding", "nd_depth_bdc",
     "belt_k", "belt_c",
+    "bl_gap",
 )
 STATE_FIELDS = ("theta_arm", "omega_arm", "theta_motor", "omega_motor", "current", "warmth")
 TRACE_NAMES = ("arm_angle_rad", "arm_velocity_rad_s", "motor_angle_rad", "motor_velocity_rad_s", "current_A", "warmth")
@@ -143,6 +144,15 @@ def _friction_levels(p, th, speed, warmth):
     return level * (1.0 + p["st_excess"] * decay) + fabric, level * (1.0 + p["st_excess"]) + fabric
 
 
+def _belt_torque(p, twist, rate):
+    gap = p["bl_gap"]
+    if twist > gap:
+        return p["belt_k"] * (twist - gap) + p["belt_c"] * rate
+    if twist < -gap:
+        return p["belt_k"] * (twist + gap) + p["belt_c"] * rate
+    return 0.0
+
+
 def _ripple(p, thm):
     return p["rp_a1"] * math.sin(thm + p["rp_p1"]) + p["rp_ac"] * math.sin(p["rp_nc"] * thm + p["rp_pc"])
 
@@ -186,7 +196,7 @@ def _simulate_python(p, u, state, outputs):
                 wa = _friction_step(inertia, wa, h, tau, ratio * ratio * damping, kinetic, static)
                 wm = ratio * wa
             else:
-                belt = p["belt_k"] * (thm / ratio - tha) + p["belt_c"] * (wm / ratio - wa)
+                belt = _belt_torque(p, thm / ratio - tha, wm / ratio - wa)
                 tau_m = drive - _ripple(p, thm) - belt / ratio
                 wm = (p["J_motor"] * wm / h + tau_m) / (p["J_motor"] / h + damping)
                 wa = _friction_step(inertia, wa, h, belt + tau_link, 0.0, kinetic, static)

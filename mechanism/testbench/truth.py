@@ -15,11 +15,10 @@ from typing import Callable
 import numpy as np
 
 from mechanism.errors import UserError, close_matches
-from mechanism.data.reference import thesis
 
 TWO_PI = 2.0 * math.pi
 GRAVITY_M_S2 = 9.81
-ENCODER_COUNTS_PER_REV = 4 * thesis()["mechanism"]["arm_shaft_encoder"]["lines_per_rev"]
+ENCODER_COUNTS_PER_REV = 20000  # the bench's default encoder (5000 lines, quadrature); an option per recording
 ANGLE_STEP_RAD = TWO_PI / ENCODER_COUNTS_PER_REV
 
 
@@ -47,16 +46,17 @@ def mean_square_slider_speed(crank_m: float, rod_m: float, samples: int = 4096) 
 
 # --- baseline ------------------------------------------------------------------------
 
-def draw_baseline(seed: int, randomize: bool = True) -> dict:
-    """The lumped machine of the thesis (eq. 15-16), its parameters scattered per seed.
+def draw_baseline(seed: int, nominal, randomize: bool = True) -> dict:
+    """The lumped machine of the thesis (eq. 15-16) with the described drive's numbers
+    (``nominal``, a :class:`~mechanism.dynamics.lumped.DriveNominal`), scattered per seed.
 
     Motor constants vary by a datasheet-like +-3 % (identification holds them at the
     datasheet values); inertia, viscous and Coulomb friction, which identification fits,
-    vary by -25..+30 %. ``randomize=False`` gives the thesis's values exactly (plus a nominal
-    0.6 mH inductance, which the thesis neglects).
+    vary by -25..+30 %. ``randomize=False`` gives the described values exactly (plus a
+    winding time constant L/R of 6/11 ms, which the thesis neglects).
     """
-    ref = thesis()
-    motor, ident = ref["main_motor"], ref["identified_parameters"]
+    motor = nominal.motor
+    n = nominal.ratio
     rng = stream(seed, "baseline")
 
     def scatter(low: float, high: float) -> float:
@@ -64,14 +64,18 @@ def draw_baseline(seed: int, randomize: bool = True) -> dict:
         return value if randomize else 1.0
 
     return {
-        "resistance_ohm": motor["resistance_ohm"] * scatter(0.97, 1.03),
-        "torque_constant_Nm_per_A": motor["torque_constant_Nm_per_A"] * scatter(0.97, 1.03),
-        "back_emf_constant_V_s_per_rad": motor["back_emf_constant_V_s_per_rad"] * scatter(0.97, 1.03),
-        "inductance_H": 0.6e-3 * scatter(0.35, 1.65),
-        "belt_ratio": float(ref["mechanism"]["motor_to_arm_ratio"]),
-        "inertia_motor_side_kgm2": ident["total_inertia_kgm2"] * scatter(0.75, 1.3),
-        "viscous_motor_side_Nm_s_per_rad": ident["viscous_cold_Nm_s_per_rad"] * scatter(0.75, 1.3),
-        "coulomb_arm_Nm": ident["kinetic_friction_arm_Nm"] * scatter(0.75, 1.3),
+        "resistance_ohm": motor.resistance_ohm * scatter(0.97, 1.03),
+        "torque_constant_Nm_per_A": motor.torque_constant_Nm_per_A * scatter(0.97, 1.03),
+        "back_emf_constant_V_s_per_rad": motor.back_emf_V_s_per_rad * scatter(0.97, 1.03),
+        "inductance_H": 6 / 11 * 1e-3 * motor.resistance_ohm * scatter(0.35, 1.65),
+        "belt_ratio": float(n),
+        "inertia_motor_side_kgm2": nominal.inertia_motor_side_kgm2 * scatter(0.75, 1.3),
+        "viscous_motor_side_Nm_s_per_rad": nominal.viscous_motor_side * scatter(0.75, 1.3),
+        "coulomb_arm_Nm": nominal.torque_scale_Nm * scatter(0.75, 1.3),
+        "supply_V": float(nominal.supply_V or 24.0),
+        # the described (unscattered) scales that the effects' magnitudes are drawn against
+        "nominal_coulomb_shaft_Nm": nominal.torque_scale_Nm,
+        "nominal_inertia_shaft_kgm2": nominal.inertia_kgm2,
         "crank_radius_m": 0.016 * scatter(15 / 16, 17 / 16),
         "rod_length_m": 0.050 * scatter(0.8, 1.2),
     }
@@ -93,18 +97,22 @@ class Effect:
         return self.build(lambda key: float(rng.uniform(*self.ranges[key])), rng, baseline)
 
 
+def _motor_side_coulomb(base: dict) -> float:
+    return base["nominal_coulomb_shaft_Nm"] / base["belt_ratio"]
+
+
 def _torque_ripple(u, rng, base):
     return {
-        "once_per_motor_rev_Nm": u("once_per_motor_rev_Nm"),
+        "once_per_motor_rev_Nm": u("once_per_motor_rev_per_motor_coulomb") * _motor_side_coulomb(base),
         "once_per_motor_rev_phase_rad": u("phase_rad"),
-        "cogging_Nm": u("cogging_Nm"),
+        "cogging_Nm": u("cogging_per_motor_coulomb") * _motor_side_coulomb(base),
         "cogging_per_motor_rev": 12,  # the Domel 482.501 has 12 poles (thesis 3.1.2)
         "cogging_phase_rad": u("phase_rad"),
     }
 
 
 def _linkage_dynamics(u, rng, base):
-    return {"reciprocating_mass_kg": u("reciprocating_mass_kg"), "gravity_m_s2": GRAVITY_M_S2}
+    return {"reciprocating_mass_kg": u("reciprocating_mass_kg_per_kgm2") * base["nominal_inertia_shaft_kgm2"], "gravity_m_s2": GRAVITY_M_S2}
 
 
 def _position_friction(u, rng, base):
@@ -150,7 +158,8 @@ def _needle_penetration(u, rng, base):
     low, high = EFFECTS["needle_penetration"].ranges["layers"]
     return {
         "layers": int(rng.integers(int(low), int(high) + 1)),
-        **{key: u(key) for key in ("force_per_layer_N", "layer_thickness_m", "point_length_m", "sliding_fraction",
+        "force_per_layer_N": u("force_per_layer_N_per_Nm") * base["nominal_coulomb_shaft_Nm"],
+        **{key: u(key) for key in ("layer_thickness_m", "point_length_m", "sliding_fraction",
                                    "needle_depth_below_plate_at_bdc_m")},
     }
 
@@ -172,7 +181,7 @@ _PWM_ANCHORS_V = (4.5, 12.0)
 
 
 def _voltage_nonlinearity(u, rng, base):
-    supply = float(thesis()["main_motor"]["operating_voltage_V"][1])
+    supply = base["supply_V"]
     exponent = u("low_duty_loss_exponent")
     errors = (u("error_at_4.5V_fraction"), u("error_at_12V_fraction"))
     # applied - logged = gain x (1 - x) - loss (1 - x)^exponent, x = duty; solved for both anchors
@@ -181,6 +190,17 @@ def _voltage_nonlinearity(u, rng, base):
     gain, loss = np.linalg.solve(matrix, np.array(_PWM_ANCHORS_V) * np.array(errors))
     return {"supply_V": supply, "mid_duty_gain_V": float(gain), "low_duty_loss_V": float(loss),
             "low_duty_loss_exponent": exponent, "error_at_4.5V_fraction": errors[0], "error_at_12V_fraction": errors[1]}
+
+
+COPPER_PER_KELVIN = 0.00393  # temperature coefficient of copper's resistance
+
+
+def _winding_heating(u, rng, base):
+    # a winding's thermal resistance scales with the motor: per watt of a reference loss, the
+    # motor stalled at a tenth of the supply voltage
+    reference_W = (0.1 * base["supply_V"]) ** 2 / base["resistance_ohm"]
+    return {"thermal_resistance_K_per_W": u("kelvin_per_reference_watt") / reference_W,
+            "thermal_time_constant_s": u("thermal_time_constant_s"), "copper_coefficient_per_K": COPPER_PER_KELVIN}
 
 
 def _encoder_eccentricity(u, rng, base):
@@ -193,12 +213,13 @@ EFFECTS: dict[str, Effect] = {
     effect.name: effect
     for effect in (
         Effect("torque_ripple",
-               "motor-angle-periodic torque: once per motor turn (shaft distortion, 8 per arm turn) plus 12-per-turn cogging",
-               {"once_per_motor_rev_Nm": (6e-3, 18e-3), "cogging_Nm": (1e-3, 4e-3), "phase_rad": _PHASE},
+               "motor-angle-periodic torque: once per motor turn (shaft distortion) plus 12-per-turn cogging, "
+               "0.27-0.8 and 0.04-0.18 of the Coulomb level seen at the motor",
+               {"once_per_motor_rev_per_motor_coulomb": (4 / 15, 0.8), "cogging_per_motor_coulomb": (2 / 45, 8 / 45), "phase_rad": _PHASE},
                _torque_ripple),
         Effect("linkage_dynamics",
                "needle-bar slider-crank: inertia varying with arm angle, its gravity torque and the 1/2 J'(theta) omega^2 term",
-               {"reciprocating_mass_kg": (0.05, 0.15)},
+               {"reciprocating_mass_kg_per_kgm2": (28.1025, 84.3075)},
                _linkage_dynamics),
         Effect("position_friction",
                "Coulomb level varying over the arm revolution (first and second harmonic, 12-22 % peak to peak)",
@@ -215,7 +236,7 @@ EFFECTS: dict[str, Effect] = {
                _thermal_drift),
         Effect("needle_penetration",
                "fabric (3-12 layers) resists the needle: piercing force before bottom dead centre, shank friction while it is through",
-               {"layers": (3, 12), "force_per_layer_N": (1.5, 4.0), "layer_thickness_m": (0.25e-3, 0.45e-3),
+               {"layers": (3, 12), "force_per_layer_N_per_Nm": (25 / 3, 200 / 9), "layer_thickness_m": (0.25e-3, 0.45e-3),
                 "point_length_m": (1.2e-3, 2.5e-3), "sliding_fraction": (0.2, 0.5), "needle_depth_below_plate_at_bdc_m": (9e-3, 13e-3)},
                _needle_penetration),
         Effect("belt_compliance",
@@ -226,6 +247,21 @@ EFFECTS: dict[str, Effect] = {
                "the PWM switch's applied voltage differs from the logged one: 3-10 % below it at 4.5 V, 2-6 % above it at 12 V",
                {"error_at_4.5V_fraction": (-0.10, -0.03), "error_at_12V_fraction": (0.02, 0.06), "low_duty_loss_exponent": (2.0, 4.0)},
                _voltage_nonlinearity),
+        Effect("backlash",
+               "free play of 0.5-2 deg (at the shaft) in the belt or gear between motor and shaft: a dead zone the "
+               "motor crosses unloaded whenever the torque through the transmission reverses",
+               {"free_play_rad": (0.009, 0.035), "motor_inertia_fraction": (0.25, 0.4), "resonance_Hz": (60.0, 120.0),
+                "damping_ratio": (0.05, 0.12)},
+               lambda u, rng, base: {key: u(key) for key in ("free_play_rad", "motor_inertia_fraction", "resonance_Hz", "damping_ratio")}),
+        Effect("sensor_delay",
+               "the angle reaches the log 2-15 ms late (a filtering encoder interface, a buffering logger); the machine is unaffected",
+               {"delay_s": (2e-3, 15e-3)},
+               lambda u, rng, base: {"delay_s": u("delay_s")}),
+        Effect("winding_heating",
+               "the copper warms under I^2 R (thermal time constant 20-90 s): its resistance rises at 0.39 %/K, "
+               "the motor gives less torque per volt and less back-emf damping",
+               {"kelvin_per_reference_watt": (25.0, 60.0), "thermal_time_constant_s": (20.0, 90.0)},
+               _winding_heating),
         Effect("encoder_eccentricity",
                "the arm encoder's disc is off-centre: a once-per-revolution angle error of 2.5-8 mrad in the log only",
                {"amplitude_rad": (2.5e-3, 8e-3), "phase_rad": _PHASE},

@@ -1,0 +1,22 @@
+"""The described drive's numbers for identify, diagnose and testbench (TEMPORARY: the
+shipped machine's, from the thesis, until the Machine provides ``drive_nominal()``)."""
+
+from __future__ import annotations
+
+
+def drive_nominal(args=None):
+    """The :class:`~mechanism.dynamics.lumped.DriveNominal` of the machine the verb works on."""
+    from mechanism.api import drive_nominal as build
+
+    return build(None)
+
+
+def thesis_table2(valid_below_V: float | None = None):
+    """The steady-state friction fit of the thesis's Table 2 (its input data) with the
+    shipped motor."""
+    from mechanism.data.reference import thesis
+    from mechanism.sysid.steady_state import table2
+
+    ref = thesis()
+    limit = valid_below_V if valid_below_V is not None else ref["main_motor"]["model_validity_V"][1]
+    return table2(ref["steady_state_speed_table_2"], drive_nominal().motor, limit)

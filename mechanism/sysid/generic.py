@@ -1,0 +1,159 @@
+"""Generic fallback models: what the diagnosis fits when the library leaves a residual well
+above the noise floor. They name no mechanism (``generic = True``, the family in the name);
+their shapes come from the residual's signature (:mod:`mechanism.sysid.residual`):
+
+- ``generic_shaft_torque``: a Fourier torque of the detected orders of the detected shaft;
+- ``generic_speed_friction``: a friction level that is a smooth (piecewise-linear) function
+  of speed;
+- ``generic_change``: Coulomb and viscous friction and the torque gain change at one
+  instant (a smooth step).
+
+Accepted by the same validation rule as library effects.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+from mechanism.dynamics.lumped import DriveNominal, Signals
+from mechanism.sysid.effects import Effect, _amplitude
+from mechanism.sysid.parameters import Parameter
+from mechanism.sysid.residual import Signature
+
+
+class GenericShaftTorque(Effect):
+    name = "generic_shaft_torque"
+    generic = True
+    enters = "torque"
+    linear = "all"
+    feature = "residual"
+
+    def __init__(self, nominal: DriveNominal, shaft: str, ratio: float, orders: list[int]):
+        self.shaft, self.ratio, self.orders = shaft, float(ratio), sorted(set(int(k) for k in orders))
+        super().__init__(nominal)
+        self.meaning = (f"a torque periodic in the {shaft.replace('_', ' ')} angle ({ratio:g} turns per shaft turn), "
+                        f"orders {', '.join(map(str, self.orders))}, constant in speed: a Fourier series with free phases")
+
+    def make_parameters(self, nominal):
+        bound = 25 / 9 * nominal.torque_scale_Nm / self.ratio  # up to ~3x the Coulomb level at the shaft
+        return tuple(p for k in self.orders for p in (
+            Parameter(f"generic_{self.shaft}_order{k}_cos_Nm", 0.0, -bound, bound, f"{self.shaft}-side torque {k}x per turn, cosine", scale=bound / 25),
+            Parameter(f"generic_{self.shaft}_order{k}_sin_Nm", 0.0, -bound, bound, f"{self.shaft}-side torque {k}x per turn, sine", scale=bound / 25)))
+
+    def apply(self, v, s, drive):
+        torque = np.zeros(len(s))
+        for k in self.orders:
+            torque += v[f"generic_{self.shaft}_order{k}_cos_Nm"] * s.harmonic(k * self.ratio, "cos")
+            torque += v[f"generic_{self.shaft}_order{k}_sin_Nm"] * s.harmonic(k * self.ratio, "sin")
+        # virtual work: a torque on a shaft turning ``ratio`` times faster acts ``ratio`` times on the described shaft
+        if self.shaft == "motor":
+            drive.tau_motor_Nm += self.ratio * torque
+        else:
+            drive.tau_arm_Nm += self.ratio * torque
+
+    def words(self, v) -> str:
+        amps = {k: _amplitude(v, f"generic_{self.shaft}_order{k}_cos_Nm", f"generic_{self.shaft}_order{k}_sin_Nm")[0] for k in self.orders}
+        main = max(amps, key=amps.get)
+        return (f"a generic {self.shaft.replace('_', ' ')}-angle torque of order{'s' if len(self.orders) > 1 else ''} "
+                f"{', '.join(map(str, self.orders))} ({amps[main]:.2g} N m at order {main})")
+
+
+class GenericSpeedFriction(Effect):
+    name = "generic_speed_friction"
+    generic = True
+    enters = "friction"
+    linear = "all"
+    feature = "residual"
+    meaning = "a friction level that varies smoothly with speed (piecewise linear between speed knots)"
+    KNOTS = (0.0, 0.05, 0.15, 0.35, 0.65, 1.0)  # fractions of the top speed
+
+    def __init__(self, nominal: DriveNominal, top_speed_rad_s: float):
+        self.top = max(float(top_speed_rad_s), 1e-3)
+        super().__init__(nominal)
+
+    def make_parameters(self, nominal):
+        t = nominal.torque_scale_Nm
+        return tuple(Parameter(f"friction_at_speed{i}_Nm", 0.0, -t, 25 / 9 * t,
+                               f"change of the friction level at {100 * f:.0f}% of top speed", scale=t / 9)
+                     for i, f in enumerate(self.KNOTS))
+
+    def basis(self, s: Signals) -> np.ndarray:
+        def compute():
+            x = np.clip(np.abs(s.velocity_rad_s) / self.top, 0.0, 1.0)
+            knots = np.array(self.KNOTS)
+            return np.stack([np.interp(x, knots, np.eye(len(knots))[i]) for i in range(len(knots))])
+
+        return s.memo("speed_basis", self.top, compute)
+
+    def apply(self, v, s, drive):
+        b = self.basis(s)
+        drive.coulomb_Nm += sum(v[f"friction_at_speed{i}_Nm"] * b[i] for i in range(len(self.KNOTS)))
+        np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
+
+    def words(self, v) -> str:
+        values = [v[f"friction_at_speed{i}_Nm"] for i in range(len(self.KNOTS))]
+        return (f"a generic speed-dependent friction ({values[0]:+.2g} N m at rest, {values[2]:+.2g} N m at "
+                f"{100 * self.KNOTS[2]:.0f}% and {values[-1]:+.2g} N m at top speed)")
+
+
+class GenericChange(Effect):
+    name = "generic_change"
+    generic = True
+    enters = "voltage"
+    linear = ("coulomb_change_fraction", "viscous_change_fraction", "gain_change_fraction")
+    feature = "residual"
+    meaning = "Coulomb and viscous friction and the motor's torque gain change at one instant (a 50 ms step)"
+    WIDTH_S = 0.05
+
+    def __init__(self, nominal: DriveNominal, t_change_s: float, duration_s: float):
+        self.t0, self.duration = float(t_change_s), float(duration_s)
+        super().__init__(nominal)
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter("change_time_s", self.t0, 0.0, self.duration, "when the change happens", scale=1.0),
+            Parameter("coulomb_change_fraction", 0.0, -0.9, 3.0, "relative change of the Coulomb level", scale=0.2),
+            Parameter("viscous_change_fraction", 0.0, -0.9, 3.0, "relative change of the viscous friction", scale=0.5),
+            Parameter("gain_change_fraction", 0.0, -0.5, 0.5, "relative change of the torque per volt", scale=0.05),
+        )
+
+    def step(self, v, s):
+        t0 = v["change_time_s"]
+        return s.memo("change_step", t0, lambda: 0.5 * (1 + np.tanh((s.time_s - t0) / self.WIDTH_S)))
+
+    def apply(self, v, s, drive):
+        h = self.step(v, s)
+        drive.voltage_V = drive.voltage_V * (1.0 + v["gain_change_fraction"] * h)
+        drive.coulomb_Nm *= 1.0 + v["coulomb_change_fraction"] * h
+        drive.viscous_Nm_s *= 1.0 + v["viscous_change_fraction"] * h
+        np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
+        np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
+
+    def grid(self, s, located):
+        return [{"change_time_s": min(max(self.t0 + dt, 0.0), self.duration)} for dt in (-0.5, 0.0, 0.5)]
+
+    def words(self, v) -> str:
+        return (f"a generic change at t = {v['change_time_s']:.1f} s (Coulomb {100 * v['coulomb_change_fraction']:+.0f}%, viscous "
+                f"{100 * v['viscous_change_fraction']:+.0f}%, torque per volt {100 * v['gain_change_fraction']:+.0f}%)")
+
+
+def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[Effect]:
+    """The generic families the signature points to (the speed friction always)."""
+    out: list[Effect] = []
+    if sig.periodic is not None:
+        p = sig.periodic
+        out.append(GenericShaftTorque(nominal, p.shaft, p.ratio, p.orders))
+    if sig.step_time_s is not None and sig.step_share > 0.3:
+        out.append(GenericChange(nominal, sig.step_time_s, float(signals.time_s[-1])))
+    out.append(GenericSpeedFriction(nominal, float(np.percentile(np.abs(signals.velocity_rad_s), 99))))
+    return out
+
+
+def evidence(effect: Effect, values: dict, description: str, before: float, after: float) -> str:
+    gain = 100 * (1 - after / before) if before > 0 else 0.0
+    what = effect.words(values)
+    return (f"Not in the library: {description}; {what} cuts the validation velocity error from {before:.3g} to "
+            f"{after:.3g} rad/s ({gain:.0f}% lower). It names no mechanism.")
+
+
