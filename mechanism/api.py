@@ -122,8 +122,10 @@ def drive_nominal(machine: Machine | None):
     """The machine's lumped drive numbers (:class:`~mechanism.dynamics.lumped.DriveNominal`) that
     identification, diagnosis and the test bench scale from. Until the Machine provides
     ``drive_nominal()``, the shipped machine's come from the thesis (TEMPORARY)."""
-    if machine is not None and hasattr(machine, "drive_nominal"):
-        return machine.drive_nominal()
+    if machine is not None:
+        from mechanism.sysid.nominal import machine_drive_nominal
+
+        return machine_drive_nominal(machine)
     from mechanism.data.reference import thesis
     from mechanism.dynamics.lumped import DriveNominal, MotorConstants
 

@@ -38,7 +38,7 @@ def register(subparsers) -> None:
                              "(effects, rmse, fitted parameters, time per recording; errors of bad recordings) and "
                              "summary.html (each parameter's spread over the fleet, outliers by robust z-score > 3.5)")
     add_batch_arguments(parser, "a fleet of recordings")
-    parser.set_defaults(handler=run, inputs=("recording", "model"), outputs=("json",), output_dirs=("report", "out"))
+    parser.set_defaults(handler=run, inputs=("recording", "model", "machine"), outputs=("json",), output_dirs=("report", "out"))
 
 
 def run(args) -> int:

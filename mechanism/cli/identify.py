@@ -14,6 +14,9 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
                         help="lumped: thesis eq. 15-16 (constant inertia, viscous + Coulomb friction, DC motor through "
                              "the belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
                              "and gravity) with fitted friction (default lumped)")
+    parser.add_argument("--machine", metavar="FILE.toml",
+                        help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
+                             "scales from (default: the shipped Sapphire 870's thesis-identified numbers)")
     parser.add_argument("--model", metavar="MJCF", help="MJCF for --baseline multibody (default: the shipped sewing machine)")
     parser.add_argument("--json", metavar="OUT.json", help=f"write the {what} as JSON (rmse in rad/s of arm velocity)")
     parser.add_argument("--report", metavar="DIR", help="write an HTML report with plots to DIR (DIR/index.html)")
@@ -40,7 +43,7 @@ def register(subparsers) -> None:
                         help="fit Coulomb and viscous friction to the thesis's Table 2 steady-state speeds (no recording)")
     parser.add_argument("--free", metavar="Kt,Ke,R", default="",
                         help="motor constants to fit as well, comma-separated from R, Kt, Ke (default: none)")
-    parser.set_defaults(handler=run, inputs=("recording", "model"), outputs=("json",), output_dirs=("report",))
+    parser.set_defaults(handler=run, inputs=("recording", "model", "machine"), outputs=("json",), output_dirs=("report",))
 
 
 def write_outputs(args, data: dict, report=None) -> None:

@@ -21,6 +21,9 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--effect", metavar="NAME[,NAME]",
                         help="concealed effect(s), comma-separated; 'none' for the clean machine (see --list)")
+    parser.add_argument("--machine", metavar="FILE.toml",
+                        help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
+                             "scales from (default: the shipped Sapphire 870's thesis-identified numbers)")
     parser.add_argument("--seed", type=number(0, 2**32 - 1, integer=True), default=0, metavar="N",
                         help="random seed: machine parameters, effect magnitudes, voltage profile, start angle, noise (default 0)")
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), default=60.0, metavar="S", help="recording length [s] (default 60)")
