@@ -187,9 +187,12 @@ def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster,
     recording = ROOT / "assets" / "recordings" / "torque_ripple_seed3.csv"
     broken = tmp_path / "broken.csv"
     broken.write_text("time,voltage,arm_angle\n0,1,0\n")
+    from mechanism.api import drive_nominal
+
+    nominal = drive_nominal(None)
     result = diagnose_fleet([recording, broken], tmp_path / "out", backend="ray", ray_address=ray_cluster, progress=False,
-                            candidates=["torque_ripple"])
+                            candidates=["torque_ripple"], nominal=nominal)
     assert [row["status"] for row in result.rows] == ["ok", "error"] and result.rows[1]["error"]
-    here = diagnose(read_recording(recording), candidates=["torque_ripple"]).to_json()
+    here = diagnose(read_recording(recording), candidates=["torque_ripple"], nominal=nominal).to_json()
     assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
     assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it

@@ -82,14 +82,14 @@ def test_bad_needle_input(tmp_path):
     with pytest.raises(UserError, match="positive"):
         zigzag.check_move(-5, zigzag.NeedleProfile.slider_crank())
     with pytest.raises(UserError, match="no such file"):
-        zigzag.shipped_needle_profile(tmp_path / "missing.xml")
+        zigzag.machine_needle_profile(model_path=tmp_path / "missing.xml")
 
 
 def test_shipped_machine_needle_table_feeds_the_zigzag_check():
     # The shipped machine's needle rises 23.1 mm above the plate and goes 9.9 mm below it
     # (33 mm stroke): its table must say so, and at 1000 stitches/min a full-width move at
     # 1000 steps/s does not fit the time the needle spends above the plate.
-    needle = zigzag.shipped_needle_profile()
+    needle = zigzag.machine_needle_profile()
     heights = needle(np.linspace(0, 2 * np.pi, 721))
     assert heights.max() == pytest.approx(23.1, abs=0.01) and heights.min() == pytest.approx(-9.9, abs=0.01)
     check = zigzag.check_move(1000, needle, rate=1000)

@@ -66,8 +66,10 @@ def register(subparsers) -> None:
     parser.add_argument("--mode", default="full", metavar="full|half|microN", help="drive mode (default full)")
     parser.add_argument("--needle", default="machine", choices=["machine", "slider-crank"],
                         help="needle height source (default machine; see below)")
+    parser.add_argument("--machine", metavar="FILE.toml",
+                        help="machine description for --needle machine: its tool's height table (default: the shipped sewing machine)")
     parser.add_argument("--machine-model", metavar="MJCF",
-                        help="sewing-machine MJCF for --needle machine (default: the shipped sewing machine)")
+                        help="an MJCF with the description's names instead of its model")
     parser.add_argument("--needle-csv", metavar="FILE", help="needle height table (overrides --needle)")
     parser.add_argument("--crank-mm", type=number(0, 1000, "mm", low_open=True), default=16.5, metavar="MM", help="slider-crank: crank radius [mm] (default 16.5)")
     parser.add_argument("--rod-mm", type=number(0, 1e4, "mm", low_open=True), default=50.0, metavar="MM", help="slider-crank: rod length [mm] (default 50)")
@@ -82,7 +84,7 @@ def register(subparsers) -> None:
     parser.add_argument("--csv", metavar="OUT.csv", help="write the needle path of the stitch run")
     parser.add_argument("--plot", metavar="OUT.png", help="plot the needle path of the stitch run")
     parser.add_argument("--json", metavar="OUT.json", help="write the move check (and stitch summary) as JSON")
-    parser.set_defaults(handler=run, inputs=("needle_csv", "machine_model"), outputs=("csv", "plot", "json"), plots=("plot",))
+    parser.set_defaults(handler=run, inputs=("needle_csv", "machine_model", "machine"), outputs=("csv", "plot", "json"), plots=("plot",))
 
 
 def run(args) -> int:
@@ -102,7 +104,7 @@ def run(args) -> int:
     if args.needle_csv:
         needle = zigzag.NeedleProfile.from_csv(args.needle_csv)
     elif args.needle == "machine":
-        needle = zigzag.shipped_needle_profile(args.machine_model)
+        needle = zigzag.machine_needle_profile(args.machine, args.machine_model)
     else:
         needle = zigzag.NeedleProfile.slider_crank(args.crank_mm, args.rod_mm, args.tdc_height_mm)
     options = dict(width_mm=args.width_mm, rate=args.rate, kind=args.model, mode=args.mode,

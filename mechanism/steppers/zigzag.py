@@ -11,7 +11,7 @@ of zigzag stitches and reports where the needle moved sideways inside the fabric
 The needle height over arm angle is an input (:class:`NeedleProfile`): a function or a
 table of ``needle_z_mm`` against arm angle (0 = needle TDC, z from the needle-plate top,
 positive up). :meth:`NeedleProfile.slider_crank` gives an analytic stand-in;
-:func:`shipped_needle_profile` is the one place where the shipped sewing machine's table
+:func:`machine_needle_profile` is the one place where the shipped sewing machine's table
 plugs in.
 
 Linkage (assumed, the thesis gives none): the needle bar swings linearly with the motor
@@ -143,14 +143,21 @@ class NeedleProfile:
         return exit_angle, entry_angle
 
 
-def shipped_needle_profile(model_path=None) -> NeedleProfile:
-    """The needle height over arm angle of a converted sewing machine (default: the shipped
-    one), from its kinematics (``mechanism.inspection.needle``)."""
-    from mechanism.inspection.needle import needle_motion
+def machine_needle_profile(description=None, model_path=None) -> NeedleProfile:
+    """The tool (needle) height over shaft angle of a described machine (default: the shipped
+    one; ``model_path`` replaces its MJCF), from its kinematics (``mechanism.inspection.needle``)."""
+    from dataclasses import replace
+    from pathlib import Path
 
-    motion = needle_motion(model_path, samples=720)
+    from mechanism.inspection.needle import needle_motion
+    from mechanism.machine.machine import Machine, resolve_description
+
+    description = resolve_description(description)
+    if model_path is not None:
+        description = replace(description, model=Path(model_path))
+    motion = needle_motion(Machine(description), samples=720)
     return NeedleProfile.from_table(np.deg2rad(motion.arm_angle_deg), motion.needle_z_mm,
-                                    "shipped sewing machine" if model_path is None else str(model_path))
+                                    f"machine {description.name}" if model_path is None else str(model_path))
 
 
 def arm_period_s(stitches_per_minute: float) -> float:
