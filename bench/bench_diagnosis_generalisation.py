@@ -96,8 +96,8 @@ def run(variants, seeds, effects=None, pairs=True, duration=60.0, cache=None, ou
     rows = []
     header = f"{'variant':13s} {'seed':>4s} {'truth (flavour)':58s} {'detect':>6s} {'found':40s} {'ratio':>6s} {'s':>5s}"
     print(header)
-    for variant, seed, effects, flavours in cases(variants, seeds, effects, pairs):
-        z, key = _load_or_make(cache, variant, seed, effects, flavours, duration)
+    for variant, seed, case_effects, flavours in cases(variants, seeds, effects, pairs):
+        z, key = _load_or_make(cache, variant, seed, case_effects, flavours, duration)
         truth = json.loads(str(z["truth"]))
         current = z["current"] if z["current"].size else None
         rec = make_recording(z["time"], z["voltage"], z["angle"], current, source=key)

@@ -120,11 +120,13 @@ def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
 
 def drive_nominal(machine: Machine | None):
     """The machine's lumped drive numbers (:class:`~mechanism.dynamics.lumped.DriveNominal`) that
-    identification, diagnosis and the test bench scale from. Until the Machine provides
-    ``drive_nominal()``, the shipped machine's come from the thesis (TEMPORARY)."""
-    if machine is not None:
-        from mechanism.sysid.nominal import machine_drive_nominal
+    identification, diagnosis and the test bench scale from: a machine's from its description
+    and CAD model (mechanism.sysid.nominal); without one, the shipped Sapphire 870's lumped
+    numbers as the thesis identified them (its whole machine, parts the CAD lacks included),
+    on which the earlier issues' recordings and tests were calibrated."""
+    from mechanism.sysid.nominal import machine_drive_nominal
 
+    if machine is not None:
         return machine_drive_nominal(machine)
     from mechanism.data.reference import thesis
     from mechanism.dynamics.lumped import DriveNominal, MotorConstants
@@ -137,8 +139,7 @@ def drive_nominal(machine: Machine | None):
     return DriveNominal(constants, inertia_kgm2=ident["total_inertia_kgm2"] * n**2,
                         coulomb_shaft_Nm=ident["kinetic_friction_arm_Nm"],
                         viscous_shaft_Nm_s_per_rad=ident["viscous_cold_Nm_s_per_rad"] * n**2,
-                        joint_ratios={"lower_shaft": float(mech["arm_to_lower_shaft_ratio"]),
-                                      "hook": float(mech["arm_to_lower_shaft_ratio"] * mech["lower_shaft_to_hook_ratio"])},
+                        joint_ratios=machine_drive_nominal(load_machine()).joint_ratios,
                         supply_V=float(motor["operating_voltage_V"][1]))
 
 

@@ -424,7 +424,7 @@ def creo_arm(folder: Path) -> Built:
                  Inst("5", doc.part("BASE_prt", 4.4e10, (0, 0, 6.4), (9.2e14, 9.2e14, 1.5e15, 0, 0, 0), name="BASE",
                                     geometry="base_prt.step"),
                       name="BASE", attrs=' grounded="true"')]
-    for i, (uid, part, _, axis, point) in enumerate(CREO_CHAIN):
+    for i, (uid, part, _, _axis, point) in enumerate(CREO_CHAIN):
         mass = 2.5e11 / (i + 1)
         entity = doc.part(f"{part}_prt", mass, (300.0, 10.0 * i, -50.0), (mass * 4e4, mass * 1.6e5, mass * 1.9e5, 0, mass * 2e3, 0),
                           name=part, geometry=f"{part.lower()}_prt.step")

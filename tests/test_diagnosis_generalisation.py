@@ -32,7 +32,7 @@ def test_truth_steady_speed_matches_table2_cold(variant):
     v = VARIANTS[variant]
     rows = thesis()["steady_state_speed_table_2"]["rows"]
     m = thesis_machine(VARIANTS["event_long_L"])  # thesis Kt 0.017, Ke 0.021
-    for duty, volts, _, _, rpm_cold, *_ in rows[:5]:
+    for _, volts, _, _, rpm_cold, *_ in rows[:5]:
         u = np.full(1500, volts)
         _, w, _ = simulate_truth(m, {}, u, v)
         rpm = w[-300:].mean() * 60 / (2 * math.pi)

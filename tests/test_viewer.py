@@ -1,6 +1,5 @@
 """The headless meshcat viewer: a self-contained HTML animation, checked in a real browser."""
 
-import os
 import shutil
 import subprocess
 import tempfile

@@ -372,7 +372,6 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
     j_total = m["J_motor_kgm2"]  # motor side, everything reflected
     d_total = m["viscous_motor_Nm_s"]
     fc_arm = m["coulomb_arm_Nm"]
-    has = params.__contains__
 
     # -- voltage the motor sees
     vn = params.get("voltage_nonlinearity")

@@ -81,7 +81,7 @@ class _Reader:
                 self._body(body, path, counts)
             for ground in _children(level, "grounds", "Ground"):
                 self._ground(ground)
-        for path, level in levels:
+        for _, level in levels:
             joints = level.find("joints")
             for element in list(joints) if joints is not None else []:
                 if element.tag == "SimpleJoint":

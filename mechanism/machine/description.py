@@ -307,7 +307,8 @@ def _kind_name(key: Key) -> str:
         return " \\| ".join(f'`"{c}"`' for c in key.choices)
     if key.kind is list:
         return f"list of {'numbers' if key.item is float else 'text'}"
-    return {float: "number", int: "whole number", str: "text"}.get(key.kind, str(key.kind))  # type: ignore[call-overload]
+    names: dict[object, str] = {float: "number", int: "whole number", str: "text"}
+    return names.get(key.kind, str(key.kind))
 
 
 def _range(key: Key) -> str:

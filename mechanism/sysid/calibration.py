@@ -96,7 +96,7 @@ def fit_static(amplitude, phase_rad, description=None) -> tuple[float, float]:
 
     static = (low + high) / 2
     for _ in range(4):  # alternate: the amplitude fixes the ratio, the level fixes the scale
-        a_s = brentq(lambda a: (lambda lo_hi: lo_hi[1] / lo_hi[0] - high / low)(spread(static, a)), 0.0, 0.5)
+        a_s = brentq(lambda a, level=static: (lambda lo_hi: lo_hi[1] / lo_hi[0] - high / low)(spread(level, a)), 0.0, 0.5)
         lo, _ = spread(static, a_s)
         static *= low / lo
     return static, a_s
