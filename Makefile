@@ -24,7 +24,7 @@ lint: $(STAMP)
 test: lint
 	$(PY) -m pytest -q
 
-# the same without the tests marked slow (about a minute)
+# the same without the tests marked slow
 test-fast: lint
 	$(PY) -m pytest -q -m "not slow"
 
