@@ -3,7 +3,7 @@
 ``<export stem>.couplings.json`` next to the export (format in docs/architecture.md)::
 
     {"format": "mechanism-couplings/1",
-     "couplings": [{"name": "motor_belt", "kind": "belt", "input": "motor", "output": "arm_shaft",
+     "couplings": [{"name": "motor_belt", "kind": "belt", "input": "MOTOR", "output": "MAIN_SHAFT",
                     "ratio": 8.0, "offset_deg": 0.0}]}
 
 ``q_input = ratio * q_output + offset``, joint positions measured from the assembly pose.

@@ -28,9 +28,11 @@ class MultibodyBaseline(LumpedBaseline):
     def __init__(self, nominal, free: tuple[str, ...] = (), model_path=None):
         super().__init__(nominal, free)
         from mechanism.kinematics.linkage import compute_tables
+        from mechanism.machine.machine import resolve_description
         from mechanism.machine.models import load_model
 
-        self.tables = compute_tables(load_model(model_path), "arm_shaft", "needle_tip")
+        roles = resolve_description(None)  # the shipped machine's roles; model_path swaps its MJCF
+        self.tables = compute_tables(load_model(model_path), roles.shaft_joint, roles.zero_site)
         n = nominal.ratio
         mean_motor_side = self.tables.mean_inertia_kgm2 / n**2
         lumped = {p.name: p for p in self.parameters}
