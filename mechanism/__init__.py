@@ -21,9 +21,9 @@ __version__ = "0.2.0"
 
 _LAZY = {name: "mechanism.api" for name in (
     "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
-    "conversion_summary", "convert", "diagnose", "diagnosis_report", "identify", "inspect", "load_machine",
-    "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table", "shipped_machines", "simulate",
-    "view", "write_bench_recording", "write_needle_csv", "write_table")}
+    "conversion_summary", "convert", "diagnose", "diagnosis_report", "driven_inertia_kgm2", "identify", "inspect",
+    "load_machine", "needle_motion", "plot_needle", "plot_simulation", "plot_sweep", "probe", "read_table",
+    "shipped_machines", "simulate", "sweep", "view", "write_bench_recording", "write_needle_csv", "write_table")}
 _LAZY["read_description"] = "mechanism.machine.description"
 
 __all__ = ["UserError", "__version__", *sorted(_LAZY)]

@@ -76,6 +76,36 @@ def clearance(machine: Machine | None = None, pairs: str | Sequence[str] = (), *
                            driver=machine.shaft_joint)
 
 
+def sweep(machine: Machine | None, variants: str | os.PathLike | dict, *, voltage_V: float = 12.0,
+          duration_s: float = 2.0, workers: int = 1, backend: str = "local", progress: bool = False, **options):
+    """Dynamic design variants (a variants file or its JSON document as a dict: flywheel
+    ``inertia:<joint>_kgm2``, counterweight ``mass:<part>_kg``, ``motor:<key>``, ``friction:<joint>:<key>``,
+    ``voltage_V``, ...), each run from rest on the reduced model; ``.table()`` gives one row per
+    variant with speed, ripple, settling, current. Options: ray_address, journal, resume."""
+    from mechanism.inspection.sweep import SweepOptions, run_sweep
+    from mechanism.inspection.variants import read_variants, variants_from_document
+
+    machine = machine or load_machine()
+    presets = machine.description.variant_presets
+    variant_set = variants_from_document(variants, presets) if isinstance(variants, dict) else read_variants(variants, presets)
+    return run_sweep(machine, variant_set, SweepOptions(voltage_V=voltage_V, duration_s=duration_s, layers=machine.config.layers),
+                     workers=workers, backend=backend, progress=progress, **options)
+
+
+def plot_sweep(result, path: str | os.PathLike, x: str | None = None, group: str | None = None) -> Path:
+    """Speed, ripple, settling time and peak current of a sweep against one parameter, a line per value of another."""
+    from mechanism.inspection.sweep import plot_sweep as run
+
+    return run(result, path, x, group)
+
+
+def driven_inertia_kgm2(machine: Machine | None = None) -> float:
+    """The shaft side's own inertia (without the motor rotor's share): the scale of a flywheel."""
+    from mechanism.inspection.sweep import driven_inertia_kgm2 as run
+
+    return run(machine or load_machine())
+
+
 def view(machine: Machine | None = None, html: str | os.PathLike | None = None, **options) -> dict:
     """A self-contained meshcat animation of one shaft revolution (options: frames,
     probe_names, pairs, voltage, duration_s, recording, serve)."""
@@ -152,6 +182,6 @@ def diagnosis_report(result, folder: str | os.PathLike) -> Path:
 
 __all__ = [
     "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
-    "conversion_summary", "convert", "diagnose", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
-    "shipped_machines", "simulate", "view", "write_needle_csv", "write_table",
+    "conversion_summary", "convert", "diagnose", "driven_inertia_kgm2", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
+    "plot_sweep", "shipped_machines", "simulate", "sweep", "view", "write_needle_csv", "write_table",
 ]

@@ -24,6 +24,7 @@ DEMO_EFFECT = "torque_ripple"  # the concealed effect of the demo's bench record
 DEMO_SEED = 3
 STEPS_V = (np.array([0.0, 1.5, 3.0, 4.5, 5.5]), np.array([0.2, 0.5, 0.8, 0.0, 0.3]))  # fractions of the top voltage
 TOP_VOLTAGE_V = 24.0
+FLYWHEEL_MULTIPLE, FLYWHEEL_STEPS, FLYWHEEL_RUN_S = 4.0, 9, 3.0  # added inertia up to 4x the shaft side's own
 
 
 class _Steps:
@@ -95,6 +96,31 @@ def _simulate(machine: mechanism.Machine, out: Path) -> dict:
     return facts
 
 
+def _flywheel(machine: mechanism.Machine, out: Path) -> dict | None:
+    """The thesis's open question: what a bigger flywheel on the shaft buys (less speed ripple)
+    and costs (a slower start), at the machine's described voltages."""
+    voltages = machine.description.section("inspect").get("flywheel_voltages_V")
+    if not voltages:
+        return None
+    own = mechanism.driven_inertia_kgm2(machine)
+    document = {"parameters": {"added_inertia_kgm2": f"inertia:{machine.shaft_joint}_kgm2", "voltage_V": "voltage_V"},
+                "sweep": {"added_inertia_kgm2": list(np.linspace(0.0, FLYWHEEL_MULTIPLE * own, FLYWHEEL_STEPS)),
+                          "voltage_V": list(voltages)}}
+    result = mechanism.sweep(machine, document, duration_s=FLYWHEEL_RUN_S)
+    rows = result.table()[1:]  # the grid; row 0 is the nominal machine at the default voltage
+    mechanism.write_table(out / "flywheel.csv", {key: [row[key] for row in rows] for key in rows[0] if key not in ("variant", "note")},
+                          comments=[f"flywheel on {machine.shaft_joint}: added inertia 0-{FLYWHEEL_MULTIPLE:g}x the shaft side's own "
+                                    f"({own:.3g} kg m^2), each run {FLYWHEEL_RUN_S:g} s from rest"])
+    mechanism.plot_sweep(result, out / "flywheel.png", x="added_inertia_kgm2", group="voltage_V")
+    by_voltage = {}
+    for volts in voltages:
+        mine = [row for row in rows if row["voltage_V"] == volts]
+        bare, biggest = mine[0], mine[-1]
+        by_voltage[f"{volts:g}"] = {"ripple_pp_rad_s": [bare["ripple_pp_rad_s"], biggest["ripple_pp_rad_s"]],
+                                    "settling_s": [bare["settling_s"], biggest["settling_s"]]}
+    return {"own_inertia_kgm2": own, "multiple": FLYWHEEL_MULTIPLE, "by_voltage_V": by_voltage}
+
+
 def _diagnose(machine: mechanism.Machine, out: Path) -> dict:
     recording = out / f"bench_{DEMO_EFFECT}_seed{DEMO_SEED}.csv"
     truth = mechanism.write_bench_recording(machine, [DEMO_EFFECT], DEMO_SEED, recording)
@@ -118,6 +144,8 @@ def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
     facts["tool"] = _tool(machine, out)
     step(f"{name}: simulate (steady speeds against measurements, voltage steps, a sewing run)")
     facts["simulation"] = _simulate(machine, out)
+    step(f"{name}: flywheel study (speed ripple and settling against added shaft inertia)")
+    facts["flywheel"] = _flywheel(machine, out)
     step(f"{name}: probes, clearance with a faulty variant, 3-D animation")
     facts["inspection"] = [p.name for p in mechanism.inspect(machine, out)]
     step(f"{name}: diagnose a virtual bench recording with a concealed {DEMO_EFFECT}")
@@ -129,7 +157,7 @@ def run(out: str | os.PathLike = "out", machines: list[str] | None = None) -> Pa
     """Run every step for every shipped machine into ``out`` (replaced as a whole at the end)."""
     out = Path(out)
     names = machines or mechanism.shipped_machines()
-    step = _Steps(5 * len(names))
+    step = _Steps(6 * len(names))
     facts = {}
     with mechanism.atomic_dir(out) as work:
         for name in names:
@@ -176,6 +204,14 @@ def _section(f: dict) -> str:
     if "sewing_mean_rpm" in sim:
         parts.append(f"<p>Sewing 12 layers at 7 V: mean {sim['sewing_mean_rpm']:.0f} rpm, a dip each time the needle "
                      f"pierces. {link('sewing_12_layers.csv')}</p>{img('sewing_12_layers.png')}")
+    if f.get("flywheel"):
+        fly = f["flywheel"]
+        rows = "".join(f"<tr><td>{v}</td><td>{d['ripple_pp_rad_s'][0]:.2f}</td><td>{d['ripple_pp_rad_s'][1]:.2f}</td>"
+                       f"<td>{d['settling_s'][0]:.2f}</td><td>{d['settling_s'][1]:.2f}</td></tr>" for v, d in fly["by_voltage_V"].items())
+        parts.append(f"<h3>A bigger flywheel?</h3><p>Inertia added on the shaft, up to {fly['multiple']:g}x the shaft side's own "
+                     f"({fly['own_inertia_kgm2']:.3g} kg m&sup2;): the speed ripple falls, the start takes longer.</p>"
+                     "<table><tr><th>motor V</th><th>ripple p-p rad/s, bare</th><th>with flywheel</th><th>settling s, bare</th>"
+                     f"<th>with flywheel</th></tr>{rows}</table><p>{link('flywheel.csv')}</p>{img('flywheel.png')}")
     if f["inspection"]:
         parts.append("<h3>Probes and clearance</h3><p>" + " &middot; ".join(link(p) for p in f["inspection"] if not p.endswith(".png")) + "</p>")
         parts += [img(p) for p in f["inspection"] if p.endswith(".png")]

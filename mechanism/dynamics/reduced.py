@@ -95,13 +95,15 @@ class ReducedModel:
             return supply.current(motor, voltage, motor_velocity)
         return (np.asarray(voltage) - motor.back_emf_V_s_rad * np.asarray(motor_velocity)) / motor.resistance_ohm
 
-    def static_friction(self, angle) -> float:
-        """Break-away torque at the arm [N m] at rest at ``angle``."""
-        return float(sum(abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
-                         for (r, _, law), s in zip(self._friction, self._static_scales)))
+    def static_friction(self, angle):
+        """Break-away torque at the arm [N m] at rest at ``angle`` (a float, or an array for an array)."""
+        total = sum((abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
+                     for (r, _, law), s in zip(self._friction, self._static_scales)), np.zeros(np.shape(angle)))
+        return float(total) if np.ndim(angle) == 0 else total
 
-    def generalized_force(self, angle, velocity, voltage) -> float:
-        """Everything but inertia: motor - ½J'ω² - G - friction - fabric [N m at the arm]."""
+    def generalized_force(self, angle, velocity, voltage):
+        """Everything but inertia: motor - ½J'ω² - G - friction - fabric [N m at the arm]
+        (a float, or an array when any argument is one)."""
         t = self.tables
         motor = self.machine.motor
         rm = periodic_interp(self._motor_ratio, angle)
@@ -114,7 +116,7 @@ class ReducedModel:
         if self.machine.fabric.layers:
             dz = periodic_interp(self._needle_dz, angle)
             force += dz * self.machine.fabric.force(periodic_interp(self._needle_depth, angle), dz * velocity)
-        return float(force)
+        return float(force) if np.ndim(force) == 0 else force
 
     def simulate(self, voltage: VoltageProfile | float, duration_s: float, start_angle_rad: float = 0.0,
                  sample_rate_hz: float = 1000.0, substeps: int = 2, start_velocity_rad_s: float = 0.0) -> SimulationResult:

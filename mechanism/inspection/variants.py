@@ -16,6 +16,18 @@ Its target says what it changes (the same grammar in JSON and as a CSV column na
                                   it within their body, along the part frame's axis (a needle set
                                   higher in its bar).
 
+Dynamic targets change what the machine weighs and drives rather than its shape; only
+``mechanism sweep`` (:mod:`mechanism.inspection.sweep`) takes them:
+
+``inertia:<joint>_kgm2``          inertia added about the joint's axis on its child body (a flywheel)
+``mass:<part>_kg``                a point mass added at the part's frame, moved with the part by
+                                  ``part:<name>:<axis>_mm`` (a counterweight)
+``motor:<key>``, ``supply:<key>``, ``tool:<key>``, ``friction:<joint>:<key>``
+                                  a numeric value of the machine description, as an offset
+``voltage_V``, ``duty_percent``, ``layers``
+                                  the operating point, absolute (motor voltage, PWM duty through the
+                                  described supply, fabric layers)
+
 Several targets joined by ``+`` change together by the same value. Presets for the sewing
 machine's description (``[variant_presets]``) names the usual ones. The edits are made on
 the compiled model's fields (``body_pos``, ``eq_data``, ``geom_pos``, ``site_pos``), which are
@@ -51,10 +63,14 @@ from mechanism.errors import UserError, close_matches
 
 FORMAT = "mechanism-variants/1"
 MAX_VARIANTS = 1_000_000
+CONFIRM_VARIANTS = 100_000  # more than this needs the user's explicit yes (--yes)
 EDITED_FIELDS = ("body_pos", "eq_data", "geom_pos", "site_pos")
 
 
 _TARGET = re.compile(r"(coupling|joint|body|part):([^:]+):([A-Za-z0-9_.-]+?)_(deg|mm)")
+_DYNAMIC = re.compile(r"inertia:.+_kgm2|mass:.+_kg|(motor|supply|tool):[A-Za-z0-9_]+|friction:[^:]+:[A-Za-z0-9_]+"
+                      r"|voltage_V|duty_percent|layers")
+OPERATING_POINT = ("voltage_V", "duty_percent", "layers")  # absolute values, not offsets
 
 
 @dataclass(frozen=True)
@@ -64,8 +80,16 @@ class Parameter:
     name: str
     target: str
 
+    @property
+    def dynamic(self) -> bool:
+        """A dynamic target (mass, inertia, description value, operating point): for sweeps only."""
+        return bool(_DYNAMIC.fullmatch(self.target))
+
     def check(self, model: mujoco.MjModel) -> None:
         """Raise UserError if the target does not exist in ``model``."""
+        if self.dynamic:
+            raise UserError(f"parameter {self.name}: {self.target!r} is a dynamic target (mass, inertia, a "
+                            "description value, the operating point): `mechanism sweep` takes it, geometric checks do not")
         apply_parameter(model, model, self, 0.0, check_only=True)
 
 
@@ -74,7 +98,9 @@ def _parse_target(target: str) -> tuple[str, str, str, str]:
     if not match:
         raise UserError(
             f"parameter target {target!r}: expected coupling:<name>:<joint>_deg, joint:<name>:<x|y|z|radial>_mm, "
-            "body:<name>:<x|y|z>_mm or part:<name>:<x|y|z>_mm, or a preset of the machine's description"
+            "body:<name>:<x|y|z>_mm or part:<name>:<x|y|z>_mm, a dynamic target (inertia:<joint>_kgm2, "
+            "mass:<part>_kg, motor:<key>, supply:<key>, tool:<key>, friction:<joint>:<key>, voltage_V, duty_percent, "
+            "layers), or a preset of the machine's description"
         )
     return match.group(1), match.group(2), match.group(3), match.group(4)
 
@@ -82,7 +108,9 @@ def _parse_target(target: str) -> tuple[str, str, str, str]:
 def parameter(name: str, target: str | None = None, presets: dict[str, str] | None = None) -> Parameter:
     """A parameter from a target string (several joined by ``+`` change together) or a
     preset name."""
-    target = target or (presets or {}).get(name, name)
+    target = (target or (presets or {}).get(name, name)).strip()
+    if _DYNAMIC.fullmatch(target):
+        return Parameter(name, target)
     for single in target.split("+"):
         _parse_target(single)
     return Parameter(name, target)
@@ -236,7 +264,7 @@ class VariantSet:
                 raise UserError(f"{self.source}: {exc}") from None
 
 
-def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None) -> VariantSet:
+def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None, confirmed: bool = True) -> VariantSet:
     """A variants file.
 
     JSON::
@@ -253,8 +281,11 @@ def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None
     ``parameters`` maps each name to its target (``null`` for a preset name); every value
     is an offset from nominal in the target's unit. Rows: the nominal design first, then
     the explicit variants, then every grid point combined with every Monte Carlo sample
-    (grid only, samples only, or grid x samples). CSV: a header of parameter names (presets
-    or targets) and one row per variant; an optional ``name`` column labels the rows.
+    (grid only, samples only, or grid x samples). ``"method": "lhs"`` in ``samples`` draws a
+    Latin hypercube instead of independent samples. A seed is required: a study must be
+    repeatable. CSV: a header of parameter names (presets or targets) and one row per
+    variant; an optional ``name`` column labels the rows. Without ``confirmed``, more than
+    ``CONFIRM_VARIANTS`` variants are refused (the CLI's ``--yes``), before any is built.
     """
     path = Path(path)
     label = f"variants file {path}"
@@ -270,13 +301,27 @@ def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None
             document = json.loads(text)
         except json.JSONDecodeError as exc:
             raise UserError(f"{label}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-        variants = _from_json(document, label, presets)
+        variants = _from_json(document, label, presets, MAX_VARIANTS if confirmed else CONFIRM_VARIANTS)
     else:
         variants = _from_csv(text, label, presets)
     variants.source = label
-    if len(variants) > MAX_VARIANTS:
-        raise UserError(f"{label}: {len(variants)} variants, at most {MAX_VARIANTS} allowed")
+    _check_count(len(variants), label, MAX_VARIANTS if confirmed else CONFIRM_VARIANTS)
     return variants
+
+
+def variants_from_document(document: dict, presets: dict[str, str] | None = None, confirmed: bool = True,
+                           label: str = "variants") -> VariantSet:
+    """A variants document already in memory (the JSON form of :func:`read_variants`)."""
+    variants = _from_json(document, label, presets, MAX_VARIANTS if confirmed else CONFIRM_VARIANTS)
+    variants.source = label
+    return variants
+
+
+def _check_count(count: int, label: str, allowed: int) -> None:
+    if count > MAX_VARIANTS:
+        raise UserError(f"{label}: {count} variants requested, at most {MAX_VARIANTS} allowed")
+    if count > allowed:
+        raise UserError(f"{label}: {count} variants requested; more than {allowed} need --yes to confirm")
 
 
 def _number(value, where: str) -> float:
@@ -285,7 +330,7 @@ def _number(value, where: str) -> float:
     return float(value)
 
 
-def _from_json(document, label: str, presets: dict[str, str] | None = None) -> VariantSet:
+def _from_json(document, label: str, presets: dict[str, str] | None = None, allowed: int = MAX_VARIANTS) -> VariantSet:
     if not isinstance(document, dict):
         raise UserError(f"{label}: expected a JSON object")
     if document.get("format", FORMAT) != FORMAT:
@@ -338,8 +383,7 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None) -> V
                 values[key] = _number(value, f"{where}.{key}")
         rows.append((name, values))
     count = len(rows) + math.prod(len(v) for _, v in grid_axes) * max(len(draws), 1) if grid_axes else len(rows) + len(draws)
-    if count > MAX_VARIANTS:  # checked from the request, before the grid is built
-        raise UserError(f"{label}: {count} variants, at most {MAX_VARIANTS} allowed")
+    _check_count(count, label, allowed)  # from the request, before the grid is built
     grid = [dict(zip([n for n, _ in grid_axes], combo)) for combo in itertools.product(*[v for _, v in grid_axes])] if grid_axes else []
     if grid and draws:
         combined = [({**g, **{k: g.get(k, 0.0) + v for k, v in d.items()}}) for g in grid for d in draws]
@@ -351,7 +395,9 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None) -> V
     names = list(params)
     if not names:
         raise UserError(f"{label}: no parameters")
-    values = np.array([[row.get(n, 0.0) for n in names] for _, row in rows], dtype=float)
+    # an operating point left out of a row is the run's default (NaN), not an offset of 0
+    missing = [math.nan if params[n].target in OPERATING_POINT else 0.0 for n in names]
+    values = np.array([[row.get(n, gap) for n, gap in zip(names, missing)] for _, row in rows], dtype=float)
     return VariantSet([params[n] for n in names], [r[0] for r in rows], values)
 
 
@@ -369,39 +415,56 @@ def _sweep_values(spec, where: str) -> list[float]:
 
 
 def _draw_samples(samples, where: str, param) -> list[dict[str, float]]:
-    if not isinstance(samples, dict) or set(samples) - {"count", "seed", "tolerances"}:
-        raise UserError(f"{where}: expected {{count, seed, tolerances}}")
+    if not isinstance(samples, dict) or set(samples) - {"count", "seed", "tolerances", "method"}:
+        raise UserError(f"{where}: expected {{count, seed, tolerances, method}}")
     count = samples.get("count")
     if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_VARIANTS:
         raise UserError(f"{where}: count must be an integer between 1 and {MAX_VARIANTS}")
-    seed = samples.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise UserError(f"{where}: seed must be a non-negative integer")
+    method = samples.get("method", "random")
+    if method not in ("random", "lhs"):
+        raise UserError(f"{where}: method must be 'random' (independent draws) or 'lhs' (Latin hypercube)")
     tolerances = samples.get("tolerances")
     if not isinstance(tolerances, dict) or not tolerances:
         raise UserError(f"{where}: 'tolerances' must map parameter names to distributions")
-    rng = np.random.default_rng(seed)
-    columns = {}
+    laws = {}
     for name, dist in tolerances.items():
         param(name, where)
-        at = f"{where}: {name}"
-        if not isinstance(dist, dict) or dist.get("dist") not in ("normal", "uniform"):
-            raise UserError(f"{at}: expected {{\"dist\": \"normal\", \"std\": ...}} or {{\"dist\": \"uniform\", \"low\": ..., \"high\": ...}}")
-        if dist["dist"] == "normal":
-            if set(dist) - {"dist", "mean", "std"} or "std" not in dist:
-                raise UserError(f"{at}: a normal distribution takes mean (default 0) and std")
-            std = _number(dist["std"], at)
-            if std < 0:
-                raise UserError(f"{at}: std must be >= 0")
-            columns[name] = rng.normal(_number(dist.get("mean", 0.0), at), std, count)
-        else:
-            if set(dist) != {"dist", "low", "high"}:
-                raise UserError(f"{at}: a uniform distribution takes low and high")
-            low, high = _number(dist["low"], at), _number(dist["high"], at)
-            if high < low:
-                raise UserError(f"{at}: high must be >= low")
-            columns[name] = rng.uniform(low, high, count)
+        laws[name] = _distribution(dist, f"{where}: {name}")
+    seed = samples.get("seed")
+    if seed is None:
+        raise UserError(f"{where}: a seed is required (\"seed\": 1, say), so that the same file gives the same variants")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"{where}: seed must be a non-negative integer")
+    rng = np.random.default_rng(seed)
+    if method == "lhs":
+        from scipy.stats import qmc
+
+        uniform = qmc.LatinHypercube(d=len(laws), rng=rng).random(count)
+    else:
+        uniform = rng.random((count, len(laws)))
+    columns = {name: law(uniform[:, i]) for i, (name, law) in enumerate(laws.items())}
     return [{name: float(values[i]) for name, values in columns.items()} for i in range(count)]
+
+
+def _distribution(dist, at: str) -> Callable[[np.ndarray], np.ndarray]:
+    """The inverse cumulative distribution of a tolerance: uniform [0, 1) draws -> values."""
+    if not isinstance(dist, dict) or dist.get("dist") not in ("normal", "uniform"):
+        raise UserError(f"{at}: expected {{\"dist\": \"normal\", \"std\": ...}} or {{\"dist\": \"uniform\", \"low\": ..., \"high\": ...}}")
+    if dist["dist"] == "normal":
+        if set(dist) - {"dist", "mean", "std"} or "std" not in dist:
+            raise UserError(f"{at}: a normal distribution takes mean (default 0) and std")
+        mean, std = _number(dist.get("mean", 0.0), at), _number(dist["std"], at)
+        if std < 0:
+            raise UserError(f"{at}: std must be >= 0")
+        from scipy.special import ndtri
+
+        return lambda u: mean + std * ndtri(np.clip(u, 1e-12, 1 - 1e-12))
+    if set(dist) != {"dist", "low", "high"}:
+        raise UserError(f"{at}: a uniform distribution takes low and high")
+    low, high = _number(dist["low"], at), _number(dist["high"], at)
+    if high < low:
+        raise UserError(f"{at}: high must be >= low")
+    return lambda u: low + (high - low) * u
 
 
 def _from_csv(text: str, label: str, presets: dict[str, str] | None = None) -> VariantSet:
@@ -431,7 +494,8 @@ def _from_csv(text: str, label: str, presets: dict[str, str] | None = None) -> V
         body = [row for row in csv.reader(io.StringIO("\n".join(lines[1:]))) if any(c.strip() for c in row)]
         labels = [row[column].strip() or labels[i] for i, row in enumerate(body)]
     values = np.column_stack([table[n] for n in names])
-    return VariantSet(params, ["nominal", *labels], np.vstack([np.zeros(len(names)), values]))
+    nominal = [math.nan if p.target in OPERATING_POINT else 0.0 for p in params]
+    return VariantSet(params, ["nominal", *labels], np.vstack([nominal, values]))
 
 
 # -- batch evaluation -----------------------------------------------------------------------

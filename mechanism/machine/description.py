@@ -141,6 +141,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "required_clearance_mm": _non_negative("smallest acceptable clearance [mm]", 1e3),
         "probe_speed_rpm": _positive("shaft speed of the demo's probe cycle [rpm]", high=1e5),
         "mistimed_variant": _name("the demo's faulty design variant, 'parameter=offset'"),
+        "flywheel_voltages_V": Key(list, "motor voltages of the demo's flywheel sweep (inertia added on the shaft)", item=float),
     },
 }
 # Sections keyed by joint name; their keys are FRICTION_KEYS.
@@ -188,7 +189,7 @@ def _fail(source: str, section: str, key: str | None, reason: str) -> UserError:
     return UserError(f"machine description {source}: {place}: {reason}")
 
 
-def _check_value(source: str, section: str, name: str, key: Key, value: Any) -> Any:
+def check_value(source: str, section: str, name: str, key: Key, value: Any) -> Any:
     def bad(reason: str) -> UserError:
         return _fail(source, section, name, reason)
 
@@ -197,7 +198,7 @@ def _check_value(source: str, section: str, name: str, key: Key, value: Any) -> 
     if key.kind is list:
         if not isinstance(value, list):
             raise bad(f"expected a list, got {type(value).__name__}")
-        return [_check_value(source, section, f"{name}[{i}]", Key(key.item or str, key.doc), v) for i, v in enumerate(value)]
+        return [check_value(source, section, f"{name}[{i}]", Key(key.item or str, key.doc), v) for i, v in enumerate(value)]
     if not isinstance(value, key.kind) or isinstance(value, bool):
         raise bad(f"expected {'a number' if key.kind in (float, int) else 'text'}, got {value!r}")
     if isinstance(value, float) and not math.isfinite(value):
@@ -221,7 +222,7 @@ def _check_table(source: str, section: str, table: Any, keys: dict[str, Key]) ->
     for name, value in table.items():
         if name not in keys:
             raise _fail(source, section, name, f"unknown key; did you mean {close_matches(name, keys)}?")
-        out[name] = _check_value(source, section, name, keys[name], value)
+        out[name] = check_value(source, section, name, keys[name], value)
     for name, key in keys.items():
         if key.required and name not in out:
             raise _fail(source, section, name, f"missing ({key.doc})")

@@ -1,0 +1,677 @@
+"""Dynamic design studies: what a flywheel, a counterweight, another motor, friction or the
+supply do to the running machine, over thousands of variants.
+
+Each variant of a variants file (``mechanism-variants/1``, :mod:`mechanism.inspection.variants`)
+changes the machine by offsets from its description and its CAD model, and runs from rest
+under a voltage step on the reduced 1-DOF model (:class:`~mechanism.dynamics.reduced.ReducedModel`,
+the exact Lagrange equation of the linkage). Its metrics (:data:`METRICS`) describe the start
+and the steady state. Nothing is compiled per variant:
+
+- description values (``motor:``, ``supply:``, ``tool:``, ``friction:<joint>:``) rebuild the
+  motor, friction laws, supply and fabric objects from an edited copy of the description;
+- ``inertia:<joint>_kgm2`` adds ``I r_j(θ)²`` to the effective inertia J(θ) (r_j: the joint's
+  ratio to the shaft), exact for a joint whose parent does not move (a shaft in the frame);
+- ``mass:<part>_kg`` and geometric offsets edit a copy of the compiled model (the point mass
+  merged into its body's inertia) and tabulate the linkage again (~0.1 s);
+- the operating point (``voltage_V``, ``duty_percent``, ``layers``) is absolute.
+
+:func:`variant_machine` builds the same variant the slow, independent way (an edited
+description and a compiled MjSpec with the flywheel or mass as a welded child body): a single
+``mechanism.simulate(variant_machine(...), reduced=True)`` gives the same metrics.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import mujoco
+import numpy as np
+
+from mechanism.dynamics.reduced import ReducedModel
+from mechanism.dynamics.simulation import SimulationResult
+from mechanism.errors import UserError, close_matches
+from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_derivative
+from mechanism.machine import parts
+from mechanism.machine.description import FRICTION_KEYS, SCHEMA, MachineDescription, check_value
+from mechanism.machine.machine import (Machine, MachineConfig, duty_map_from, fabric_from_description,
+                                       motor_from_description, supply_limit)
+from mechanism.physics.friction import FrictionSet
+from mechanism.inspection.variants import OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter
+
+TWO_PI = 2 * np.pi
+SETTLING_BAND = 0.02  # settled: within the steady ripple band widened by 2 % of the mean speed
+STEADY_CHANGE = 0.01  # the last two revolutions' mean speeds differ by less: steady state reached
+DESCRIPTION_SECTIONS = ("motor", "supply", "tool")  # description sections a sweep may offset
+POINT_MASS_INERTIA_KGM2 = 1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
+
+METRICS = {
+    "mean_speed_rpm": "mean shaft speed in steady state (the last revolution)",
+    "ripple_pp_rad_s": "shaft speed peak to peak over the last revolution",
+    "ripple_min_angle_deg": "shaft angle of the slowest point of the last revolution",
+    "settling_s": "time from the voltage step until the speed stays in the steady ripple band (+/- 2 % of the mean)",
+    "peak_current_A": "largest armature current of the run (the start)",
+    "rms_current_A": "RMS armature current over the last revolution (heating in steady state)",
+    "tool_above_plate_ms": "time per stitch (the last revolution) the tool is above the plate",
+    "breakaway_V": "smallest constant motor voltage that starts the machine from rest at every shaft angle",
+}
+
+
+@dataclass(frozen=True)
+class SweepOptions:
+    """The run every variant gets: a voltage step from rest at the shaft's zero."""
+
+    voltage_V: float = 12.0
+    duration_s: float = 2.0
+    sample_rate_hz: float = 1000.0
+    layers: int = 0
+
+
+@dataclass
+class SweepBase:
+    """Everything a worker needs, picklable: it travels once per worker (the object store on Ray)."""
+
+    description: MachineDescription
+    config: MachineConfig
+    model: mujoco.MjModel
+    tables: LinkageTables
+    machine_state: dict[str, Any]
+    parameters: list[Parameter]
+    options: SweepOptions
+
+    @classmethod
+    def of(cls, machine: Machine, parameters: Sequence[Parameter], options: SweepOptions) -> "SweepBase":
+        state = {name: getattr(machine, name) for name in (
+            "motor_joint", "shaft_joint", "tool_site", "plate_part", "frame", "plate_top_z", "timestep_s")}
+        return cls(machine.description, machine.config, machine.model, machine.tables, state, list(parameters), options)
+
+
+class _VariantMachine:
+    """The parts of a Machine the reduced model reads, with a variant's replacements."""
+
+    def __init__(self, base: SweepBase, model: mujoco.MjModel, tables: LinkageTables, description: MachineDescription,
+                 layers: int):
+        self.__dict__.update(base.machine_state)
+        self.model, self.tables, self.description = model, tables, description
+        self.config = replace(base.config, layers=layers)
+        self.motor = motor_from_description(description.motor)
+        self.friction = FrictionSet(Machine.friction_laws(self))  # type: ignore[arg-type]
+        self.fabric = fabric_from_description(description.section("tool"), layers)
+        self.supply = supply_limit(description)
+
+    tool_height_mm = Machine.tool_height_mm
+
+
+# -- targets --------------------------------------------------------------------------------
+
+
+def _split(target: str) -> tuple[str, str, str]:
+    """``inertia:<joint>_kgm2`` -> ("inertia", joint, ""); ``friction:<joint>:<key>`` -> (..., joint, key)."""
+    if target in OPERATING_POINT:
+        return "operating", target, ""
+    kind, _, rest = target.partition(":")
+    if kind == "inertia":
+        return kind, rest[: -len("_kgm2")], ""
+    if kind == "mass":
+        return kind, rest[: -len("_kg")], ""
+    if kind == "friction":
+        joint, _, key = rest.rpartition(":")
+        return kind, joint, key
+    if kind in DESCRIPTION_SECTIONS:
+        return kind, rest, ""
+    return "geometry", target, ""
+
+
+def check_parameters(base: SweepBase, variants: VariantSet) -> None:
+    """Every target exists in the machine and every variant's value is physical, before any run."""
+    model = base.model
+    label = variants.source
+    joints = parts.joint_names(model)
+    for column, param in enumerate(variants.parameters):
+        values = variants.values[:, column]
+        where = f"{label}: parameter {param.name} ({param.target})"
+        if not param.dynamic:
+            try:
+                param.check(model)
+            except UserError as exc:
+                raise UserError(f"{label}: {exc}") from None
+            continue
+        kind, name, key = _split(param.target)
+        if kind == "inertia":
+            _flywheel_joint(model, name, where)
+            _non_negative(values, variants, where, "added inertia")
+        elif kind == "mass":
+            if name not in parts.part_names(model) and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) < 0:
+                raise UserError(f"{where}: no part named {name!r}; close matches: {close_matches(name, parts.part_names(model))}")
+            _non_negative(values, variants, where, "added mass")
+        elif kind == "friction":
+            if name not in joints:
+                raise UserError(f"{where}: no joint named {name!r}; close matches: {close_matches(name, joints)}")
+            _numeric_key(key, FRICTION_KEYS, where)
+        elif kind in DESCRIPTION_SECTIONS:
+            _numeric_key(name, SCHEMA[kind], where)
+        elif name == "duty_percent":
+            duty_map_from(base.description)  # the machine must describe its PWM supply
+            _within(values, variants, where, 0.0, 100.0)
+        elif name == "layers":
+            if np.any(values != np.round(values)):
+                raise UserError(f"{where}: layers must be whole numbers")
+            _within(values, variants, where, 0.0, 20.0)
+            if np.any(values > 0) and not (base.machine_state["tool_site"] and base.machine_state["plate_part"]):
+                raise UserError(f"{where}: fabric layers need a tool site and a plate in the machine description")
+        else:
+            _within(values, variants, where, -1000.0, 1000.0)
+    _check_description_offsets(base.description, variants)
+
+
+def _check_description_offsets(description: MachineDescription, variants: VariantSet) -> None:
+    """Every variant's edited description values within the schema's physical range, checked
+    on the columns at once (a variant that cannot exist is a bad file, not a row note)."""
+    totals: dict[tuple[str, str, str], np.ndarray] = {}
+    for column, param in enumerate(variants.parameters):
+        kind, name, key = _split(param.target) if param.dynamic else ("geometry", "", "")
+        if kind == "friction" or kind in DESCRIPTION_SECTIONS:
+            totals[(kind, name, key)] = totals.get((kind, name, key), 0.0) + variants.values[:, column]
+    for (kind, name, key), offsets in totals.items():
+        if kind == "friction":
+            table, spec, field_name = description.friction.get(name, {}), FRICTION_KEYS[key], key
+            start = table.get(key, _default(key, table))
+        else:
+            table = description.motor if kind == "motor" else description.section(kind)
+            spec, field_name = SCHEMA[kind][name], name
+            if name not in table:
+                raise UserError(f"{variants.source}: {description.where(kind, name)} is not in the description; an "
+                                "offset needs a value to start from")
+            start = table[name]
+        values = start + offsets
+        low = values < spec.low if spec.low is not None and not spec.open_low else values <= spec.low if spec.low is not None else np.zeros(len(values), bool)
+        bad = np.flatnonzero(low | ((values > spec.high) if spec.high is not None else False))
+        if bad.size:
+            i = int(bad[0])
+            raise UserError(f"{variants.source}: variant {variants.names[i]!r} makes {kind} {field_name} "
+                            f"{'of ' + name + ' ' if kind == 'friction' else ''}{values[i]:g}, outside its range ({spec.doc})")
+
+
+def _numeric_key(key: str, keys: dict, where: str) -> None:
+    numeric = [k for k, spec in keys.items() if spec.kind in (float, int)]
+    if key not in numeric:
+        raise UserError(f"{where}: {key!r} is not a numeric key of the description; close matches: {close_matches(key, numeric)}")
+
+
+def _non_negative(values: np.ndarray, variants: VariantSet, where: str, what: str) -> None:
+    bad = np.flatnonzero(values < 0)
+    if bad.size:
+        raise UserError(f"{where}: {what} must be >= 0, variant {variants.names[bad[0]]!r} has {values[bad[0]]:g}")
+
+
+def _within(values: np.ndarray, variants: VariantSet, where: str, low: float, high: float) -> None:
+    bad = np.flatnonzero((values < low) | (values > high))
+    if bad.size:
+        raise UserError(f"{where}: values must lie in [{low:g}, {high:g}], variant {variants.names[bad[0]]!r} has {values[bad[0]]:g}")
+
+
+def _flywheel_joint(model: mujoco.MjModel, joint: str, where: str) -> int:
+    jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+    if jid < 0 or model.jnt_type[jid] != mujoco.mjtJoint.mjJNT_HINGE:
+        hinges = [n for n in parts.joint_names(model)
+                  if model.jnt_type[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] == mujoco.mjtJoint.mjJNT_HINGE]
+        raise UserError(f"{where}: no hinge joint named {joint!r}; close matches: {close_matches(joint, hinges)}")
+    parent = int(model.body_parentid[model.jnt_bodyid[jid]])
+    if model.body_weldid[parent] != 0:
+        raise UserError(f"{where}: joint {joint!r} sits on a moving body; inertia about its axis is exact only for a "
+                        "shaft in the frame: add a mass:<part>_kg instead")
+    return jid
+
+
+# -- one variant ----------------------------------------------------------------------------
+
+
+def edited_description(description: MachineDescription, changes: dict[tuple[str, str, str], float]) -> MachineDescription:
+    """The description with offsets added to numeric values (each checked against the schema)."""
+    sections = {name: dict(values) for name, values in description.sections.items()}
+    motor = dict(description.motor)
+    friction = {joint: dict(values) for joint, values in description.friction.items()}
+    source = str(description.path or "<description>")
+    for (kind, name, key), offset in changes.items():
+        if kind == "friction":
+            table = friction.setdefault(name, {})
+            spec, value = FRICTION_KEYS[key], table.get(key, _default(key, table)) + offset
+            table[key] = check_value(source, f"friction.{name}", key, spec, _typed(spec, value))
+            if key == "coulomb_Nm" and "static_Nm" in table and table["static_Nm"] < table["coulomb_Nm"]:
+                table["static_Nm"] = table["coulomb_Nm"]
+        else:
+            table = motor if kind == "motor" else sections.setdefault(kind, {})
+            spec = SCHEMA[kind][name]
+            if name not in table and kind != "motor":
+                raise UserError(f"{description.where(kind, name)}: not in the description; an offset needs a value to start from")
+            table[name] = check_value(source, kind, name, spec, _typed(spec, table.get(name, 0.0) + offset))
+    if "motor" in sections:
+        sections["motor"] = motor
+    return replace(description, motor=motor, friction=friction, sections=sections)
+
+
+def _default(key: str, table: dict) -> float:
+    return table.get("coulomb_Nm", 0.0) if key == "static_Nm" else 0.0
+
+
+def _typed(spec, value: float):
+    return int(round(value)) if spec.kind is int else float(value)
+
+
+@dataclass
+class _Variant:
+    """One variant's values sorted by what they change."""
+
+    description: dict[tuple[str, str, str], float] = field(default_factory=dict)
+    inertia: dict[str, float] = field(default_factory=dict)
+    mass: dict[str, float] = field(default_factory=dict)
+    geometry: list[tuple[Parameter, float]] = field(default_factory=list)
+    operating: dict[str, float] = field(default_factory=dict)
+
+
+def _sort(parameters: Sequence[Parameter], values: Sequence[float]) -> _Variant:
+    variant = _Variant()
+    for param, value in zip(parameters, values):
+        value = float(value)
+        if not param.dynamic:
+            variant.geometry.append((param, value))
+            continue
+        kind, name, key = _split(param.target)
+        if kind == "inertia":
+            variant.inertia[name] = variant.inertia.get(name, 0.0) + value
+        elif kind == "mass":
+            variant.mass[name] = variant.mass.get(name, 0.0) + value
+        elif kind == "operating":
+            if not math.isnan(value):  # NaN: the run's default
+                variant.operating[name] = value
+        elif value:
+            variant.description[(kind, name, key)] = variant.description.get((kind, name, key), 0.0) + value
+    return variant
+
+
+def _voltage(base: SweepBase, variant: _Variant) -> float:
+    if "duty_percent" in variant.operating:
+        return float(duty_map_from(base.description)(variant.operating["duty_percent"]))
+    return variant.operating.get("voltage_V", base.options.voltage_V)
+
+
+def _mass_point(model: mujoco.MjModel, nominal: mujoco.MjModel, part: str, geometry: list[tuple[Parameter, float]]) -> tuple[int, np.ndarray]:
+    """Body and body-frame position [m] of a part's frame, moved by the variant's part offsets."""
+    frame = parts.find_frame(nominal, part)
+    position = np.array(frame.pos, dtype=float)
+    for param, value in geometry:
+        for target in param.target.split("+"):
+            kind, name, axis, _ = _parse_target(target)
+            if kind == "part" and name == part:
+                along = np.zeros(3)
+                along["xyz".index(axis)] = 1.0
+                mujoco.mju_rotVecQuat(along, along.copy(), np.asarray(frame.quat, dtype=float))
+                position += value * 1e-3 * along
+    return frame.body, position
+
+
+def add_point_mass(model: mujoco.MjModel, body: int, position_m: np.ndarray, mass_kg: float) -> None:
+    """Merge a point mass into a body's mass, centre of mass and principal inertia (parallel axes)."""
+    if mass_kg == 0.0:
+        return
+    old_mass, old_com = float(model.body_mass[body]), np.array(model.body_ipos[body])
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, model.body_iquat[body])
+    rotation = rotation.reshape(3, 3)
+    tensor = rotation @ np.diag(model.body_inertia[body]) @ rotation.T
+    mass = old_mass + mass_kg
+    com = (old_mass * old_com + mass_kg * position_m) / mass
+    for m, point in ((old_mass, old_com), (mass_kg, position_m)):
+        d = point - com
+        tensor = tensor + m * (d @ d * np.eye(3) - np.outer(d, d))
+    principal, axes = np.linalg.eigh(tensor)
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] = -axes[:, 0]
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, axes.ravel())
+    model.body_mass[body], model.body_ipos[body] = mass, com
+    model.body_inertia[body], model.body_iquat[body] = principal, quat
+
+
+class VariantRunner:
+    """One worker's sweep: the base machine's pieces, one model copy edited in place when needed."""
+
+    def __init__(self, base: SweepBase):
+        self.base = base
+        self.model = copy.deepcopy(base.model)
+
+    def tables(self, variant: _Variant) -> tuple[mujoco.MjModel, LinkageTables]:
+        base, state = self.base, self.base.machine_state
+        model, tables = base.model, base.tables
+        if variant.mass or variant.geometry:
+            model = self.model
+            for name in ("body_pos", "eq_data", "geom_pos", "site_pos", "body_mass", "body_ipos", "body_inertia", "body_iquat"):
+                getattr(model, name)[:] = getattr(base.model, name)
+            for param, value in variant.geometry:
+                apply_parameter(model, base.model, param, value)
+            for part, mass in variant.mass.items():
+                body, position = _mass_point(model, base.model, part, variant.geometry)
+                add_point_mass(model, body, position, mass)
+            tables = compute_tables(model, state["shaft_joint"], state["tool_site"], len(base.tables.angle_rad),
+                                    state["frame"].zero_rad, state["frame"].direction)
+        if any(variant.inertia.values()):
+            inertia = tables.inertia_kgm2 + sum(added * tables.ratios[joint] ** 2 for joint, added in variant.inertia.items())
+            tables = replace(tables, inertia_kgm2=inertia, dinertia_drad=periodic_derivative(inertia))
+        return model, tables
+
+    def reduced(self, values: Sequence[float]) -> tuple[ReducedModel, float]:
+        variant = _sort(self.base.parameters, values)
+        model, tables = self.tables(variant)
+        description = edited_description(self.base.description, variant.description) if variant.description else self.base.description
+        layers = int(variant.operating.get("layers", self.base.options.layers))
+        machine = _VariantMachine(self.base, model, tables, description, layers)
+        return ReducedModel(machine, len(tables.angle_rad)), _voltage(self.base, variant)  # type: ignore[arg-type]
+
+    def __call__(self, values: Sequence[float]) -> dict[str, Any]:
+        try:
+            reduced, voltage = self.reduced(values)
+            options = self.base.options
+            result = reduced.simulate(voltage, options.duration_s, sample_rate_hz=options.sample_rate_hz)
+        except UserError as exc:  # this variant cannot be built or run: say so in its row
+            return {**{name: math.nan for name in METRICS}, "note": str(exc)}
+        return variant_metrics(result, reduced)
+
+
+def _run_variant(runner: VariantRunner, values: np.ndarray) -> dict[str, Any]:
+    return runner(values)
+
+
+# -- metrics --------------------------------------------------------------------------------
+
+
+def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str, Any]:
+    """:data:`METRICS` of one run from rest (a voltage step at t = 0), plus a ``note`` when the
+    run did not reach a steady state."""
+    t, angle, speed = result.time_s, result.arm_angle_rad, result.arm_velocity_rad_s
+    row: dict[str, Any] = {name: math.nan for name in METRICS}
+    row["peak_current_A"] = float(np.max(np.abs(result.current_A)))
+    row["breakaway_V"] = breakaway_voltage(reduced)
+    notes = []
+    last = np.flatnonzero(angle <= angle[-1] - TWO_PI)
+    if not last.size or t[last[-1]] < t[-1] / 2:
+        window = slice(int(len(t) * 0.75), None)
+        row["mean_speed_rpm"] = float(np.mean(speed[window]) * 60 / TWO_PI)
+        row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[window] ** 2)))
+        row["note"] = "no steady running: under one revolution in the second half of the run (stalled or too slow)"
+        return row
+    start = int(last[-1]) + 1
+    steady = slice(start, None)
+    period = t[-1] - np.interp(angle[-1] - TWO_PI, angle[: start + 1], t[: start + 1])
+    mean = TWO_PI / period
+    row["mean_speed_rpm"] = float(mean * 60 / TWO_PI)
+    low, high = float(np.min(speed[steady])), float(np.max(speed[steady]))
+    row["ripple_pp_rad_s"] = high - low
+    row["ripple_min_angle_deg"] = float(np.degrees(np.mod(angle[start + int(np.argmin(speed[steady]))], TWO_PI)))
+    row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[steady] ** 2)))
+    if np.isfinite(result.needle_z_mm).all():
+        row["tool_above_plate_ms"] = _time_above(t[start - 1 :], result.needle_z_mm[start - 1 :]) * 1e3
+    previous = np.flatnonzero(angle <= angle[-1] - 2 * TWO_PI)
+    if previous.size:
+        before = t[start - 1] - np.interp(angle[start - 1] - TWO_PI, angle[: start], t[: start])
+        if abs(before - period) > STEADY_CHANGE * period:
+            notes.append(f"not steady: the last two revolutions differ by {abs(before - period) / period:.1%}")
+    band = SETTLING_BAND * mean
+    outside = np.flatnonzero((speed[:start] < low - band) | (speed[:start] > high + band))
+    if notes:
+        row["settling_s"] = math.nan
+    else:
+        row["settling_s"] = float(t[outside[-1] + 1]) if outside.size else float(t[0])
+    row["note"] = "; ".join(notes)
+    return row
+
+
+def _time_above(t: np.ndarray, height: np.ndarray) -> float:
+    """Time a sampled height spends above 0, with the crossings interpolated linearly."""
+    dt, low, high = np.diff(t), height[:-1], height[1:]
+    both = (low > 0) & (high > 0)
+    crossing = (low > 0) != (high > 0)
+    share = np.where(crossing, np.maximum(low, high) / np.maximum(np.abs(low) + np.abs(high), 1e-300), 0.0)
+    return float(np.sum(dt[both]) + np.sum((dt * share)[crossing]))
+
+
+def driven_inertia_kgm2(machine: Machine) -> float:
+    """The shaft side's own inertia: the mean effective inertia at the shaft without the
+    motor rotor's share (its axial inertia times its ratio squared): what a flywheel on
+    the shaft is compared with."""
+    data = machine.reset(0.0)
+    mass = np.zeros((machine.model.nv, machine.model.nv))
+    mujoco.mj_fullM(machine.model, data, mass)
+    rotor = mass[machine.motor_dof, machine.motor_dof]
+    return float(machine.tables.mean_inertia_kgm2 - rotor * machine.motor_ratio**2)
+
+
+def breakaway_voltage(reduced: ReducedModel) -> float:
+    """The smallest constant motor voltage that starts the machine forward from rest at any
+    shaft angle: static friction against the motor's stall torque, gravity and cogging (the
+    integrator's own break-away test, solved for the voltage). NaN when the supply cannot."""
+    angles = reduced.tables.angle_rad
+    rest = np.zeros_like(angles)
+    static = reduced.static_friction(angles)
+    at_rest = reduced.generalized_force(angles, rest, rest)
+    per_volt = reduced.generalized_force(angles, rest, rest + 1.0) - at_rest
+    if np.any(per_volt <= 0):
+        return math.nan
+    needed = float(np.max((static - at_rest) / per_volt))
+    # linear in the voltage until the supply limits the current: check the answer
+    reached = reduced.generalized_force(angles, rest, rest + needed)
+    return needed if np.all(reached - static >= -1e-9 * np.maximum(static, 1e-9)) else math.nan
+
+
+# -- the batch ------------------------------------------------------------------------------
+
+
+@dataclass
+class SweepResult:
+    variants: VariantSet
+    rows: list[dict[str, Any]]
+    options: SweepOptions
+    seconds: float = 0.0
+    resumed: int = 0  # rows kept from an interrupted run
+
+    def table(self) -> list[dict[str, Any]]:
+        out = []
+        for name, values, row in zip(self.variants.names, self.variants.values, self.rows):
+            entry: dict[str, Any] = {"variant": name}
+            entry.update({p.name: float(v) for p, v in zip(self.variants.parameters, values)})
+            entry.update({key: row.get(key, math.nan) for key in METRICS})
+            entry["note"] = row.get("note", "")
+            out.append(entry)
+        return out
+
+
+def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = SweepOptions(), *, workers: int = 1,
+              backend: str = "local", ray_address: str | None = None, progress: bool = True,
+              journal: str | os.PathLike | None = None, resume: bool = False,
+              on_row: Callable[[int, dict[str, Any]], None] | None = None) -> SweepResult:
+    """Every variant's metrics, in file order. With ``journal``, each row is appended to that
+    file as it completes; ``resume=True`` keeps the rows an interrupted run of the same sweep
+    left there and runs only the others. ``on_row(index, row)`` sees each new row."""
+    import time
+
+    from mechanism.batch import check_options, run_batch
+
+    check_options(backend, workers)
+    base = SweepBase.of(machine, variants.parameters, options)
+    variants = with_defaults(variants, options)
+    check_parameters(base, variants)
+    fingerprint = sweep_fingerprint(machine, variants, options)
+    done = read_journal(journal, fingerprint) if journal is not None and resume else {}
+    todo = [i for i in range(len(variants)) if i not in done]
+    start = time.perf_counter()
+    with contextlib.ExitStack() as stack:
+        log = stack.enter_context(_open_journal(journal, fingerprint, fresh=not done)) if journal is not None else None
+
+        def keep(position: int, row: dict[str, Any]) -> None:
+            if log is not None:
+                log.write(json.dumps({"index": todo[position], "row": row}) + "\n")
+                log.flush()
+            if on_row is not None:
+                on_row(todo[position], row)
+
+        rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
+                         workers=workers, backend=backend, ray_address=ray_address, on_result=keep, progress=progress,
+                         desc="variants", unit="variant")
+    done.update(zip(todo, rows))
+    return SweepResult(variants, [done[i] for i in range(len(variants))], options, time.perf_counter() - start,
+                       resumed=len(variants) - len(todo))
+
+
+def with_defaults(variants: VariantSet, options: SweepOptions) -> VariantSet:
+    """Operating points a row leaves out (NaN) filled with the run's: the table shows what ran."""
+    values = variants.values.copy()
+    for column, param in enumerate(variants.parameters):
+        default = {"voltage_V": options.voltage_V, "layers": float(options.layers)}.get(param.target)
+        if default is not None:
+            values[np.isnan(values[:, column]), column] = default
+    return replace(variants, values=values)
+
+
+JOURNAL_FORMAT = "mechanism-sweep-journal/1"
+
+
+def journal_path(csv_path: str | os.PathLike) -> Path:
+    """Where a sweep writing ``csv_path`` keeps its rows until it is complete."""
+    csv_path = Path(csv_path)
+    return csv_path.with_name(csv_path.name + ".partial")
+
+
+def sweep_fingerprint(machine: Machine, variants: VariantSet, options: SweepOptions) -> str:
+    """What makes two sweeps the same: machine (description and model file), variants, run."""
+    digest = hashlib.sha256()
+    digest.update(repr(replace(machine.description, path=None)).encode())
+    digest.update(Path(machine.model_path).read_bytes())
+    digest.update(repr(machine.config).encode())
+    digest.update(json.dumps([[p.name, p.target] for p in variants.parameters]).encode())
+    digest.update(json.dumps(variants.names).encode())
+    digest.update(np.ascontiguousarray(variants.values, dtype=float).tobytes())
+    digest.update(repr(options).encode())
+    return digest.hexdigest()
+
+
+def read_journal(path: str | os.PathLike, fingerprint: str) -> dict[int, dict[str, Any]]:
+    """The rows an interrupted sweep left (a torn last line, from a kill mid-write, is dropped)."""
+    path = Path(path)
+    if not path.exists():
+        return {}
+    from mechanism.files.limits import read_bounded
+
+    lines = read_bounded(path, "sweep journal", 1 << 30).decode("utf-8", errors="replace").split("\n")
+    try:
+        header = json.loads(lines[0])
+    except json.JSONDecodeError:
+        header = None
+    if not isinstance(header, dict) or header.get("format") != JOURNAL_FORMAT:
+        raise UserError(f"{path}: not a sweep journal; delete it or choose another --csv")
+    if header.get("fingerprint") != fingerprint:
+        raise UserError(f"{path}: left by a different sweep (other machine, variants or run options); delete it to start "
+                        "over, or resume with the same inputs")
+    done = {}
+    for line in lines[1:]:
+        try:
+            entry = json.loads(line)
+            done[int(entry["index"])] = dict(entry["row"])
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            continue  # the torn line a kill leaves behind
+    return done
+
+
+@contextlib.contextmanager
+def _open_journal(path: str | os.PathLike, fingerprint: str, fresh: bool):
+    path = Path(path)
+    if fresh:
+        with open(path, "w", encoding="utf-8") as handle:
+            handle.write(json.dumps({"format": JOURNAL_FORMAT, "fingerprint": fingerprint}) + "\n")
+    else:
+        text = path.read_bytes()
+        if not text.endswith(b"\n"):  # drop the torn line before appending
+            path.write_bytes(text[: text.rfind(b"\n") + 1])
+    with open(path, "a", encoding="utf-8") as handle:
+        yield handle
+
+
+def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = None, group: str | None = None) -> Path:
+    """Speed, ripple, settling time and peak current against one parameter (``x``: default the
+    first that varies), one line per value of another (``group``: default the next that varies)."""
+    from mechanism.files.plotting import plt, save_figure
+
+    variants = result.variants
+    names = [p.name for p in variants.parameters]
+    varying = [n for i, n in enumerate(names) if len(np.unique(variants.values[:, i])) > 1]
+    for given in (x, group):
+        if given is not None and given not in names:
+            raise UserError(f"--plot parameter {given!r} is not in the variants file; close matches: {close_matches(given, names)}")
+    x = x or (varying[0] if varying else names[0])
+    group = group or next((n for n in varying if n != x), None)
+    table = result.table()
+    panels = [("mean_speed_rpm", "mean speed [rpm]"), ("ripple_pp_rad_s", "speed ripple p-p [rad/s]"),
+              ("settling_s", "settling time [s]"), ("peak_current_A", "peak current [A]")]
+    figure, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+    groups = sorted({row[group] for row in table}) if group else [None]
+    many = len(groups) > 12 or len({row[x] for row in table}) > 200
+    for axis, (key, label) in zip(axes.ravel(), panels):
+        for value in groups:
+            rows = sorted((row for row in table if group is None or row[group] == value), key=lambda row: row[x])
+            xs, ys = [row[x] for row in rows], [row[key] for row in rows]
+            style = dict(marker=".", linestyle="none", markersize=3) if many else dict(marker="o", markersize=3)
+            axis.plot(xs, ys, label=None if group is None or many else f"{group} = {value:g}", **style)
+        axis.set_ylabel(label)
+        axis.grid(True, alpha=0.3)
+    for axis in axes[1]:
+        axis.set_xlabel(x)
+    if group and not many:
+        axes[0, 0].legend(fontsize=8)
+    figure.suptitle(f"{len(table)} variants, {result.options.duration_s:g} s from rest each")
+    figure.tight_layout()
+    save_figure(figure, path)
+    return Path(path)
+
+
+# -- the independent way: a real Machine per variant ------------------------------------------
+
+
+def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Sequence[float]) -> tuple[Machine, float]:
+    """The variant as a full :class:`Machine` (edited description, the flywheel or mass compiled
+    as a welded child body, geometry edited in the compiled model) and its motor voltage:
+    slow, independent of the sweep's shortcuts, for checks and for a closer look at one variant."""
+    base = SweepBase.of(machine, parameters, SweepOptions())
+    variant = _sort(parameters, values)
+    description = edited_description(machine.description, variant.description) if variant.description else machine.description
+    nominal = machine.model
+
+    def extend(spec: mujoco.MjSpec) -> None:
+        if machine._extend is not None:
+            machine._extend(spec)
+        for joint, inertia in variant.inertia.items():
+            if inertia:
+                jid = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, joint)
+                holder = spec.body(nominal.body(int(nominal.jnt_bodyid[jid])).name)
+                turn = np.zeros(4)  # the disc's own z along the joint axis
+                mujoco.mju_quatZ2Vec(turn, np.array(nominal.jnt_axis[jid], dtype=float))
+                # a thin disc: the added inertia about the axis, half of it across (only the axial part moves)
+                holder.add_body(name=f"flywheel:{joint}", pos=nominal.jnt_pos[jid], ipos=[0.0, 0.0, 0.0], quat=turn, mass=POINT_MASS_INERTIA_KGM2,
+                                inertia=[inertia / 2, inertia / 2, inertia], explicitinertial=True)
+        for part, mass in variant.mass.items():
+            if mass:
+                body, position = _mass_point(nominal, nominal, part, variant.geometry)
+                holder = spec.body(nominal.body(body).name)
+                holder.add_body(name=f"mass:{part}", pos=position, ipos=[0.0, 0.0, 0.0], mass=mass,
+                                inertia=[POINT_MASS_INERTIA_KGM2] * 3, explicitinertial=True)
+
+    layers = int(variant.operating.get("layers", machine.config.layers))
+    built = Machine(description, replace(machine.config, layers=layers), extend)
+    unedited = copy.deepcopy(built.model)
+    for param, value in variant.geometry:
+        apply_parameter(built.model, unedited, param, value)
+    return built, _voltage(base, variant)
