@@ -44,7 +44,13 @@ def register(subparsers) -> None:
                         help="simulated time per variant [s] (default 2): long enough to reach steady running")
     parser.add_argument("--layers", type=number(0, 20, integer=True), default=0, metavar="N", help="fabric layers (default 0)")
     parser.add_argument("--warm-s", type=number(0, 1e6, "s"), default=0.0, metavar="S", help="friction warmed by S seconds of running")
-    add_batch_arguments(parser, "the variants")
+    parser.add_argument("--full", action="store_true",
+                        help="run the full multibody model (belts and loops compliant, inductance, everything the "
+                             "description has) instead of the reduced 1-DOF one: variants compiled and run in groups "
+                             "through mujoco.rollout, --workers threads; ~100x slower per variant")
+    parser.add_argument("--bearings", metavar="J1,J2", help="joints whose peak reaction force [N] over the last revolution "
+                                                          "is reported (bearing_<joint>_peak_N; needs --full)")
+    add_batch_arguments(parser, "the variants (with --full: rollout threads)")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted sweep with the same inputs from OUT.csv.partial (rows done are kept)")
     parser.add_argument("--yes", action="store_true", help="run more than 100000 variants (at most 1000000)")
@@ -57,10 +63,18 @@ def run(args) -> int:
     from mechanism.inspection.sweep import METRICS, SweepOptions, journal_path, plot_sweep, run_sweep
     from mechanism.inspection.variants import read_variants
 
+    from mechanism.errors import UserError
+    from mechanism.inspection.sweep import check_bearings
+
     check_batch_arguments(args, True, "the variants")
+    bearings = tuple(j.strip() for j in (args.bearings or "").split(",") if j.strip())
+    if bearings and not args.full:
+        raise UserError("--bearings needs --full: the reduced model has no reaction forces")
     machine = machine_from_args(args, warm_s=args.warm_s, layers=args.layers)
+    check_bearings(machine.model, bearings)
     variants = read_variants(args.variants, machine.description.variant_presets, confirmed=args.yes)
-    options = SweepOptions(voltage_V=args.voltage, duration_s=args.duration, layers=args.layers)
+    options = SweepOptions(voltage_V=args.voltage, duration_s=args.duration, layers=args.layers, full=args.full,
+                           bearings=bearings)
     journal = journal_path(args.csv)
     result = run_sweep(machine, variants, options, workers=args.workers, backend=args.backend,
                        ray_address=args.ray_address, journal=journal, resume=args.resume)
@@ -73,7 +87,8 @@ def run(args) -> int:
         plot_sweep(result, args.plot, args.plot_x, args.plot_group)
     unsteady = sum(1 for row in table if row["note"])
     kept = f", {result.resumed} kept from the interrupted run" if result.resumed else ""
-    print(f"{len(table)} variants in {result.seconds:.1f} s{kept}; {unsteady} with a note (no steady running or a "
+    model = "full multibody" if args.full else "reduced 1-DOF"
+    print(f"{len(table)} variants ({model} model) in {result.seconds:.1f} s{kept}; {unsteady} with a note (no steady running or a "
           f"variant that cannot run); wrote {args.csv}")
     journal.unlink(missing_ok=True)
     return 0

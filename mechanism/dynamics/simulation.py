@@ -73,7 +73,7 @@ def check_stable(model, data, states: np.ndarray, sensors: np.ndarray, start_s: 
         bad |= ~(np.abs(control) < MUJOCO_MAX_VALUE).all(axis=1)
     first = int(np.argmax(bad)) if bad.any() else None
     when = start_s + (first or 0) * model.opt.timestep
-    for name in _INSTABILITY_WARNINGS:
+    for name in _INSTABILITY_WARNINGS if data is not None else ():  # a batch's threads share their data
         warning = getattr(mujoco.mjtWarning, name)
         if data.warning[warning].number:
             raise unstable(when, f"MuJoCo: {mujoco.mju_warningText(warning, data.warning[warning].lastinfo)}")
@@ -93,6 +93,7 @@ class SimulationResult:
     motor_velocity_rad_s: np.ndarray
     metadata: dict = field(default_factory=dict)
     state: np.ndarray | None = None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
+    sensordata: np.ndarray | None = None  # the model's sensors after each sample (full model only)
 
     def columns(self) -> dict[str, np.ndarray]:
         return {
@@ -133,63 +134,108 @@ def simulate(
 ) -> SimulationResult:
     """Run the machine (default: the shipped one, under ``config``) from rest at shaft angle
     ``start_angle_rad`` for ``duration_s`` seconds."""
-    if not 0 < duration_s <= MAX_DURATION_S:
-        raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
-    if not 10 <= sample_rate_hz <= 100_000:
-        raise UserError("sample rate must be between 10 Hz and 100 kHz")
-    if not isinstance(voltage, VoltageProfile):
-        voltage = VoltageProfile.constant(voltage)
     machine = machine or Machine(None, config)
-    model = machine.model
-    dt = model.opt.timestep
-    substeps = max(1, int(round(1.0 / (sample_rate_hz * dt))))
-    nsample = int(round(duration_s * sample_rate_hz))
-    nstep = nsample * substeps
-    from mechanism.files.limits import check_elements
+    run = _Run(machine, voltage, duration_s, start_angle_rad, sample_rate_hz)
+    state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress)
+    return run.result(state, sensordata)
 
-    width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
-    check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
-    step_times = np.arange(nstep) * dt
-    control = np.zeros((1, nstep, model.nu))
-    control[0, :, machine.actuator] = voltage(step_times)
 
-    data = machine.reset(start_angle_rad)
-    state, sensordata = _rollout_in_chunks(model, data, control[0], progress)
+def simulate_batch(machines: list[Machine], voltages: list[VoltageProfile | float], duration_s: float,
+                   start_angle_rad: float = 0.0, sample_rate_hz: float = 1000.0,
+                   threads: int = 1) -> list[SimulationResult | UserError]:
+    """Run many machines of one size signature (variants of one model) in a single
+    ``mujoco.rollout`` call on its thread pool; each result equals :func:`simulate`'s (the
+    state carries everything, so one long rollout is the chunked one). A run that became
+    unstable is returned as its UserError, in its place."""
+    runs = [_Run(m, v, duration_s, start_angle_rad, sample_rate_hz) for m, v in zip(machines, voltages)]
+    if not runs:
+        return []
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    models = [m.model for m in machines]
+    initial = np.array([_state(m.model, m.data, spec) for m in machines])
+    warmstart = np.array([m.data.qacc_warmstart for m in machines])
+    control = np.array([r.control for r in runs])
+    datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(threads, len(runs))))]
+    states, sensors = mujoco.rollout.rollout(models, datas, initial, control, initial_warmstart=warmstart)
+    results: list[SimulationResult | UserError] = []
+    for run, state, sensor in zip(runs, states, sensors):
+        try:
+            check_stable(run.machine.model, None, state, sensor, 0.0, run.control)
+            results.append(run.result(state, sensor))
+        except UserError as exc:
+            results.append(exc)
+    return results
 
-    # Unpack qpos/qvel from the full physics state: [time, qpos, qvel, act, ...].
-    qpos = state[:, 1 : 1 + model.nq]
-    qvel = state[:, 1 + model.nq : 1 + model.nq + model.nv]
-    arm_angle = machine.shaft_angle(qpos)
-    arm_velocity = machine.shaft_velocity(qvel)
-    motor_velocity = qvel[:, machine.motor_dof]
-    samples = np.arange(1, nsample + 1) * substeps - 1  # state after each sample interval
-    previous = np.concatenate([[0.0], arm_velocity])[samples + 1 - substeps]
-    acceleration = (arm_velocity[samples] - previous) / (substeps * dt)
 
-    torque = sensordata[:, model.sensor(TORQUE_SENSOR).adr[0]]
-    applied = control[0, :, machine.actuator]
-    current = torque / machine.motor.torque_constant_Nm_A
-    if machine.motor.cogging_Nm:  # the electromagnetic part only
-        motor_angle = qpos[:, machine.motor_qpos]
-        cog = machine.motor.cogging_Nm * np.sin(machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad)
-        current = (torque - cog) / machine.motor.torque_constant_Nm_A
-    if machine.supply:  # the limit acts in the passive callback: the sensor sees the commanded current
-        motor = machine.motor
-        commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
-        current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
-    needle = machine.tool_height_mm_at(arm_angle)
-    return SimulationResult(
-        time_s=(samples + 1) * dt,
-        voltage_V=applied[samples],
-        current_A=current[samples],
-        arm_angle_rad=arm_angle[samples],
-        arm_velocity_rad_s=arm_velocity[samples],
-        arm_acceleration_rad_s2=acceleration,
-        needle_z_mm=needle[samples],
-        motor_velocity_rad_s=motor_velocity[samples],
-        metadata={"timestep_s": dt, "native_callbacks": machine.native, "start_angle_rad": start_angle_rad},
-        state=state[samples],
-    )
+def _state(model, data, spec) -> np.ndarray:
+    state = np.zeros(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    return state
+
+
+class _Run:
+    """One run's controls (the machine reset to its start) and the unpacking of its states."""
+
+    def __init__(self, machine: Machine, voltage: VoltageProfile | float, duration_s: float, start_angle_rad: float,
+                 sample_rate_hz: float):
+        if not 0 < duration_s <= MAX_DURATION_S:
+            raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
+        if not 10 <= sample_rate_hz <= 100_000:
+            raise UserError("sample rate must be between 10 Hz and 100 kHz")
+        if not isinstance(voltage, VoltageProfile):
+            voltage = VoltageProfile.constant(voltage)
+        from mechanism.files.limits import check_elements
+
+        self.machine, self.start_angle_rad = machine, start_angle_rad
+        model = machine.model
+        self.dt = dt = model.opt.timestep
+        self.substeps = max(1, int(round(1.0 / (sample_rate_hz * dt))))
+        self.nsample = int(round(duration_s * sample_rate_hz))
+        nstep = self.nsample * self.substeps
+        width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
+        check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
+        self.control = np.zeros((nstep, model.nu))
+        self.control[:, machine.actuator] = voltage(np.arange(nstep) * dt)
+        machine.reset(start_angle_rad)
+
+    def result(self, state: np.ndarray, sensordata: np.ndarray) -> SimulationResult:
+        machine, model, dt, substeps = self.machine, self.machine.model, self.dt, self.substeps
+        # the full physics state: [time, qpos, qvel, act, ...]
+        qpos = state[:, 1 : 1 + model.nq]
+        qvel = state[:, 1 + model.nq : 1 + model.nq + model.nv]
+        arm_angle = machine.shaft_angle(qpos)
+        arm_velocity = machine.shaft_velocity(qvel)
+        motor_velocity = qvel[:, machine.motor_dof]
+        samples = np.arange(1, self.nsample + 1) * substeps - 1  # state after each sample interval
+        previous = np.concatenate([[0.0], arm_velocity])[samples + 1 - substeps]
+        acceleration = (arm_velocity[samples] - previous) / (substeps * dt)
+
+        torque = sensordata[:, model.sensor(TORQUE_SENSOR).adr[0]]
+        applied = self.control[:, machine.actuator]
+        current = torque / machine.motor.torque_constant_Nm_A
+        if machine.motor.cogging_Nm:  # the electromagnetic part only
+            motor_angle = qpos[:, machine.motor_qpos]
+            cog = machine.motor.cogging_Nm * np.sin(machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad)
+            current = (torque - cog) / machine.motor.torque_constant_Nm_A
+        if machine.supply:  # the limit acts in the passive callback: the sensor sees the commanded current
+            motor = machine.motor
+            commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
+            current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
+        needle = machine.tool_height_mm_at(arm_angle)
+        return SimulationResult(
+            time_s=(samples + 1) * dt,
+            voltage_V=applied[samples],
+            current_A=current[samples],
+            arm_angle_rad=arm_angle[samples],
+            arm_velocity_rad_s=arm_velocity[samples],
+            arm_acceleration_rad_s2=acceleration,
+            needle_z_mm=needle[samples],
+            motor_velocity_rad_s=motor_velocity[samples],
+            metadata={"timestep_s": dt, "native_callbacks": machine.native, "start_angle_rad": self.start_angle_rad,
+                      "sensor_columns": {model.sensor(i).name: int(model.sensor_adr[i]) for i in range(model.nsensor)}},
+            state=state[samples],
+            sensordata=sensordata[samples],
+        )
 
 
 def plot_simulation(result: SimulationResult, path) -> None:

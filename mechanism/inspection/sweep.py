@@ -72,6 +72,8 @@ class SweepOptions:
     duration_s: float = 2.0
     sample_rate_hz: float = 1000.0
     layers: int = 0
+    full: bool = False  # the full multibody model (mujoco.rollout) instead of the reduced one
+    bearings: tuple[str, ...] = ()  # joints whose peak reaction force is reported (full model)
 
 
 @dataclass
@@ -388,6 +390,69 @@ def _run_variant(runner: VariantRunner, values: np.ndarray) -> dict[str, Any]:
     return runner(values)
 
 
+FULL_GROUP = 8  # variants per rollout call and thread: enough to keep the pool busy, few to hold
+
+
+@dataclass
+class _FullShared:
+    base: SweepBase
+    threads: int
+
+
+class FullRunner:
+    """A worker of a ``--full`` sweep: each group of variants compiled as Machines (~10 ms
+    each) and run together in one ``mujoco.rollout`` call on ``threads`` threads."""
+
+    def __init__(self, shared: _FullShared):
+        from mechanism.machine.machine import Machine
+
+        self.shared = shared
+        self.machine = Machine(shared.base.description, shared.base.config)
+        self.reduced_runner = VariantRunner(shared.base)
+
+    def __call__(self, group: Sequence[np.ndarray]) -> list[dict[str, Any]]:
+        from mechanism.dynamics.simulation import simulate_batch
+
+        base, options = self.shared.base, self.shared.base.options
+        built = [variant_machine(self.machine, base.parameters, values, options.bearings) for values in group]
+        reduced = [self.reduced_runner.reduced(values)[0] for values in group]
+        for (variant, _), tables in zip(built, reduced):
+            variant.tables = tables.tables  # the same geometry: no second tabulation (~0.1 s) for the tool height
+        results = simulate_batch([m for m, _ in built], [v for _, v in built], options.duration_s,
+                                 sample_rate_hz=options.sample_rate_hz, threads=self.shared.threads)
+        rows = []
+        for model, result in zip(reduced, results):
+            if isinstance(result, UserError):
+                rows.append({**{name: math.nan for name in METRICS}, "note": str(result)})
+                continue
+            row = variant_metrics(result, model)  # break-away from the same tables
+            row.update(bearing_loads(result, options.bearings))
+            rows.append(row)
+        return rows
+
+
+def _run_group(runner: FullRunner, group: Sequence[np.ndarray]) -> list[dict[str, Any]]:
+    return runner(group)
+
+
+def bearing_loads(result: SimulationResult, bearings: Sequence[str]) -> dict[str, float]:
+    """Peak reaction force [N] at each bearing over the run's last revolution (the whole run
+    when it never turned a revolution), from the ``bearing:<joint>`` force sensors."""
+    if not bearings:
+        return {}
+    assert result.sensordata is not None
+    machine_sensors = result.metadata.get("sensor_columns", {})
+    angle = result.arm_angle_rad
+    last = np.flatnonzero(angle <= angle[-1] - TWO_PI)
+    window = slice(int(last[-1]) + 1 if last.size else 0, None)
+    out = {}
+    for joint in bearings:
+        column = machine_sensors[f"bearing:{joint}"]
+        force = result.sensordata[window, column : column + 3]
+        out[f"bearing_{joint}_peak_N"] = float(np.max(np.linalg.norm(force, axis=1)))
+    return out
+
+
 # -- metrics --------------------------------------------------------------------------------
 
 
@@ -486,6 +551,7 @@ class SweepResult:
             entry: dict[str, Any] = {"variant": name}
             entry.update({p.name: float(v) for p, v in zip(self.variants.parameters, values)})
             entry.update({key: row.get(key, math.nan) for key in METRICS})
+            entry.update({key: value for key, value in row.items() if key not in METRICS and key != "note"})
             entry["note"] = row.get("note", "")
             out.append(entry)
         return out
@@ -520,9 +586,12 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
             if on_row is not None:
                 on_row(todo[position], row)
 
-        rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
-                         workers=workers, backend=backend, ray_address=ray_address, on_result=keep, progress=progress,
-                         desc="variants", unit="variant")
+        if options.full:
+            rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress)
+        else:
+            rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
+                             workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
+                             progress=progress, desc="variants", unit="variant")
     done.update(zip(todo, rows))
     return SweepResult(variants, [done[i] for i in range(len(variants))], options, time.perf_counter() - start,
                        resumed=len(variants) - len(todo))
@@ -536,6 +605,28 @@ def with_defaults(variants: VariantSet, options: SweepOptions) -> VariantSet:
         if default is not None:
             values[np.isnan(values[:, column]), column] = default
     return replace(variants, values=values)
+
+
+def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Callable[[int, dict[str, Any]], None],
+              workers: int, backend: str, ray_address: str | None, progress: bool) -> list[dict[str, Any]]:
+    """Groups of variants through ``mujoco.rollout``: locally one process whose rollout pool
+    has ``workers`` threads; on Ray one thread per task, the cluster's tasks in parallel."""
+    from mechanism.batch import run_batch
+
+    local = backend == "local"
+    size = FULL_GROUP * (workers if local else 1)
+    groups = [todo[i : i + size] for i in range(0, len(todo), size)]
+    starts = np.cumsum([0] + [len(g) for g in groups])
+
+    def keep_group(position: int, rows: list[dict[str, Any]]) -> None:
+        for offset, row in enumerate(rows):
+            keep(int(starts[position]) + offset, row)
+
+    shared = _FullShared(base, workers if local else 1)
+    results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
+                        setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
+                        on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
+    return [row for rows in results for row in rows]
 
 
 JOURNAL_FORMAT = "mechanism-sweep-journal/1"
@@ -641,33 +732,46 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = Non
 # -- the independent way: a real Machine per variant ------------------------------------------
 
 
-def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Sequence[float]) -> tuple[Machine, float]:
+def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Sequence[float],
+                    bearings: Sequence[str] = ()) -> tuple[Machine, float]:
     """The variant as a full :class:`Machine` (edited description, the flywheel or mass compiled
     as a welded child body, geometry edited in the compiled model) and its motor voltage:
-    slow, independent of the sweep's shortcuts, for checks and for a closer look at one variant."""
+    slow, independent of the sweep's shortcuts, for checks, for ``--full`` and for a closer look
+    at one variant. Every inertia and mass parameter adds its body, zero or not, so that all
+    variants of one sweep share a size signature (``mujoco.rollout`` runs them together).
+    ``bearings``: joints whose reaction force a ``bearing:<joint>`` force sensor measures (on
+    the child body, at the joint's anchor, in the child's frame)."""
     base = SweepBase.of(machine, parameters, SweepOptions())
     variant = _sort(parameters, values)
     description = edited_description(machine.description, variant.description) if variant.description else machine.description
     nominal = machine.model
+    inertias = {_split(p.target)[1]: variant.inertia.get(_split(p.target)[1], 0.0) for p in parameters
+                if p.dynamic and _split(p.target)[0] == "inertia"}
+    masses = {_split(p.target)[1]: variant.mass.get(_split(p.target)[1], 0.0) for p in parameters
+              if p.dynamic and _split(p.target)[0] == "mass"}
 
     def extend(spec: mujoco.MjSpec) -> None:
         if machine._extend is not None:
             machine._extend(spec)
-        for joint, inertia in variant.inertia.items():
-            if inertia:
-                jid = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, joint)
-                holder = spec.body(nominal.body(int(nominal.jnt_bodyid[jid])).name)
-                turn = np.zeros(4)  # the disc's own z along the joint axis
-                mujoco.mju_quatZ2Vec(turn, np.array(nominal.jnt_axis[jid], dtype=float))
-                # a thin disc: the added inertia about the axis, half of it across (only the axial part moves)
-                holder.add_body(name=f"flywheel:{joint}", pos=nominal.jnt_pos[jid], ipos=[0.0, 0.0, 0.0], quat=turn, mass=POINT_MASS_INERTIA_KGM2,
-                                inertia=[inertia / 2, inertia / 2, inertia], explicitinertial=True)
-        for part, mass in variant.mass.items():
-            if mass:
-                body, position = _mass_point(nominal, nominal, part, variant.geometry)
-                holder = spec.body(nominal.body(body).name)
-                holder.add_body(name=f"mass:{part}", pos=position, ipos=[0.0, 0.0, 0.0], mass=mass,
-                                inertia=[POINT_MASS_INERTIA_KGM2] * 3, explicitinertial=True)
+        for joint, inertia in inertias.items():
+            jid = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, joint)
+            holder = spec.body(nominal.body(int(nominal.jnt_bodyid[jid])).name)
+            turn = np.zeros(4)  # the disc's own z along the joint axis
+            mujoco.mju_quatZ2Vec(turn, np.array(nominal.jnt_axis[jid], dtype=float))
+            # a thin disc: the added inertia about the axis, half of it across (only the axial part moves)
+            holder.add_body(name=f"flywheel:{joint}", pos=nominal.jnt_pos[jid], ipos=[0.0, 0.0, 0.0], quat=turn,
+                            mass=POINT_MASS_INERTIA_KGM2, inertia=[inertia / 2, inertia / 2, inertia], explicitinertial=True)
+        for part, mass in masses.items():
+            body, position = _mass_point(nominal, nominal, part, variant.geometry)
+            holder = spec.body(nominal.body(body).name)
+            holder.add_body(name=f"mass:{part}", pos=position, ipos=[0.0, 0.0, 0.0], mass=mass,
+                            inertia=[POINT_MASS_INERTIA_KGM2] * 3, explicitinertial=True)
+        for joint in bearings:
+            jid = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, joint)
+            child = spec.body(nominal.body(int(nominal.jnt_bodyid[jid])).name)
+            site = child.add_site(name=f"bearing:{joint}", pos=nominal.jnt_pos[jid])
+            spec.add_sensor(name=f"bearing:{joint}", type=mujoco.mjtSensor.mjSENS_FORCE,
+                            objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site.name)
 
     layers = int(variant.operating.get("layers", machine.config.layers))
     built = Machine(description, replace(machine.config, layers=layers), extend)
@@ -675,3 +779,11 @@ def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: S
     for param, value in variant.geometry:
         apply_parameter(built.model, unedited, param, value)
     return built, _voltage(base, variant)
+
+
+def check_bearings(model: mujoco.MjModel, bearings: Sequence[str]) -> None:
+    """Bearing loads are measured on tree joints (a loop's joint is an equality constraint)."""
+    joints = parts.joint_names(model)
+    for joint in bearings:
+        if joint not in joints:
+            raise UserError(f"--bearings: no joint named {joint!r}; close matches: {close_matches(joint, joints)}")
