@@ -9,6 +9,7 @@
 Default: the 3 shipped virtual-bench recordings and 40 variants (about a minute on 2
 cores). ``MECHANISM_BENCH_FLEET=100`` diagnoses 100 recordings of 60 s generated on the
 virtual bench (seeds 1..100, cycling through clean, torque ripple, position friction);
+``MECHANISM_BENCH_FLEET_REFERENCE=K`` times single runs of the first K only;
 ``MECHANISM_BENCH_BATCH_VARIANTS=N`` changes the variant count. ``python -m bench bench_batch``.
 """
 
@@ -28,33 +29,45 @@ def _recordings(count: int, folder: Path) -> list[Path]:
     shipped = sorted((REPO / "assets" / "recordings").glob("*.csv"))
     if count <= len(shipped):
         return shipped[:count]
+    from mechanism.api import drive_nominal
     from mechanism.testbench.recording import make_recording, write_recording
 
+    nominal = drive_nominal(None)  # the thesis's lumped drive, as the shipped recordings
     paths = []
     for seed in range(1, count + 1):
         path = folder / f"bench_seed{seed}.csv"
-        write_recording(make_recording(EFFECT_CYCLE[seed % len(EFFECT_CYCLE)], seed=seed, duration_s=60.0), path)
+        write_recording(make_recording(EFFECT_CYCLE[seed % len(EFFECT_CYCLE)], seed=seed, duration_s=60.0,
+                                       nominal=nominal), path)
         paths.append(path)
     return paths
 
 
-def _fleet(paths, scratch: Path) -> None:
+def _fleet(paths, scratch: Path, reference: int | None = None) -> None:
     """The 1-worker fleet runs each diagnosis alone in this process: its per-recording times
-    are single runs, the reference for the per-recording cost of the 2-worker fleet."""
+    are single runs, the reference for the per-recording cost in the 2-worker fleet (the time
+    each recording took in its worker). ``reference``: single runs of the first N recordings only."""
+    import numpy as np
+
+    from mechanism.api import drive_nominal
     from mechanism.sysid.fleet import diagnose_fleet
 
+    singles = paths[: reference or len(paths)]
     results = {}
-    for workers in (1, 2):
-        results[workers] = diagnose_fleet(paths, scratch / f"fleet{workers}", workers=workers, progress=False)
+    for workers, batch in ((1, singles), (2, paths)):
+        results[workers] = diagnose_fleet(batch, scratch / f"fleet{workers}", workers=workers, progress=False,
+                                          nominal=drive_nominal(None))
         shutil.rmtree(scratch / f"fleet{workers}")
-    n = len(paths)
-    single = sum(row["time_s"] for row in results[1].rows) / n
+        failed = [row for row in results[workers].rows if row["status"] != "ok"]
+        assert not failed, f"{len(failed)} recordings failed: {failed[0].get('error')}"
+    n, k = len(paths), len(singles)
+    single = float(np.mean([row["time_s"] for row in results[1].rows]))
+    in_fleet = float(np.mean([row["time_s"] for row in results[2].rows]))
     one, two = results[1].seconds, results[2].seconds
-    same = [row["effects"] for row in results[1].rows] == [row["effects"] for row in results[2].rows]
-    print(f"fleet diagnosis of {n} recordings: single run {single:.1f} s on average; 1 worker {one:.1f} s "
-          f"({one / n / single:.2f} x single per recording), 2 workers {two:.1f} s ({two / n / single:.2f} x single "
-          f"per recording); speed-up 1 -> 2 workers {one / two:.2f}x (a single diagnosis already fits on threads: "
-          f"the gain is what whole processes add); same effects: {same}")
+    same = [row["effects"] for row in results[1].rows] == [row["effects"] for row in results[2].rows[:k]]
+    print(f"fleet diagnosis of {n} recordings on 2 workers: {two:.1f} s, {two / n:.2f} s per recording of wall time; "
+          f"each recording took {in_fleet:.2f} s in its worker against {single:.2f} s for a single run ({k} alone, "
+          f"{one:.1f} s): {in_fleet / single:.2f} x single; speed-up 1 -> 2 workers {single / (two / n):.2f}x "
+          f"(a single diagnosis already fits on threads: the gain is what whole processes add); same effects: {same}")
 
 
 def _variants(count: int, scratch: Path) -> None:
@@ -81,7 +94,8 @@ def main() -> None:
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(f"{cores} CPU cores visible; load average {os.getloadavg()[0]:.2f} (ratios are only meaningful on idle cores)")
     with tempfile.TemporaryDirectory() as scratch:
-        _fleet(_recordings(count, Path(scratch)), Path(scratch))
+        reference = int(os.environ.get("MECHANISM_BENCH_FLEET_REFERENCE", "0")) or None
+        _fleet(_recordings(count, Path(scratch)), Path(scratch), reference)
         _variants(variants, Path(scratch))
 
 

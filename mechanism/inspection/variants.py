@@ -52,14 +52,16 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import mujoco
 import numpy as np
 
 from mechanism.machine import parts
-from mechanism.inspection.clearance import ClearanceSweep, Pair
 from mechanism.errors import UserError, close_matches
+
+if TYPE_CHECKING:  # the clearance checker (fcl) loads only where a clearance batch runs
+    from mechanism.inspection.clearance import Pair
 
 FORMAT = "mechanism-variants/1"
 MAX_VARIANTS = 1_000_000
@@ -518,6 +520,8 @@ class VariantChecker:
     """Compiles nothing per variant: one model copy, one set of fcl BVHs, fields edited in place."""
 
     def __init__(self, config: BatchConfig):
+        from mechanism.inspection.clearance import ClearanceSweep
+
         self.config = config
         self.nominal = config.model
         self.model = _copy_model(config.model)
