@@ -94,12 +94,13 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism.steppers import step_profiles, stepper
+    from mechanism import steppers
+    from mechanism.steppers import step_profiles
     from mechanism.errors import UserError
     from mechanism.files.outputs import atomic_file
     from mechanism.files.tables import write_table
 
-    mode = stepper.drive_mode(args.mode)
+    mode = steppers.drive_mode(args.mode)
     if args.rate is not None and not (args.rate > 0 and args.rate != float("inf")):
         raise UserError(f"--rate must be a positive number of full steps per second, got {args.rate:g}")
     for name in ("settle", "sample_period"):
@@ -110,18 +111,18 @@ def run(args) -> int:
         value = getattr(args, name)
         if not (value >= 0 and math.isfinite(value)):
             raise UserError(f"--{name.replace('_', '-')} must be a non-negative number, got {value:g}")
-    params = stepper.pm25s048(load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
+    params = steppers.pm25s048(load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
 
     if args.sweep:
-        kinds = list(stepper.KINDS) if args.model == "both" else [args.model]
+        kinds = list(steppers.KINDS) if args.model == "both" else [args.model]
         results, pull_out = {}, {}
         for kind in kinds:
-            results[kind] = stepper.sweep_rates(args.sweep, kind, mode, params, progress=sys.stderr.isatty())
+            results[kind] = steppers.sweep_rates(args.sweep, kind, mode, params, progress=sys.stderr.isatty())
             failing = [r["rate_steps_s"] for r in results[kind] if r["lost_steps"] or r["slips"]]
             if failing:
                 holding = [r["rate_steps_s"] for r in results[kind] if r["rate_steps_s"] < failing[0]]
                 low = holding[-1] if holding else None
-                pull_out[kind] = (stepper.pull_out_rate(kind, mode, params, low=low, high=failing[0])
+                pull_out[kind] = (steppers.pull_out_rate(kind, mode, params, low=low, high=failing[0])
                                   if low is not None else failing[0])
             else:
                 pull_out[kind] = None
@@ -136,7 +137,7 @@ def run(args) -> int:
                 f"pull-out rate {rate:.0f} steps/s ({rate * params.step_angle_deg / 360 * 60:.0f} rpm)" if rate
                 else f"no lost steps up to {max(args.sweep):g} steps/s"))
         if args.plot:
-            stepper.plot_sweep(results, args.plot)
+            steppers.plot_sweep(results, args.plot)
         if args.json:
             with atomic_file(args.json) as handle:
                 json.dump({"mode": mode.name, "pull_out_rate_steps_s": pull_out, "sweep": results}, handle, indent=2)
@@ -150,13 +151,13 @@ def run(args) -> int:
     if not ramp > 0:
         raise UserError(f"--ramp-steps must be positive, got {ramp:g}")
     profile = step_profiles.resolve(args.sequence, args.rate, ramp)
-    result = stepper.simulate(profile, args.model, mode, params, settle_s=args.settle)
+    result = steppers.simulate(profile, args.model, mode, params, settle_s=args.settle)
     s = result.summary
     write_table(args.csv, result.columns(args.sample_period), comments=[
         f"sequence: {profile.name}", f"model: {args.model}", f"mode: {mode.name}",
         f"step_angle_deg: {params.step_angle_deg:g}", f"timestep_s: {result.time_s[1] - result.time_s[0]:g}"])
     if args.plot:
-        stepper.plot_run(result, args.plot)
+        steppers.plot_run(result, args.plot)
     if args.json:
         with atomic_file(args.json) as handle:
             json.dump(s, handle, indent=2)

@@ -3,7 +3,7 @@
 A profile is a piecewise-linear step *rate* (full steps per second, negative = reverse;
 rate jumps are allowed); the commanded shaft position is its exact integral, in full
 steps (7.5 degrees for the PM25S-048) from the start. The driver rounds that position to
-its resolution (full, half or 1/N step, see :mod:`mechanism.steppers.stepper`).
+its resolution (full, half or 1/N step, see :mod:`mechanism.steppers`).
 
 Where profiles come from:
 
