@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import re
 
 import numpy as np
 import pytest
@@ -32,10 +33,33 @@ def thread_cut_runs():
     return runs
 
 
+def thesis_thread_cut():
+    """(forward s, back s, steps/s) as the reference file states them."""
+    ref = thesis()["stepper_motors"]
+    match = re.search(r"forward ([0-9.]+) s then back .*? ([0-9.]+) s", ref["thread_cut_sequence"])
+    assert match, ref["thread_cut_sequence"]
+    return float(match.group(1)), float(match.group(2)), float(ref["assumed_step_rate_steps_per_s"])
+
+
 def thesis_stroke_deg():
     ref = thesis()["stepper_motors"]
-    forward_s, _, rate = step_profiles.thesis_thread_cut()
+    forward_s, _, rate = thesis_thread_cut()
     return forward_s * rate * ref["step_angle_deg"]
+
+
+def test_the_machine_description_carries_the_thesis_numbers():
+    # the library reads the shipped description; the thesis's numbers there must be the reference file's
+    from mechanism.machine.machine import resolve_description
+
+    ref = thesis()["stepper_motors"]
+    description = resolve_description(None)
+    stepper = description.section("stepper")
+    assert stepper["step_angle_deg"] == ref["step_angle_deg"]
+    assert stepper["pole_pairs"] == ref["poles_in_torque_equation"]
+    assert ref["type"].startswith(stepper["type"])
+    assert (description.section("thread_cut")["forward_s"], description.section("thread_cut")["back_s"],
+            stepper["step_rate_steps_s"]) == thesis_thread_cut()
+    assert step_profiles.thread_cut_timing() == thesis_thread_cut()
 
 
 def test_parameters_follow_the_thesis(params):
@@ -49,7 +73,7 @@ def test_parameters_follow_the_thesis(params):
 
 
 def test_thread_cut_sequence_is_the_thesis_one():
-    forward_s, back_s, rate = step_profiles.thesis_thread_cut()
+    forward_s, back_s, rate = thesis_thread_cut()
     profile = step_profiles.thread_cut()
     assert profile.duration_s == pytest.approx(forward_s + back_s)
     assert profile.peak_steps() == pytest.approx(forward_s * rate)
@@ -250,3 +274,45 @@ def test_load_torque_sets_the_quasi_static_lag(params):
     assert lag_deg == pytest.approx(expected, rel=0.1)
     # at rest the friction holds the rotor anywhere inside that band
     assert abs(run.summary["final_error_deg"]) <= expected
+
+
+def _shipped_description_text():
+    from mechanism.machine.models import DEFAULT_DESCRIPTION
+
+    return DEFAULT_DESCRIPTION.read_text()
+
+
+def test_another_described_stepper_is_read_from_its_description(tmp_path):
+    text = _shipped_description_text()
+    path = tmp_path / "other.toml"
+    path.write_text(text.replace("pole_pairs = 12", "pole_pairs = 6").replace("step_angle_deg = 7.5", "step_angle_deg = 15.0")
+                    .replace("holding_torque_Nm = 0.025", "holding_torque_Nm = 0.05").replace("forward_s = 0.35", "forward_s = 0.2"))
+    params = steppers.described_stepper(path, load_torque_Nm=0.001)
+    assert (params.pole_pairs, params.step_angle_deg, params.holding_torque_Nm, params.load_torque_Nm) == (6, 15.0, 0.05, 0.001)
+    assert params.resistance_ohm == steppers.pm25s048().resistance_ohm
+    assert step_profiles.thread_cut_stroke_steps(path) == 200  # 0.2 s at 1000 steps/s
+    assert step_profiles.thread_cut(machine=path).peak_steps() == pytest.approx(200)
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda t: t.replace("step_angle_deg = 7.5", "step_angle_deg = 15.0"), "[stepper] step_angle_deg"),
+    (lambda t: re.sub(r"^supply_V = .*\n", "", t, flags=re.M), "[stepper] supply_V: missing"),
+    (lambda t: re.sub(r"^step_rate_steps_s = .*\n", "", t, flags=re.M), "[thread_cut]"),
+    (lambda t: t.replace("inductance_H = 0.012", "inductance_H = -1"), "[stepper] inductance_H"),
+])
+def test_bad_stepper_sections_are_one_user_error(tmp_path, edit, expected):
+    path = tmp_path / "bad.toml"
+    path.write_text(edit(_shipped_description_text()))
+    with pytest.raises(UserError, match=re.escape(expected)):
+        steppers.described_stepper(path)
+
+
+def test_a_machine_without_a_stepper_says_so(tmp_path):
+    text = _shipped_description_text()
+    start, end = text.index("[stepper]"), text.index("[inspect]")
+    path = tmp_path / "none.toml"
+    path.write_text(text[:start] + text[end:])
+    with pytest.raises(UserError, match="no stepper"):
+        steppers.described_stepper(path)
+    with pytest.raises(UserError, match="no thread cut"):
+        step_profiles.thread_cut_timing(path)

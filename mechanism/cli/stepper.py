@@ -79,6 +79,8 @@ def register(subparsers) -> None:
                         help="slew rate [full steps/s] for thread-cut and target files (default: the thesis's 1000)")
     parser.add_argument("--ramp-steps", type=number(0, 1e5, "steps", low_open=True), default=None, metavar="STEPS",
                         help="thread-cut-ramped: full steps of the ramp to rest before the reversal (default 25)")
+    parser.add_argument("--machine", metavar="FILE.toml|NAME",
+                        help="machine description whose [stepper] and [thread_cut] to use (default: the shipped sewing machine)")
     parser.add_argument("--load-torque", type=number(0, 10, "N m"), default=0.0, metavar="NM",
                         help="load torque Tl [N m] on the motor shaft, as Coulomb friction (default 0)")
     parser.add_argument("--load-inertia", type=number(0, 1, "kg m^2"), default=0.0, metavar="KG_M2",
@@ -90,7 +92,7 @@ def register(subparsers) -> None:
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="output table")
     parser.add_argument("--plot", metavar="OUT.png", help="also plot position, speed, currents and torque (or the sweep)")
     parser.add_argument("--json", metavar="OUT.json", help="also write the summary as JSON")
-    parser.set_defaults(handler=run, inputs=(_sequence_file,), outputs=("csv", "plot", "json"), plots=("plot",))
+    parser.set_defaults(handler=run, inputs=(_sequence_file, "machine"), outputs=("csv", "plot", "json"), plots=("plot",))
 
 
 def run(args) -> int:
@@ -111,7 +113,7 @@ def run(args) -> int:
         value = getattr(args, name)
         if not (value >= 0 and math.isfinite(value)):
             raise UserError(f"--{name.replace('_', '-')} must be a non-negative number, got {value:g}")
-    params = steppers.pm25s048(load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
+    params = steppers.described_stepper(args.machine, load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
 
     if args.sweep:
         kinds = list(steppers.KINDS) if args.model == "both" else [args.model]
@@ -150,7 +152,7 @@ def run(args) -> int:
         raise UserError("--ramp-steps only applies to --sequence thread-cut-ramped")
     if not ramp > 0:
         raise UserError(f"--ramp-steps must be positive, got {ramp:g}")
-    profile = step_profiles.resolve(args.sequence, args.rate, ramp)
+    profile = step_profiles.resolve(args.sequence, args.rate, ramp, machine=args.machine)
     result = steppers.simulate(profile, args.model, mode, params, settle_s=args.settle)
     s = result.summary
     write_table(args.csv, result.columns(args.sample_period), comments=[

@@ -44,7 +44,7 @@ from mechanism.steppers._callbacks import install, python_callbacks, uninstall
 from mechanism.steppers._drive import (
     KINDS, DriveMode, drive, drive_mode, linear_stiffness, physical_torque, rest_angle_rad, user_data,
 )
-from mechanism.steppers._motor import StepperParams, pm25s048
+from mechanism.steppers._motor import StepperParams, described_step_rate, described_stepper, pm25s048
 from mechanism.steppers._report import StepperRun, analyse, plot_run, plot_sweep, slip_events
 from mechanism.steppers._simulation import (
     MAX_STEPS, command_array, holding_torque, initial_state, pull_out_rate, run_rollout, simulate, sweep_rates,
@@ -52,7 +52,7 @@ from mechanism.steppers._simulation import (
 
 __all__ = [
     # the motor
-    "StepperParams", "pm25s048",
+    "StepperParams", "pm25s048", "described_stepper", "described_step_rate",
     # the driver and the torque laws
     "KINDS", "DriveMode", "drive_mode", "drive", "physical_torque", "rest_angle_rad", "linear_stiffness", "user_data",
     # the MuJoCo actuator and its callbacks

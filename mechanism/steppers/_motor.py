@@ -7,7 +7,6 @@ import math
 from dataclasses import dataclass
 
 from mechanism.errors import UserError
-from mechanism.data.reference import thesis
 
 
 @dataclass(frozen=True)
@@ -76,13 +75,15 @@ class StepperParams:
 
 
 def pm25s048(**overrides) -> StepperParams:
-    """The PM25S-048 of the Sapphire 870 on a 24 V chopper drive.
+    """The PM25S-048 of the Sapphire 870 on a 24 V chopper drive: the shipped machine's
+    ``[stepper]`` (``mechanism/models/sapphire870/sapphire870.toml``; a test keeps the
+    thesis's numbers there equal to the reference file's).
 
     ================  ============  =========================================================
     parameter         value         source
     ================  ============  =========================================================
-    step angle        7.5 deg       thesis (data sheet), reference file
-    pole pairs p      12            thesis eq. 17, reference file (48 steps/rev = 4 p)
+    step angle        7.5 deg       thesis (data sheet)
+    pole pairs p      12            thesis eq. 17 (48 steps/rev = 4 p)
     holding torque    25 mN m       typical 25 mm PM can-stack motor, two phases on (assumed)
     detent torque     1.25 mN m     5 % of holding (assumed)
     rated current     0.5 A         typical chopper winding of a 25 mm PM motor (assumed)
@@ -100,19 +101,38 @@ def pm25s048(**overrides) -> StepperParams:
     K_omega           = Kt          derived: power balance of eq. 23
     ================  ============  =========================================================
     """
-    stepper = thesis()["stepper_motors"]
-    values = dict(
-        step_angle_deg=float(stepper["step_angle_deg"]),
-        pole_pairs=int(stepper["poles_in_torque_equation"]),
-        holding_torque_Nm=0.025,
-        detent_torque_Nm=0.00125,
-        rated_current_A=0.5,
-        resistance_ohm=10.0,
-        inductance_H=0.012,
-        supply_V=24.0,
-        chopper_hz=20e3,
-        rotor_inertia_kg_m2=0.5e-7,
-        damping_Nm_s_rad=3e-5,
-    )
+    return described_stepper(None, **overrides)
+
+
+# the description's [stepper] keys that are StepperParams fields (the rest: type, step rate)
+PARAMETER_KEYS = ("step_angle_deg", "pole_pairs", "holding_torque_Nm", "detent_torque_Nm", "rated_current_A",
+                  "resistance_ohm", "inductance_H", "supply_V", "chopper_hz", "rotor_inertia_kg_m2", "damping_Nm_s_rad")
+
+
+def described_section(machine, section: str) -> tuple[dict, str]:
+    """A section of a machine's description (a Machine, a MachineDescription, a TOML path, a
+    shipped machine's name, or None: the shipped default) and where it is, for messages."""
+    from mechanism.machine.machine import resolve_description
+
+    description = getattr(machine, "description", machine)
+    description = resolve_description(description)
+    return description.section(section), description.where(section)
+
+
+def described_stepper(machine=None, **overrides) -> StepperParams:
+    """The stepper of a described machine (its ``[stepper]`` section; default: the shipped
+    machine, see :func:`pm25s048`), with ``overrides`` (e.g. a load) applied."""
+    stepper, where = described_section(machine, "stepper")
+    if not stepper:
+        raise UserError(f"{where}: the machine description has no stepper")
+    values = {key: stepper[key] for key in PARAMETER_KEYS}
     values.update(overrides)
     return StepperParams(**values)
+
+
+def described_step_rate(machine=None) -> float:
+    """The described drive's usual slew rate [full steps/s] (``[stepper] step_rate_steps_s``)."""
+    stepper, where = described_section(machine, "stepper")
+    if "step_rate_steps_s" not in stepper:
+        raise UserError(f"{where} step_rate_steps_s: not given; pass a step rate")
+    return float(stepper["step_rate_steps_s"])

@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 
 from mechanism.steppers import step_profiles
-from mechanism.steppers._motor import StepperParams, pm25s048
+from mechanism.steppers._motor import StepperParams, described_step_rate, pm25s048
 from mechanism.steppers._simulation import simulate
 from mechanism.errors import UserError
 
@@ -223,7 +223,7 @@ def check_move(stitches_per_minute: float, needle: NeedleProfile, width_mm: floa
     steps = linkage.steps_for(width_mm)
     if steps <= 0:
         raise UserError(f"a zigzag move of {width_mm:g} mm is less than one step ({linkage.mm_per_step:g} mm)")
-    rate = float(rate) if rate is not None else step_profiles.thesis_thread_cut()[2]
+    rate = float(rate) if rate is not None else described_step_rate()
     tolerance_mm = 0.5 * linkage.mm_per_step if tolerance_mm is None else float(tolerance_mm)
     period = arm_period_s(stitches_per_minute)
     exit_angle, entry_angle = needle.window(clearance_mm)
@@ -262,7 +262,7 @@ def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, wi
     motor = linkage.motor(params)
     width_mm = linkage.width_mm if width_mm is None else float(width_mm)
     steps = linkage.steps_for(width_mm)
-    rate = float(rate) if rate is not None else step_profiles.thesis_thread_cut()[2]
+    rate = float(rate) if rate is not None else described_step_rate()
     tolerance_mm = 0.5 * linkage.mm_per_step if tolerance_mm is None else float(tolerance_mm)
     if not (1 <= int(stitches) <= 1000):
         raise UserError(f"stitches must be 1..1000, got {stitches}")
