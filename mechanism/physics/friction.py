@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.physics._numeric import numeric_block
 
 STRIBECK_LAWS = {"none": 0, "tustin": 1, "hess-soom": 2}
 # Friction-loss constraint stiffness. MuJoCo's friction constraint is soft: a joint held by
@@ -181,9 +182,8 @@ class FrictionSet:
 
 def python_friction(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """The friction part of native/machine.c in Python (the fallback without a compiler)."""
-    try:
-        block = model.numeric(NUMERIC_NAME).data
-    except KeyError:
+    block = numeric_block(model, NUMERIC_NAME)
+    if block is None:
         return
     count = int(block[1])
     rows = data.efc_type[: data.nefc]

@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.physics._numeric import numeric_block
 
 COPPER_TEMPCOEF_PER_K = 0.00393
 
@@ -144,9 +145,8 @@ class SupplyLimit:
 
 def python_supply_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """The supply-limit part of native/machine.c in Python (fallback without a compiler)."""
-    try:
-        p = model.numeric(SUPPLY_NUMERIC).data
-    except KeyError:
+    p = numeric_block(model, SUPPLY_NUMERIC)
+    if p is None:
         return
     act, dof = int(p[1]), int(p[2])
     vs, rs, r, kt, ke = p[3:8]
