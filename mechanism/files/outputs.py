@@ -458,9 +458,3 @@ def _publish_files(pairs, folder: Path | None) -> None:
     for source, destination in pairs:
         with atomic_path(destination) as tmp:
             shutil.copyfile(source, tmp)
-
-
-def ensure_parent(path: str | os.PathLike) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path

@@ -22,7 +22,7 @@ import functools
 import math
 import os
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -460,9 +460,6 @@ class Machine:
         with atomic_file(path) as handle:
             handle.write(xml)
         return path
-
-    def with_config(self, **changes) -> "Machine":
-        return Machine(self.description, replace(self.config, **changes), self._extend)
 
 
 _FRAMES: dict[tuple, ShaftFrame] = {}

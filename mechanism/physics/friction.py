@@ -98,10 +98,6 @@ class FrictionLaw:
         """Magnitude of the sliding friction at the nominal position (no viscous part)."""
         return self.coulomb + (self.static_level - self.coulomb) * self.stribeck_shape(velocity)
 
-    def kinetic_level(self, velocity, angle) -> np.ndarray:
-        """Magnitude of the sliding friction at ``angle`` of the position joint."""
-        return self.sliding_level(velocity) * self.position_scale(angle)
-
     def static_at(self, angle=0.0):
         """Break-away level at ``angle`` of the position joint."""
         return self.static_level * self.position_scale(angle, self.static_amplitude)

@@ -25,9 +25,6 @@ from mechanism.errors import UserError
 from mechanism.physics._numeric import numeric_block
 
 NUMERIC_NAME = "mechanism_needle_load"
-# Extra arm-side Coulomb friction [N m] per belt-tension setting (read from fig. 15's band).
-BELT_TENSION_COULOMB_NM = {"low": -0.02, "normal": 0.0, "hard": 0.04}
-FEEDING_COULOMB_NM = 0.03  # on the lower shaft; estimated from fig. 38 (feeding vs bare)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ same time constant), so every optional feature stays physical.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -47,9 +47,6 @@ class DCMotor:
     cogging_poles: int = 12
     cogging_phase_rad: float = 0.0
     thermal: Thermal | None = None
-
-    def with_options(self, **overrides) -> "DCMotor":
-        return replace(self, **overrides)
 
     def __post_init__(self):
         # NaN passes every comparison: check finite ranges, each number by name

@@ -40,7 +40,7 @@ plots). Use the names below; :mod:`mechanism.steppers.step_profiles` (step seque
 """
 
 from mechanism.steppers._actuator import add_stepper, build_model, default_timestep
-from mechanism.steppers._callbacks import install, python_callbacks, uninstall
+from mechanism.steppers._callbacks import install, python_callbacks
 from mechanism.steppers._drive import (
     KINDS, DriveMode, drive, drive_mode, linear_stiffness, physical_torque, rest_angle_rad, user_data,
 )
@@ -56,7 +56,7 @@ __all__ = [
     # the driver and the torque laws
     "KINDS", "DriveMode", "drive_mode", "drive", "physical_torque", "rest_angle_rad", "linear_stiffness", "user_data",
     # the MuJoCo actuator and its callbacks
-    "add_stepper", "build_model", "default_timestep", "install", "uninstall", "python_callbacks",
+    "add_stepper", "build_model", "default_timestep", "install", "python_callbacks",
     # runs
     "MAX_STEPS", "simulate", "initial_state", "command_array", "run_rollout", "sweep_rates", "pull_out_rate",
     "holding_torque",

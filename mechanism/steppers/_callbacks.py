@@ -79,13 +79,6 @@ def python_callbacks():
         mujoco.set_mjcb_act_bias(previous[1])
 
 
-def uninstall() -> None:
-    import mujoco
-
-    mujoco.set_mjcb_act_dyn(None)
-    mujoco.set_mjcb_act_bias(None)
-
-
 def _py_params(m, actuator_id: int):
     if m.nuser_actuator < USER_SIZE:
         return None
