@@ -17,6 +17,7 @@ def read_csv(path):
     return {name: [float(row[name]) for row in rows] for name in rows[0]}
 
 
+@pytest.mark.slow
 def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
     out = tmp_path / "tc.csv"
     result = cli("stepper", "--sequence", "thread-cut", "--csv", out, "--plot", tmp_path / "tc.png",
@@ -74,6 +75,7 @@ def test_machine_option_takes_the_described_stepper_and_thread_cut(cli, tmp_path
     assert "chopper_hz" in line and "broken.toml" in line
 
 
+@pytest.mark.slow
 def test_zigzag_exit_status_says_flagged(cli, tmp_path):
     flagged = cli("zigzag", "--spm", "1000", "--rate", "1000", "--csv", tmp_path / "z.csv")
     assert flagged.returncode == 1 and "FLAGGED" in flagged.stdout
