@@ -145,6 +145,7 @@ def ray_cluster():
         os.environ.pop("RAY_AUTH_MODE") if saved is None else os.environ.update(RAY_AUTH_MODE=saved)
 
 
+@pytest.mark.slow
 def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_path):
     """The CLI connects to the cluster by address (no num_cpus: Ray would refuse) and the
     rows equal the local run's."""
@@ -164,6 +165,7 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_pa
     assert "pass" in (tmp_path / "ray.csv").read_text()
 
 
+@pytest.mark.slow
 def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path, monkeypatch):
     ray = pytest.importorskip("ray")
     monkeypatch.setenv("RAY_ADDRESS", ray_cluster)  # the cluster named by the environment, not the argument
@@ -178,6 +180,7 @@ def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path, monke
     assert not ray.is_initialized()  # disconnected from the cluster it did not start
 
 
+@pytest.mark.slow
 def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster, tmp_path):
     """The options travel once, each recording's path per job; a bad recording is reported."""
     from mechanism.sysid.diagnosis import diagnose

@@ -44,6 +44,7 @@ def test_sampled_curve_is_the_analytic_distance():
     assert curve.min_distance_mm == pytest.approx(sweep_result.min_distance_mm, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_interfering_cylinders_depth_and_angle_range():
     P, rho, reach = 0.019, 0.012, 0.009
     result = check_clearance(M.crank_and_post(P=P).compile(), [Pair("post", "pin")], driver="arm_shaft").results[0]
@@ -59,6 +60,7 @@ def test_interfering_cylinders_depth_and_angle_range():
     assert not result.passes()
 
 
+@pytest.mark.slow
 def test_needle_through_plate_hole_is_a_clearance_not_a_hull_collision(needle_model):
     result = check_clearance(needle_model, [Pair("needle", "needle_plate")], driver="arm_shaft").results[0]
     expected_mm = (M.HOLE_RADIUS - M.NEEDLE_RADIUS - M.OFFSET) * 1e3
@@ -81,6 +83,7 @@ def test_hook_point_passes_the_needle_scarf(needle_model):
     assert result.passes(required_mm=0.05) and not result.passes(required_mm=0.2)
 
 
+@pytest.mark.slow
 def test_mistimed_hook_hits_the_needle():
     model = M.needle_and_plate(hook_offset_deg=-30).compile()  # passes at 210 deg: the scarf is above the hook
     result = check_clearance(model, [Pair("needle", "hook")], driver="arm_shaft").results[0]

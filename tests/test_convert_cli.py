@@ -117,6 +117,7 @@ def test_failed_conversion_leaves_an_existing_output_folder_untouched(tmp_path, 
     assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]
 
 
+@pytest.mark.slow
 def test_summary_lists_bodies_joints_loops_mass_and_warnings(tmp_path, cli):
     source = tmp_path / "export"
     source.mkdir()
@@ -166,6 +167,7 @@ def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
     assert float(moving.split()[2]) == pytest.approx(0.4, rel=1e-9)  # 100 g + 300 g, the base is fixed
 
 
+@pytest.mark.slow
 def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
     # The shipped sewing machine is exported at needle top dead centre, where the needle bar
     # is instantaneously immobile; it still moves, so no lock warning.

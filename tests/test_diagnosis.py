@@ -88,6 +88,7 @@ def test_ranking_prefers_fewer_parameters_within_the_tie_band():
     assert _rank(fits, base) == "torque_ripple"
 
 
+@pytest.mark.slow
 def test_cli_diagnose_writes_the_json_contract_and_a_report(bench, cli, tmp_path):
     out, report = tmp_path / "d.json", tmp_path / "report"
     done = cli("diagnose", bench("encoder_eccentricity", seed=25, duration=20.0), "--baseline", "lumped",
@@ -107,12 +108,14 @@ def test_cli_diagnose_writes_the_json_contract_and_a_report(bench, cli, tmp_path
     assert "encoder_eccentricity" in done.stdout
 
 
+@pytest.mark.slow
 def test_cli_rejects_unknown_effect_and_baseline(bench, cli, tmp_path):
     rec = bench("none", seed=26, duration=5.0)
     assert "unknown effect" in cli("diagnose", rec, "--effects", "cogging").assert_bad_input()
     cli("diagnose", rec, "--baseline", "finite_element").assert_bad_input()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", ["torque_ripple", "none"])
 def test_a_press_is_diagnosed_like_the_sewing_machine(tmp_path, effect):
     """20x the inertia, a 12:1 gear, another motor: the ripple 12 times per shaft turn is
@@ -124,6 +127,7 @@ def test_a_press_is_diagnosed_like_the_sewing_machine(tmp_path, effect):
     check(diagnose(read_recording(csv), nominal=PRESS), set() if effect == "none" else {effect})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effects, overrides", [
     ("stribeck", {"stribeck": {"static_over_kinetic_fraction": 0.33, "stribeck_velocity_arm_rad_s": 7.0, "model": "hess_soom"}}),
     ("none", {}),
@@ -146,6 +150,7 @@ def test_no_candidate_fits_worse_than_the_model_it_extends(tmp_path, effects, ov
     assert not worse, (base.rmse_fit, worse)
 
 
+@pytest.mark.slow
 def test_unexplained_is_said_only_above_the_noise_floor(bench, tmp_path):
     """A clean recording has no 'unexplained' section (its residual sits at the noise floor the
     recording itself shows); a recording whose effect the candidates may not use gets one, with
@@ -165,6 +170,7 @@ def test_unexplained_is_said_only_above_the_noise_floor(bench, tmp_path):
     assert any("winding lag" in note for note in data["baseline"]["notes"])
 
 
+@pytest.mark.slow
 def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp_path):
     """A torque four times per shaft turn is in no library effect (the motor ripple's orders
     are 1, 2, 12, 24 per motor turn; the Coulomb variation's 1-3 per shaft turn): the

@@ -58,6 +58,7 @@ def test_truth_analytic_steady_state_and_breakaway():
 
 # ----------------------------------------------------------------------------- failure modes, fixed
 
+@pytest.mark.slow
 def test_motor_with_kt_equal_ke_is_clean():
     """A consistent SI motor (Kt = Ke = 0.0189, the geometric mean of the thesis's two) damps
     less than the datasheet's Ke = 0.021 with Kt = 0.017: the viscous friction would have to
@@ -71,6 +72,7 @@ def test_motor_with_kt_equal_ke_is_clean():
     assert "back-emf constant fitted" in result.to_json()["baseline"]["notes"][0]
 
 
+@pytest.mark.slow
 def test_kt_equal_ke_thermal_drift_of_viscous_only():
     case = make_case(("thermal_drift",), seed=1, variant="pwm_duty", duration_s=30.0,
                      flavours={"thermal_drift": "viscous_only"})
@@ -79,6 +81,7 @@ def test_kt_equal_ke_thermal_drift_of_viscous_only():
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
 
 
+@pytest.mark.slow
 def test_supply_dead_band_is_not_taken_for_stribeck():
     """A 0.5 V supply dead band on a noisy staircase: the baseline absorbs most of it into the
     Coulomb level, and any candidate's refit could then land in another optimum that is worse
@@ -99,6 +102,7 @@ def test_supply_model_loses_voltage_but_never_reverses_it():
     assert applied.tolist() == pytest.approx([-9.0, 0.0, 0.0, 0.0, 0.0, 9.0])
 
 
+@pytest.mark.slow
 def test_cogging_seen_only_at_starts_is_named():
     """A 12-pole cogging (96 per arm turn) shows only at starts and stops. The baseline run
     with the parameters the ripple's refit moved happens to suit the validation half better

@@ -59,6 +59,7 @@ def test_a_fleet_gets_one_json_each_a_summary_and_survives_a_bad_recording(cli, 
     assert json.loads(single.read_text()) == json.loads((out / "torque_ripple_seed3.json").read_text())
 
 
+@pytest.mark.slow
 def test_no_recording_diagnosed_is_exit_2(cli, tmp_path):
     for name in ("a", "b"):
         (tmp_path / f"{name}.csv").write_text("time,voltage\n0,1\n")
@@ -67,6 +68,7 @@ def test_no_recording_diagnosed_is_exit_2(cli, tmp_path):
     assert len(_rows(tmp_path / "out" / "summary.csv")) == 2  # the summary says why, per recording
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, message", [
     (["REC", "REC"], "need --out"),
     (["REC", "--workers", "2"], "apply to a fleet"),

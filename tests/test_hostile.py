@@ -130,6 +130,7 @@ def test_a_report_folder_that_holds_the_recording_is_refused(cli, tmp_path):
 
 # -- 3. a failed run never destroys the previous good output ------------------------------------------
 
+@pytest.mark.slow
 def test_testbench_keeps_the_previous_recording_when_the_truth_cannot_be_written(cli, tmp_path):
     recording = tmp_path / "r.csv"
     assert cli("testbench", "--effect", "none", "--duration", "3", "-o", recording).returncode == 0
@@ -147,6 +148,7 @@ def test_a_folder_output_onto_a_regular_file_is_refused_and_the_file_kept(cli, t
     assert target.read_text() == "my notes"
 
 
+@pytest.mark.slow
 def test_convert_keeps_the_previous_conversion_when_the_new_one_cannot_be_published(cli, tmp_path):
     (tmp_path / "export").mkdir()
     export = FourBar().export(tmp_path / "export")
@@ -215,6 +217,7 @@ def restore(folder: Path, files: dict[str, bytes]) -> None:
         (folder / name).write_bytes(data)
 
 
+@pytest.mark.slow
 def test_convert_killed_while_publishing_leaves_the_old_or_the_new_conversion(cli, tmp_path):
     first, second = tmp_path / "first", tmp_path / "second"
     first.mkdir(), second.mkdir()
@@ -230,6 +233,7 @@ def test_convert_killed_while_publishing_leaves_the_old_or_the_new_conversion(cl
     kill_during_publish(["convert", export, "-o", out], out, old, new, [out])
 
 
+@pytest.mark.slow
 def test_clearance_killed_while_publishing_leaves_each_output_old_or_new(cli, tmp_path, model_file):
     out = tmp_path / "out"
     out.mkdir()
@@ -260,6 +264,7 @@ def test_clearance_killed_while_publishing_leaves_each_output_old_or_new(cli, tm
 
 # -- 6. limits checked before the memory is spent ---------------------------------------------------
 
+@pytest.mark.slow
 def test_a_recording_read_from_a_pipe_stops_at_the_input_limit(cli, tmp_path):
     fifo = tmp_path / "rec.csv"
     os.mkfifo(fifo)
@@ -301,6 +306,7 @@ def test_mechanism_debug_zero_is_off(cli, tmp_path):
     result.assert_bad_input()
 
 
+@pytest.mark.slow
 def test_huge_stl_coordinates_are_one_error_line_without_numpy_or_mujoco_text(cli, tmp_path):
     export = FourBar().export(tmp_path)
     stl = tmp_path / "crank.stl"

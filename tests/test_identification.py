@@ -72,6 +72,7 @@ def test_identify_recovers_an_independent_truth():
         assert result.params[name] == pytest.approx(truth[name], rel=0.06), name
 
 
+@pytest.mark.slow
 def test_identify_cli_writes_json_and_report(clean_bench, cli, tmp_path):
     csv, _ = clean_bench
     out = tmp_path / "id.json"
@@ -139,6 +140,7 @@ def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
     assert "inertia_correction_motor_side_kgm2" in fitted
 
 
+@pytest.mark.slow
 def test_multibody_without_a_model_is_a_user_error(tmp_path, cli):
     from mechanism.testbench import write_recording
 
@@ -147,6 +149,7 @@ def test_multibody_without_a_model_is_a_user_error(tmp_path, cli):
     assert "missing.xml" in line
 
 
+@pytest.mark.slow
 def test_table2_cli(cli, tmp_path):
     out = tmp_path / "t2.json"
     done = cli("identify", "--table2", "--json", out)
@@ -175,6 +178,7 @@ def test_identify_a_press_as_well_as_the_sewing_machine(tmp_path):
     assert result.rmse < 0.03
 
 
+@pytest.mark.slow
 def test_a_long_recording_is_fitted_on_segments_spread_over_it(tmp_path):
     """Beyond 360 segments the model runs on a spread subset laid end to end; the fit still
     recovers the machine, and the rmse is measured on samples from the whole recording."""

@@ -9,6 +9,7 @@ from mechanism.machine.description import read_description
 from mechanism.machine.models import MODELS
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["sapphire870", "press"])
 def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_path):
     shipped = read_description(MODELS / name / f"{name}.toml")

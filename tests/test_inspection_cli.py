@@ -20,6 +20,7 @@ def _rows(path):
     return list(csv.DictReader(lines))
 
 
+@pytest.mark.slow
 def test_probe_cycle_writes_units_and_a_plot(cli, model_file, tmp_path):
     out, plot = tmp_path / "probe.csv", tmp_path / "probe.png"
     result = cli("probe", "--model", model_file, "--part", "needle_tip", "--quantity", "position,velocity",
@@ -32,6 +33,7 @@ def test_probe_cycle_writes_units_and_a_plot(cli, model_file, tmp_path):
     assert plot.stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_clearance_single_model_and_variants(cli, model_file, tmp_path):
     out, report = tmp_path / "c.csv", tmp_path / "c.json"
     result = cli("clearance", "--model", model_file, "--pairs", "needle:hook", "--required", "0.05", "--csv", out, "--json", report)

@@ -124,6 +124,7 @@ def test_a_renamed_reexport_keeps_the_needle_hook_clearance(reexport):
     assert ours.min_distance_mm == pytest.approx(shipped.min_distance_mm, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_table_2_all_eighteen_points_within_five_percent():
     """Cold, warm 30 s and warm 2 min (the held-out check's protocol: 6 s from rest, the mean
     of the last 2 s): the warming and the supply's limit are in the shipped description."""

@@ -89,6 +89,7 @@ def tables(model):
 
 # --------------------------------------------------------------------------- the export
 
+@pytest.mark.slow
 def test_regenerating_the_export_and_the_mjcf_gives_the_committed_bytes(tmp_path):
     proc = subprocess.run([sys.executable, str(GENERATOR), "-q", "-o", str(tmp_path / "cad")],
                           capture_output=True, text=True, timeout=300)
@@ -246,6 +247,7 @@ def exact_meshes(model) -> dict[str, object]:
     return meshes
 
 
+@pytest.mark.slow
 def test_no_two_parts_interpenetrate_over_a_revolution(model):
     """Every pair of bodies at every 3 degrees of crank angle: pins run in their bores, the rod in
     the ram's slot, the ram in its keyed guide, the worm over the wheel (running clearance 0.005 in)."""

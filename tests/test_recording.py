@@ -81,6 +81,7 @@ def test_constant_voltage_is_not_identifiable_and_steps_are():
     assert check_excitation(steps).identifiable
 
 
+@pytest.mark.slow
 def test_cli_bad_recordings_exit_2_with_one_error_line(tmp_path, cli):
     bad = write(tmp_path / "bad.csv", "time,voltage,arm_angle\n0,1,0\n0.001,1,0\n0.001,1,0\n")
     out = tmp_path / "d.json"
@@ -95,6 +96,7 @@ def test_cli_bad_recordings_exit_2_with_one_error_line(tmp_path, cli):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_cli_constant_voltage_is_a_not_identifiable_finding(tmp_path, cli):
     flat = write(tmp_path / "flat.csv", ramp_csv(seconds=3.0, voltage=lambda t: np.full(len(t), 12.0)))
     out = tmp_path / "d.json"

@@ -33,6 +33,7 @@ def param(section, name):
 
 # --------------------------------------------------------------------------- the export
 
+@pytest.mark.slow
 def test_generator_reproduces_the_committed_export(tmp_path):
     out = tmp_path / "export"
     proc = subprocess.run([sys.executable, str(CAD / "generate.py"), "-q", "-o", str(out)],
@@ -278,6 +279,7 @@ def test_gravity_holding_torque_is_largest_after_bdc_and_smallest_on_the_way_dow
 
 # --------------------------------------------------------------------------- CLI
 
+@pytest.mark.slow
 def test_needle_cli_writes_the_table_and_the_plot(tmp_path, cli):
     csv, png = tmp_path / "needle.csv", tmp_path / "needle.png"
     result = cli("needle", "--csv", csv, "--plot", png, "--samples", "72", "--speed", "600")

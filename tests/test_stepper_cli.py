@@ -17,6 +17,7 @@ def read_csv(path):
     return {name: [float(row[name]) for row in rows] for name in rows[0]}
 
 
+@pytest.mark.slow
 def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
     out = tmp_path / "tc.csv"
     result = cli("stepper", "--sequence", "thread-cut", "--csv", out, "--plot", tmp_path / "tc.png",
@@ -57,6 +58,24 @@ def test_malformed_sequence_file(cli, tmp_path):
     assert not (tmp_path / "out.csv").exists()
 
 
+def test_machine_option_takes_the_described_stepper_and_thread_cut(cli, tmp_path):
+    from mechanism.machine.models import DEFAULT_DESCRIPTION
+
+    machine = tmp_path / "fast_cut.toml"
+    text = DEFAULT_DESCRIPTION.read_text().replace("forward_s = 0.35", "forward_s = 0.05").replace("back_s = 0.35", "back_s = 0.05")
+    machine.write_text(text.replace("pole_pairs = 12", "pole_pairs = 6").replace("step_angle_deg = 7.5", "step_angle_deg = 15.0"))
+    out = tmp_path / "tc.csv"
+    result = cli("stepper", "--sequence", "thread-cut", "--machine", machine, "--model", "physical", "--csv", out)
+    assert result.returncode == 0, result.stderr
+    # 0.05 s at 1000 steps/s = 50 steps of 15 deg
+    assert max(read_csv(out)["commanded_position_deg"]) == pytest.approx(750.0)
+    broken = tmp_path / "broken.toml"
+    broken.write_text(text.replace("chopper_hz = 20e3", "chopper_hz = 0"))
+    line = cli("stepper", "--sequence", "thread-cut", "--machine", broken, "--csv", tmp_path / "b.csv").assert_bad_input()
+    assert "chopper_hz" in line and "broken.toml" in line
+
+
+@pytest.mark.slow
 def test_zigzag_exit_status_says_flagged(cli, tmp_path):
     flagged = cli("zigzag", "--spm", "1000", "--rate", "1000", "--csv", tmp_path / "z.csv")
     assert flagged.returncode == 1 and "FLAGGED" in flagged.stdout

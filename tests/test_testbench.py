@@ -395,6 +395,7 @@ def test_encoder_eccentricity_is_a_once_per_revolution_sensor_error():
     assert speed_error_rms(fast) / speed_error_rms(slow) == pytest.approx(speed_ratio, rel=0.25)
 
 
+@pytest.mark.slow
 def test_every_effect_changes_the_arm_speed_visibly_somewhere():
     """Magnitudes are plausible yet detectable: >= 0.2 rad/s RMS in the most affected 2 s (0.2 s for
     the belt's transients) against the clean recording of the same seed (the velocity from a
@@ -449,6 +450,7 @@ def test_truth_model_never_imports_the_diagnosis_side():
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO_ROOT)
 
 
+@pytest.mark.slow
 def test_cli_lists_the_vocabulary_and_writes_a_recording(cli, tmp_path):
     listing = cli("testbench", "--list")
     assert listing.returncode == 0

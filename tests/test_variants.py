@@ -129,6 +129,7 @@ def test_malformed_variant_files(tmp_path, content, message):
         read_variants(_write(tmp_path, "bad" + suffix, content))
 
 
+@pytest.mark.slow
 def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
     doc = {
         "parameters": {"timing": "coupling:hook_drive:hook_deg"},
@@ -149,6 +150,7 @@ def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
     assert [r["needle_vs_hook_min_mm"] for r in serial.rows] == pytest.approx([r["needle_vs_hook_min_mm"] for r in parallel.rows], abs=1e-9)
 
 
+@pytest.mark.slow
 def test_ray_backend(tmp_path, nominal):
     ray = pytest.importorskip("ray", reason="Ray is not installed (optional: pip install 'mechanism[ray]')")
     variants = read_variants(_write(tmp_path, "v.json", {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, 0]}}))

@@ -79,6 +79,8 @@ def register(subparsers) -> None:
                         help="slew rate [full steps/s] for thread-cut and target files (default: the thesis's 1000)")
     parser.add_argument("--ramp-steps", type=number(0, 1e5, "steps", low_open=True), default=None, metavar="STEPS",
                         help="thread-cut-ramped: full steps of the ramp to rest before the reversal (default 25)")
+    parser.add_argument("--machine", metavar="FILE.toml|NAME",
+                        help="machine description whose [stepper] and [thread_cut] to use (default: the shipped sewing machine)")
     parser.add_argument("--load-torque", type=number(0, 10, "N m"), default=0.0, metavar="NM",
                         help="load torque Tl [N m] on the motor shaft, as Coulomb friction (default 0)")
     parser.add_argument("--load-inertia", type=number(0, 1, "kg m^2"), default=0.0, metavar="KG_M2",
@@ -90,16 +92,17 @@ def register(subparsers) -> None:
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="output table")
     parser.add_argument("--plot", metavar="OUT.png", help="also plot position, speed, currents and torque (or the sweep)")
     parser.add_argument("--json", metavar="OUT.json", help="also write the summary as JSON")
-    parser.set_defaults(handler=run, inputs=(_sequence_file,), outputs=("csv", "plot", "json"), plots=("plot",))
+    parser.set_defaults(handler=run, inputs=(_sequence_file, "machine"), outputs=("csv", "plot", "json"), plots=("plot",))
 
 
 def run(args) -> int:
-    from mechanism.steppers import step_profiles, stepper
+    from mechanism import steppers
+    from mechanism.steppers import step_profiles
     from mechanism.errors import UserError
     from mechanism.files.outputs import atomic_file
     from mechanism.files.tables import write_table
 
-    mode = stepper.drive_mode(args.mode)
+    mode = steppers.drive_mode(args.mode)
     if args.rate is not None and not (args.rate > 0 and args.rate != float("inf")):
         raise UserError(f"--rate must be a positive number of full steps per second, got {args.rate:g}")
     for name in ("settle", "sample_period"):
@@ -110,18 +113,18 @@ def run(args) -> int:
         value = getattr(args, name)
         if not (value >= 0 and math.isfinite(value)):
             raise UserError(f"--{name.replace('_', '-')} must be a non-negative number, got {value:g}")
-    params = stepper.pm25s048(load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
+    params = steppers.described_stepper(args.machine, load_torque_Nm=args.load_torque, load_inertia_kg_m2=args.load_inertia)
 
     if args.sweep:
-        kinds = list(stepper.KINDS) if args.model == "both" else [args.model]
+        kinds = list(steppers.KINDS) if args.model == "both" else [args.model]
         results, pull_out = {}, {}
         for kind in kinds:
-            results[kind] = stepper.sweep_rates(args.sweep, kind, mode, params, progress=sys.stderr.isatty())
+            results[kind] = steppers.sweep_rates(args.sweep, kind, mode, params, progress=sys.stderr.isatty())
             failing = [r["rate_steps_s"] for r in results[kind] if r["lost_steps"] or r["slips"]]
             if failing:
                 holding = [r["rate_steps_s"] for r in results[kind] if r["rate_steps_s"] < failing[0]]
                 low = holding[-1] if holding else None
-                pull_out[kind] = (stepper.pull_out_rate(kind, mode, params, low=low, high=failing[0])
+                pull_out[kind] = (steppers.pull_out_rate(kind, mode, params, low=low, high=failing[0])
                                   if low is not None else failing[0])
             else:
                 pull_out[kind] = None
@@ -136,7 +139,7 @@ def run(args) -> int:
                 f"pull-out rate {rate:.0f} steps/s ({rate * params.step_angle_deg / 360 * 60:.0f} rpm)" if rate
                 else f"no lost steps up to {max(args.sweep):g} steps/s"))
         if args.plot:
-            stepper.plot_sweep(results, args.plot)
+            steppers.plot_sweep(results, args.plot)
         if args.json:
             with atomic_file(args.json) as handle:
                 json.dump({"mode": mode.name, "pull_out_rate_steps_s": pull_out, "sweep": results}, handle, indent=2)
@@ -149,14 +152,14 @@ def run(args) -> int:
         raise UserError("--ramp-steps only applies to --sequence thread-cut-ramped")
     if not ramp > 0:
         raise UserError(f"--ramp-steps must be positive, got {ramp:g}")
-    profile = step_profiles.resolve(args.sequence, args.rate, ramp)
-    result = stepper.simulate(profile, args.model, mode, params, settle_s=args.settle)
+    profile = step_profiles.resolve(args.sequence, args.rate, ramp, machine=args.machine)
+    result = steppers.simulate(profile, args.model, mode, params, settle_s=args.settle)
     s = result.summary
     write_table(args.csv, result.columns(args.sample_period), comments=[
         f"sequence: {profile.name}", f"model: {args.model}", f"mode: {mode.name}",
         f"step_angle_deg: {params.step_angle_deg:g}", f"timestep_s: {result.time_s[1] - result.time_s[0]:g}"])
     if args.plot:
-        stepper.plot_run(result, args.plot)
+        steppers.plot_run(result, args.plot)
     if args.json:
         with atomic_file(args.json) as handle:
             json.dump(s, handle, indent=2)

@@ -205,13 +205,6 @@ class Signals:
             self._cache[key] = fn(order * self.drive_angle_rad)
         return self._cache[key]
 
-    @property
-    def arm_phase(self) -> np.ndarray:
-        """Arm angle modulo one revolution, in [0, 2 pi)."""
-        if "phase" not in self._cache:
-            self._cache["phase"] = np.mod(self.arm_angle_rad, 2 * np.pi)
-        return self._cache["phase"]
-
 
 @dataclass
 class Drive:
@@ -267,10 +260,6 @@ class Segments:
 
     def subset(self, mask: np.ndarray) -> "Segments":
         return Segments(self.starts[mask], self.length, self.score_begin[mask], self.score_end[mask], self.is_fit[mask])
-
-    def scored_indices(self) -> np.ndarray:
-        """Recording sample index of every scored sample (in segment order)."""
-        return np.concatenate([s + np.arange(b, e) for s, b, e in zip(self.starts, self.score_begin, self.score_end)])
 
     def window_indices(self) -> np.ndarray:
         """(n_segments, length) recording sample indices of every window sample."""

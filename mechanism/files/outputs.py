@@ -281,26 +281,31 @@ def _expect_file(path: Path) -> None:
 def atomic_file(path: str | os.PathLike, mode: str = "w", **open_kwargs):
     """Open a temporary file next to ``path``; on success it replaces ``path`` (at the end of
     the surrounding transaction, if any)."""
-    with transaction(independent=_in_staged_folder(path)) as current:
-        path = _prepare(path, current)
-        _expect_file(path)
-        tmp = _temporary_file(path, ".tmp")
-        if "b" not in mode:
-            open_kwargs.setdefault("encoding", "utf-8")
-            open_kwargs.setdefault("newline", "")
-        with _staged(current, path, tmp, folder=False):
-            with open(tmp, mode, **open_kwargs) as handle:
-                yield handle
+    if "b" not in mode:
+        open_kwargs.setdefault("encoding", "utf-8")
+        open_kwargs.setdefault("newline", "")
+    with _atomic_temporary(path) as tmp:
+        with open(tmp, mode, **open_kwargs) as handle:
+            yield handle
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path next to ``path`` for writers that want a file name
     (matplotlib, trimesh); on success it replaces ``path``."""
+    with _atomic_temporary(path, keep_suffix=True) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def _atomic_temporary(path: str | os.PathLike, keep_suffix: bool = False):
+    """A temporary file name next to ``path`` (ending in ``.tmp``, or ``.tmp`` and the
+    path's suffix for writers that pick the format from it), staged to replace ``path``
+    when the transaction succeeds."""
     with transaction(independent=_in_staged_folder(path)) as current:
         path = _prepare(path, current)
         _expect_file(path)
-        tmp = _temporary_file(path, f".tmp{path.suffix}")
+        tmp = _temporary_file(path, f".tmp{path.suffix}" if keep_suffix else ".tmp")
         with _staged(current, path, tmp, folder=False):
             yield tmp
 
@@ -453,9 +458,3 @@ def _publish_files(pairs, folder: Path | None) -> None:
     for source, destination in pairs:
         with atomic_path(destination) as tmp:
             shutil.copyfile(source, tmp)
-
-
-def ensure_parent(path: str | os.PathLike) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path

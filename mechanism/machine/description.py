@@ -61,8 +61,8 @@ def _positive(doc: str, required: bool = False, high: float | None = None) -> Ke
     return Key(float, doc, required, low=0.0, open_low=True, high=high)
 
 
-def _non_negative(doc: str, high: float | None = None) -> Key:
-    return Key(float, doc, low=0.0, high=high)
+def _non_negative(doc: str, high: float | None = None, required: bool = False) -> Key:
+    return Key(float, doc, required, low=0.0, high=high)
 
 
 def _name(doc: str, required: bool = False) -> Key:
@@ -130,6 +130,25 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "piercing_force_per_layer_N": _non_negative("force to pierce one layer [N]", 1e3),
         "drag_fraction": Key(float, "withdrawal drag as a fraction of the piercing force", low=0.0, high=1.0),
         "point_taper_mm": _positive("length over which the piercing force builds up [mm]", high=50.0),
+    },
+    "stepper": {
+        "type": _name("the stepper motors' type, for reports"),
+        "step_angle_deg": _positive("full-step angle [deg] (two-phase: 360 / (4 pole_pairs))", required=True, high=90.0),
+        "pole_pairs": Key(int, "pole pairs p of the torque equation", required=True, low=1, high=1000),
+        "holding_torque_Nm": _positive("holding torque, two phases on at the rated current [N m]", required=True, high=100.0),
+        "detent_torque_Nm": _non_negative("detent (unpowered cogging) torque amplitude [N m]", 100.0, required=True),
+        "rated_current_A": _positive("chopper (peak) current per phase [A]", required=True, high=100.0),
+        "resistance_ohm": _positive("phase resistance [ohm]", required=True, high=1e4),
+        "inductance_H": _positive("phase inductance [H]", required=True, high=10.0),
+        "supply_V": _positive("chopper supply voltage [V]", required=True, high=1e3),
+        "chopper_hz": _positive("chopper oscillator frequency [Hz]", required=True, high=1e7),
+        "rotor_inertia_kg_m2": _positive("rotor inertia [kg m^2]", required=True, high=1.0),
+        "damping_Nm_s_rad": _non_negative("viscous damping c [N m s/rad]", 10.0, required=True),
+        "step_rate_steps_s": _positive("the drive's usual slew rate [full steps/s] (default --rate)", high=1e5),
+    },
+    "thread_cut": {
+        "forward_s": _positive("the cutter's stroke out: time at the step rate [s]", required=True, high=60.0),
+        "back_s": _positive("back to the start: time at the step rate [s]", required=True, high=60.0),
     },
     "hook": {
         "joint": _name("the rotary hook's joint"),
@@ -255,6 +274,13 @@ def parse_description(data: dict[str, Any], source: str = "<description>", base:
     duties = supply.get("duty_percent", [])
     if any(b <= a for a, b in zip(duties, duties[1:])) or any(not 0 <= d <= 100 for d in duties):
         raise _fail(source, "supply", "duty_percent", "points must increase within 0-100 %")
+    stepper = sections.get("stepper", {})
+    if stepper and not math.isclose(360.0 / stepper["step_angle_deg"], 4 * stepper["pole_pairs"]):
+        raise _fail(source, "stepper", "step_angle_deg",
+                    f"a two-phase motor with {stepper['pole_pairs']} pole pairs steps {90.0 / stepper['pole_pairs']:g} deg, "
+                    f"not {stepper['step_angle_deg']:g}")
+    if "thread_cut" in sections and "step_rate_steps_s" not in stepper:
+        raise _fail(source, "thread_cut", None, "needs [stepper] with step_rate_steps_s (the stroke runs at that rate)")
     presets = data.get(PRESET_TABLE, {})
     if not isinstance(presets, dict) or not all(isinstance(v, str) for v in presets.values()):
         raise _fail(source, PRESET_TABLE, None, "expected name = \"target\" pairs")

@@ -22,8 +22,9 @@ import functools
 import math
 import os
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -272,6 +273,11 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription) -> 
     return ShaftFrame(zero_rad=0.0 if abs(zero) < ZERO_SNAP_RAD else zero, direction=1.0 if motor_ratio > 0 else -1.0)
 
 
+def _described(attribute: str) -> Any:
+    """A read-only attribute of the Machine that is its description's."""
+    return property(lambda self: getattr(self.description, attribute), doc=f"the description's {attribute}")
+
+
 class Machine:
     """A compiled, ready-to-simulate machine. ``machine.model`` / ``machine.data`` are plain
     MuJoCo objects; everything added is visible in ``mujoco.mj_saveLastXML``."""
@@ -332,25 +338,11 @@ class Machine:
             self.fabric.bind(self.model, self.tool_site, self.plate_top_z)
 
     # -- roles, all from the description --
-    @property
-    def name(self) -> str:
-        return self.description.name
-
-    @property
-    def motor_joint(self) -> str:
-        return self.description.motor_joint
-
-    @property
-    def shaft_joint(self) -> str:
-        return self.description.shaft_joint
-
-    @property
-    def zero_site(self) -> str:
-        return self.description.zero_site
-
-    @property
-    def tool_site(self) -> str | None:
-        return self.description.tool_site
+    name: str = _described("name")
+    motor_joint: str = _described("motor_joint")
+    shaft_joint: str = _described("shaft_joint")
+    zero_site: str = _described("zero_site")
+    tool_site: str | None = _described("tool_site")
 
     @property
     def plate_part(self) -> str | None:
@@ -468,9 +460,6 @@ class Machine:
         with atomic_file(path) as handle:
             handle.write(xml)
         return path
-
-    def with_config(self, **changes) -> "Machine":
-        return Machine(self.description, replace(self.config, **changes), self._extend)
 
 
 _FRAMES: dict[tuple, ShaftFrame] = {}

@@ -1,7 +1,7 @@
 // Stepper-motor actuators (PM25S-048 of the Sapphire 870): MuJoCo user callbacks.
 //
 // An actuator is ours when actuator_user[0] holds STEPPER_MARKER; the layout of the user
-// array is written by mechanism/stepper.py (USER_* indices there, mirrored below). Any
+// array is written by mechanism/steppers/_drive.py (USER_* indices there, mirrored below). Any
 // other actuator is passed to the callback that was installed before ours (or left at
 // MuJoCo's defaults: act_dot = 0, bias = 0), because MuJoCo callbacks are process-global.
 //

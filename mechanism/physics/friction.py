@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.physics._numeric import numeric_block
 
 STRIBECK_LAWS = {"none": 0, "tustin": 1, "hess-soom": 2}
 # Friction-loss constraint stiffness. MuJoCo's friction constraint is soft: a joint held by
@@ -96,10 +97,6 @@ class FrictionLaw:
     def sliding_level(self, velocity) -> np.ndarray:
         """Magnitude of the sliding friction at the nominal position (no viscous part)."""
         return self.coulomb + (self.static_level - self.coulomb) * self.stribeck_shape(velocity)
-
-    def kinetic_level(self, velocity, angle) -> np.ndarray:
-        """Magnitude of the sliding friction at ``angle`` of the position joint."""
-        return self.sliding_level(velocity) * self.position_scale(angle)
 
     def static_at(self, angle=0.0):
         """Break-away level at ``angle`` of the position joint."""
@@ -181,9 +178,8 @@ class FrictionSet:
 
 def python_friction(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """The friction part of native/machine.c in Python (the fallback without a compiler)."""
-    try:
-        block = model.numeric(NUMERIC_NAME).data
-    except KeyError:
+    block = numeric_block(model, NUMERIC_NAME)
+    if block is None:
         return
     count = int(block[1])
     rows = data.efc_type[: data.nefc]

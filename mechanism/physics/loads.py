@@ -22,11 +22,9 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.physics._numeric import numeric_block
 
 NUMERIC_NAME = "mechanism_needle_load"
-# Extra arm-side Coulomb friction [N m] per belt-tension setting (read from fig. 15's band).
-BELT_TENSION_COULOMB_NM = {"low": -0.02, "normal": 0.0, "hard": 0.04}
-FEEDING_COULOMB_NM = 0.03  # on the lower shaft; estimated from fig. 38 (feeding vs bare)
 
 
 @dataclass(frozen=True)
@@ -83,9 +81,8 @@ class FabricLoad:
 
 def python_needle_load(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """The needle-load part of native/machine.c in Python (fallback without a compiler)."""
-    try:
-        p = model.numeric(NUMERIC_NAME).data
-    except KeyError:
+    p = numeric_block(model, NUMERIC_NAME)
+    if p is None:
         return
     site, body = int(p[1]), int(p[2])
     top, thickness, down, up, ramp, eps = p[3:9]

@@ -16,12 +16,13 @@ same time constant), so every optional feature stays physical.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.physics._numeric import numeric_block
 
 COPPER_TEMPCOEF_PER_K = 0.00393
 
@@ -46,9 +47,6 @@ class DCMotor:
     cogging_poles: int = 12
     cogging_phase_rad: float = 0.0
     thermal: Thermal | None = None
-
-    def with_options(self, **overrides) -> "DCMotor":
-        return replace(self, **overrides)
 
     def __post_init__(self):
         # NaN passes every comparison: check finite ranges, each number by name
@@ -144,9 +142,8 @@ class SupplyLimit:
 
 def python_supply_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """The supply-limit part of native/machine.c in Python (fallback without a compiler)."""
-    try:
-        p = model.numeric(SUPPLY_NUMERIC).data
-    except KeyError:
+    p = numeric_block(model, SUPPLY_NUMERIC)
+    if p is None:
         return
     act, dof = int(p[1]), int(p[2])
     vs, rs, r, kt, ke = p[3:8]

@@ -3,13 +3,14 @@
 A profile is a piecewise-linear step *rate* (full steps per second, negative = reverse;
 rate jumps are allowed); the commanded shaft position is its exact integral, in full
 steps (7.5 degrees for the PM25S-048) from the start. The driver rounds that position to
-its resolution (full, half or 1/N step, see :mod:`mechanism.steppers.stepper`).
+its resolution (full, half or 1/N step, see :mod:`mechanism.steppers`).
 
 Where profiles come from:
 
 * built-ins: ``thread-cut`` (thesis 3.4.1: forward then back to the start at the step
-  rate, read from the reference file) and ``thread-cut-ramped`` (the same stroke with a
-  linear ramp down to rest before the reversal and back up after it);
+  rate, from the machine description's ``[thread_cut]`` and ``[stepper]``) and
+  ``thread-cut-ramped`` (the same stroke with a linear ramp down to rest before the
+  reversal and back up after it);
 * :func:`move` (a constant-rate or trapezoidal move) and :func:`from_rates`;
 * CSV files, told apart by their header (``#`` comment lines are allowed):
 
@@ -25,14 +26,13 @@ Where profiles come from:
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from mechanism.errors import UserError, close_matches
-from mechanism.data.reference import thesis
+from mechanism.steppers._motor import described_section, described_step_rate
 
 BUILTINS = ("thread-cut", "thread-cut-ramped")
 DEFAULT_RAMP_STEPS = 25
@@ -144,29 +144,29 @@ def move(steps: float, rate: float, ramp_steps: float = 0.0, start_s: float = 0.
     return from_rates(name, times, rates)
 
 
-def thesis_thread_cut() -> tuple[float, float, float]:
-    """(forward time [s], back time [s], step rate [steps/s]) of the thesis's thread cut."""
-    stepper = thesis()["stepper_motors"]
-    text = stepper["thread_cut_sequence"]
-    match = re.search(r"forward ([0-9.]+) s then back .*? ([0-9.]+) s", text)
-    if not match:  # pragma: no cover - guards an edit of the reference file
-        raise RuntimeError(f"cannot read the thread-cut timing from the reference file: {text!r}")
-    return float(match.group(1)), float(match.group(2)), float(stepper["assumed_step_rate_steps_per_s"])
+def thread_cut_timing(machine=None) -> tuple[float, float, float]:
+    """(forward time [s], back time [s], step rate [steps/s]) of a described machine's thread
+    cut (``[thread_cut]`` and ``[stepper] step_rate_steps_s``; default: the shipped machine,
+    the thesis's 0.35 s + 0.35 s at 1000 steps/s)."""
+    cut, where = described_section(machine, "thread_cut")
+    if not cut:
+        raise UserError(f"{where}: the machine description has no thread cut")
+    return float(cut["forward_s"]), float(cut["back_s"]), described_step_rate(machine)
 
 
-def thread_cut_stroke_steps() -> int:
+def thread_cut_stroke_steps(machine=None) -> int:
     """The cutter stroke: the thesis runs forward for its forward time at its step rate."""
-    forward_s, _, rate = thesis_thread_cut()
+    forward_s, _, rate = thread_cut_timing(machine)
     return int(round(forward_s * rate))
 
 
-def thread_cut(rate: float | None = None, ramp_steps: float = 0.0) -> StepProfile:
+def thread_cut(rate: float | None = None, ramp_steps: float = 0.0, machine=None) -> StepProfile:
     """The thesis's thread-cut stroke out and straight back at ``rate`` (default: the
     thesis's 1000 steps/s). With ``ramp_steps`` > 0 the motor ramps linearly down to rest
     over that many steps before the reversal and back up over as many after it; start
     and end stay abrupt as in the thesis, so only the reversal differs."""
-    rate = _check_rate(rate if rate is not None else thesis_thread_cut()[2])
-    stroke = thread_cut_stroke_steps()
+    rate = _check_rate(rate if rate is not None else described_step_rate(machine))
+    stroke = thread_cut_stroke_steps(machine)
     n = min(float(ramp_steps), stroke / 2)
     if n <= 0:
         t1 = stroke / rate
@@ -178,11 +178,11 @@ def thread_cut(rate: float | None = None, ramp_steps: float = 0.0) -> StepProfil
     return from_rates("thread-cut-ramped", [0, t1, t2, t3, t4, t4], [rate, rate, 0, -rate, -rate, 0])
 
 
-def builtin(name: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS) -> StepProfile:
+def builtin(name: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS, machine=None) -> StepProfile:
     if name == "thread-cut":
-        return thread_cut(rate)
+        return thread_cut(rate, machine=machine)
     if name == "thread-cut-ramped":
-        return thread_cut(rate, ramp_steps=ramp_steps)
+        return thread_cut(rate, ramp_steps=ramp_steps, machine=machine)
     raise UserError(f"unknown sequence '{name}' (built-ins: {close_matches(name, BUILTINS)})")
 
 
@@ -212,7 +212,7 @@ def from_targets(name: str, times_s, targets_steps, rate: float) -> StepProfile:
     return StepProfile(name, np.array(knots_t), np.array(knots_r))
 
 
-def from_file(path: str | os.PathLike, rate: float | None = None) -> StepProfile:
+def from_file(path: str | os.PathLike, rate: float | None = None, machine=None) -> StepProfile:
     """Read a ``time_s,rate_steps_s`` or ``time_s,target_steps`` CSV (see module doc)."""
     from mechanism.files.tables import check_increasing, read_table
 
@@ -238,19 +238,20 @@ def from_file(path: str | os.PathLike, rate: float | None = None) -> StepProfile
             times, rates = np.concatenate([[0.0, times[0]], times]), np.concatenate([[0.0, 0.0], rates])
         return from_rates(path.name, times, rates)
     if rate is None:
-        rate = thesis_thread_cut()[2]
+        rate = described_step_rate(machine)
     return from_targets(path.name, t, table["target_steps"], rate)
 
 
-def resolve(sequence: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS) -> StepProfile:
-    """A built-in name or a CSV file path (the CLI's ``--sequence``)."""
+def resolve(sequence: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS, machine=None) -> StepProfile:
+    """A built-in name or a CSV file path (the CLI's ``--sequence``); defaults (step rate,
+    thread cut) from ``machine``'s description (default: the shipped machine)."""
     if rate is not None:
         _check_rate(rate, "--rate")
     if sequence in BUILTINS:
-        return builtin(sequence, rate, ramp_steps)
+        return builtin(sequence, rate, ramp_steps, machine)
     path = Path(sequence)
     if path.suffix.lower() == ".csv" or path.exists():
-        return from_file(path, rate)
+        return from_file(path, rate, machine)
     raise UserError(
         f"unknown sequence '{sequence}': not a built-in (did you mean {close_matches(sequence, BUILTINS)}?) "
         f"and no such CSV file"

@@ -1,6 +1,6 @@
 """Needle zigzag: the stepper swings the needle bar sideways, timed against the arm shaft.
 
-The zigzag stepper (a PM25S-048, :mod:`mechanism.steppers.stepper`) moves the needle sideways
+The zigzag stepper (a PM25S-048, :mod:`mechanism.steppers`) moves the needle sideways
 through a linkage; the needle may only move sideways while its point is above the fabric
 (needle-plate top plus a clearance). At a sewing speed of N stitches per minute (arm rpm)
 the needle is above the plate for a fixed share of each revolution; a zigzag move that is
@@ -30,7 +30,9 @@ from typing import Callable
 
 import numpy as np
 
-from mechanism.steppers import step_profiles, stepper
+from mechanism.steppers import step_profiles
+from mechanism.steppers._motor import StepperParams, described_step_rate, pm25s048
+from mechanism.steppers._simulation import simulate
 from mechanism.errors import UserError
 
 
@@ -51,10 +53,10 @@ class ZigzagLinkage:
     def mm_per_step(self) -> float:
         return self.width_mm / self.steps_full_width
 
-    def mm_per_rad(self, params: stepper.StepperParams) -> float:
+    def mm_per_rad(self, params: StepperParams) -> float:
         return self.mm_per_step / params.step_rad
 
-    def reflected_inertia_kg_m2(self, params: stepper.StepperParams) -> float:
+    def reflected_inertia_kg_m2(self, params: StepperParams) -> float:
         lever_m = self.mm_per_rad(params) / 1000.0
         return self.equivalent_mass_kg * lever_m**2
 
@@ -62,9 +64,9 @@ class ZigzagLinkage:
         """Full steps for a sideways move of ``width_mm`` (rounded to the nearest step)."""
         return int(round(width_mm / self.mm_per_step))
 
-    def motor(self, params: stepper.StepperParams | None = None) -> stepper.StepperParams:
+    def motor(self, params: StepperParams | None = None) -> StepperParams:
         """The zigzag motor with the linkage's inertia on its shaft."""
-        params = params or stepper.pm25s048()
+        params = params or pm25s048()
         return params.replace(load_inertia_kg_m2=self.reflected_inertia_kg_m2(params))
 
 
@@ -210,7 +212,7 @@ def settle_time(time_s: np.ndarray, error: np.ndarray, tolerance: float) -> floa
 
 def check_move(stitches_per_minute: float, needle: NeedleProfile, width_mm: float | None = None,
                rate: float | None = None, linkage: ZigzagLinkage | None = None,
-               params: stepper.StepperParams | None = None, kind: str = "circuit", mode: str = "full",
+               params: StepperParams | None = None, kind: str = "circuit", mode: str = "full",
                ramp_steps: float = 0.0, clearance_mm: float = 0.0, tolerance_mm: float | None = None) -> MoveCheck:
     """Simulate one sideways move of ``width_mm`` (default: the full width) starting when
     the needle leaves the fabric, and time it against the needle's time above it.
@@ -221,13 +223,13 @@ def check_move(stitches_per_minute: float, needle: NeedleProfile, width_mm: floa
     steps = linkage.steps_for(width_mm)
     if steps <= 0:
         raise UserError(f"a zigzag move of {width_mm:g} mm is less than one step ({linkage.mm_per_step:g} mm)")
-    rate = float(rate) if rate is not None else step_profiles.thesis_thread_cut()[2]
+    rate = float(rate) if rate is not None else described_step_rate()
     tolerance_mm = 0.5 * linkage.mm_per_step if tolerance_mm is None else float(tolerance_mm)
     period = arm_period_s(stitches_per_minute)
     exit_angle, entry_angle = needle.window(clearance_mm)
     window_s = (entry_angle - exit_angle) / (2 * np.pi) * period
     profile = step_profiles.move(steps, rate, ramp_steps, name=f"zigzag {steps} steps")
-    run = stepper.simulate(profile, kind, mode, motor, settle_s=max(window_s, 0.05))
+    run = simulate(profile, kind, mode, motor, settle_s=max(window_s, 0.05))
     error_mm = (run.rotor_deg - steps * motor.step_angle_deg) / motor.step_angle_deg * linkage.mm_per_step
     move_time = settle_time(run.time_s, error_mm, tolerance_mm)
     finish_angle = exit_angle + 2 * np.pi * move_time / period if math.isfinite(move_time) else math.nan
@@ -250,7 +252,7 @@ class SewingRun:
 
 
 def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, width_mm: float | None = None,
-        rate: float | None = None, linkage: ZigzagLinkage | None = None, params: stepper.StepperParams | None = None,
+        rate: float | None = None, linkage: ZigzagLinkage | None = None, params: StepperParams | None = None,
         kind: str = "circuit", mode: str = "full", clearance_mm: float = 0.0, tolerance_mm: float | None = None,
         sample_period_s: float = 1e-4) -> SewingRun:
     """Zigzag stitches at a steady arm speed: each time the needle leaves the fabric the
@@ -260,7 +262,7 @@ def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, wi
     motor = linkage.motor(params)
     width_mm = linkage.width_mm if width_mm is None else float(width_mm)
     steps = linkage.steps_for(width_mm)
-    rate = float(rate) if rate is not None else step_profiles.thesis_thread_cut()[2]
+    rate = float(rate) if rate is not None else described_step_rate()
     tolerance_mm = 0.5 * linkage.mm_per_step if tolerance_mm is None else float(tolerance_mm)
     if not (1 <= int(stitches) <= 1000):
         raise UserError(f"stitches must be 1..1000, got {stitches}")
@@ -270,7 +272,7 @@ def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, wi
     targets = np.where(np.arange(int(stitches)) % 2 == 0, steps, 0)
     profile = step_profiles.from_targets("zigzag", starts, targets, rate)
     duration = int(stitches) * period
-    run = stepper.simulate(profile, kind, mode, motor, settle_s=max(duration - profile.duration_s, 0.0) + 1e-9)
+    run = simulate(profile, kind, mode, motor, settle_s=max(duration - profile.duration_s, 0.0) + 1e-9)
     dt = run.time_s[1] - run.time_s[0]
     every = max(1, int(round(sample_period_s / dt)))
     keep = (run.time_s < duration)

@@ -9,7 +9,7 @@ optimiser variable is of order one.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -51,9 +51,6 @@ class Parameter:
         if self.log:
             return math.log(self.lower / self.typical), math.log(self.upper / self.typical)
         return self.lower / self.typical, self.upper / self.typical
-
-    def with_bounds(self, lower: float, upper: float, nominal: float | None = None) -> "Parameter":
-        return replace(self, lower=lower, upper=upper, nominal=self.nominal if nominal is None else nominal)
 
 
 def internal_vector(params: Sequence[Parameter], values: dict[str, float]) -> np.ndarray:

@@ -30,7 +30,6 @@ SAMPLE_RATE_HZ = 1000
 TRUTH_FORMAT = "mechanism-testbench-truth/1"
 CURRENT_RESOLUTION_A = 1e-3
 VOLTAGE_BANDS_V = ((4.0, 7.0), (7.0, 11.0), (11.0, 15.0), (15.0, 20.0))
-CSV_COLUMNS = ("time", "voltage", "arm_angle", "current")
 
 
 @dataclass
