@@ -135,7 +135,8 @@ class _Reader:
         self.assembly.joints.extend(self._fix_instances(referenced))
         names = {key: part.name for key, part in self.assembly.parts.items()}
         welded = [(j.base, j.follower) for j in self.assembly.joints if j.is_weld]
-        inferred = mates.infer_joints(mate_list, welded, names)
+        origins = frozenset({GROUND} | {key for key, (_, _, is_asm, _) in self.nodes.items() if is_asm})
+        inferred = mates.infer_joints(mate_list, welded, names, origins)
         self.assembly.joints.extend(inferred.joints)
         for message in inferred.warnings:
             self.assembly.warn(message)
@@ -268,10 +269,29 @@ class _Reader:
         except ExportError as exc:
             self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
             return None
+        mate = Mate(name=name, tag=tag, first=first, second=second)  # type: ignore[arg-type]
+        if (first is None or second is None) and mate.kind == "weld":
+            return self._weld_mate(element, mate, prefix, where)
         if first is None or second is None:
             self.assembly.warn(f"constraint {name} <{tag}> carries no usable geometry: ignored")
             return None
-        return Mate(name=name, tag=tag, first=first, second=second)
+        return mate
+
+    def _weld_mate(self, element, mate: Mate, prefix: str, where: str) -> Mate | None:
+        """A weld-like constraint (Creo's ``<Rigid>``, ``Lock``, ``Fixed``) written without constraint
+        geometry: a weld needs none, only its two instances (each side's ``InstancePath``)."""
+        sides = [side for side in element if _child(side, "InstancePath") is not None]
+        if len(sides) != 2:
+            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> names {len(sides)} instance(s), not two: ignored")
+            return None
+        try:
+            keys = [self._instance_key(side, prefix, where) for side in sides]
+        except ExportError as exc:
+            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
+            return None
+        first, second = (MateGeometry(part=key, shape="origin", position=self._pose_of(key).position, axis=None)
+                         for key in keys)
+        return Mate(name=mate.name, tag=mate.tag, first=first, second=second)
 
     def _mate_geometry(self, element, prefix: str, where: str) -> MateGeometry | None:
         key = self._instance_key(element, prefix, where)
