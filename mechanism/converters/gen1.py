@@ -70,7 +70,10 @@ class _Reader:
 
     # -- structure ---------------------------------------------------------------------------
     def read(self, root) -> Assembly:
-        model = next((root.find(tag) for tag in MODEL_TAGS if root.find(tag) is not None), None)
+        if str(root.tag).rsplit("}", 1)[-1] in MODEL_TAGS:  # the model element written as the document's root
+            model = root
+        else:
+            model = next((root.find(tag) for tag in MODEL_TAGS if root.find(tag) is not None), None)
         if model is None:
             raise ExportError(f"export {self.path}: <{ROOT_TAG}> has no <SimMechanics> (or <SimscapeMultibody>) element")
         title = _text(root, "name") or _text(model, "name")
