@@ -646,16 +646,20 @@ def _pinned_four_bar(s, a, b, p, normal=Y):
             "normal": normal}
 
 
-def _rigid(name: str, first_path, second_path) -> str:
-    """Creo's ``<Rigid>`` constraint as it writes it: the two instances, no constraint geometry."""
-    sides = "".join(f'<ConstraintGeometry geomType="Unknown"><InstancePath>{"".join(f"<Uid>{u}</Uid>" for u in path)}'
-                    f"</InstancePath></ConstraintGeometry>" for path in (first_path, second_path))
-    return f'<Rigid name="{name}">{sides}</Rigid>'
+def _rigid(name: str, first_path, second_path, sides: bool = False) -> str:
+    """Creo's ``<Rigid>`` constraint as Simscape Multibody Link 7.4 writes it (Creo 11): the two
+    instances' ``InstancePath`` elements, no constraint geometry; ``sides``: each path inside a
+    geometry-less ``ConstraintGeometry`` instead."""
+    paths = [f'<InstancePath>{"".join(f"<Uid>{u}</Uid>" for u in path)}</InstancePath>' for path in (first_path, second_path)]
+    if sides:
+        paths = [f'<ConstraintGeometry geomType="Unknown">{p}</ConstraintGeometry>' for p in paths]
+    return f'<Rigid name="{name}">{"".join(paths)}</Rigid>'
 
 
 def creo_ball_beam_rigid(folder: Path) -> Built:
     """Class 4: a ball-and-beam as Creo writes it: the servo bolted to the base and the ball
-    holder bolted to the beam by ``<Rigid>`` constraints without constraint geometry; pins as
+    holder bolted to the beam by ``<Rigid>`` constraints without constraint geometry (the first as
+    Creo 11 writes it, the second with geometry-less sides); pins as
     axis-and-plane coincidences. The servo horn, the rod, the holder and the beam form the
     four-bar S-A-B-P: one freedom, one loop."""
     o = np.array([0.0, 0.0, 0.0])
@@ -673,7 +677,7 @@ def creo_ball_beam_rigid(folder: Path) -> Built:
         doc.mate("Coincident", f"{name}_axis", ("line", a, point - 0.01 * Y, 0.02 * Y), ("line", b, point + 0.01 * Y, -0.02 * Y)),
         doc.mate("Coincident", f"{name}_plane", ("plane", a, point, Y), ("plane", b, point, -Y))]
     mates = [_rigid("RIGID_1", ["10"], ["11"]), *line_pin("PIN_S", "11", "12", g["S"]), *line_pin("PIN_A", "12", "13", g["A"]),
-             *line_pin("PIN_B", "13", "14", g["B"]), _rigid("RIGID_2", ["14"], ["15"]), *line_pin("PIN_P", "10", "15", g["P"])]
+             *line_pin("PIN_B", "13", "14", g["B"]), _rigid("RIGID_2", ["14"], ["15"], sides=True), *line_pin("PIN_P", "10", "15", g["P"])]
     text = gen2_export(tree, "", "".join(doc.parts), length="meter", mass="kilogram", constraints="".join(mates))
     return Built(_write(folder, "BALLBEAM_CREO.xml", text), doc.mass(instances),
                  {**g, "welded": [("BASE", "SERVO"), ("HOLDER", "BEAM")]})

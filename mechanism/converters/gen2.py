@@ -207,9 +207,13 @@ class _Reader:
 
     # -- joints and mates --------------------------------------------------------------------
     def _instance_key(self, element, prefix: str, where: str) -> str:
-        """The instance an ``InstancePath`` names below the assembly ``prefix``; an empty path is that
-        assembly itself (the world at the top level: Onshape writes mates to the origin this way)."""
-        uids = [(u.text or "").strip() for u in _children(_child(element, "InstancePath"), "Uid")]
+        """The instance the ``InstancePath`` of ``element`` names below the assembly ``prefix``; an empty
+        path is that assembly itself (the world at the top level: Onshape writes mates to the origin this way)."""
+        return self._path_key(_child(element, "InstancePath"), prefix, where)
+
+    def _path_key(self, path, prefix: str, where: str) -> str:
+        """The instance key of an ``InstancePath`` element (see :meth:`_instance_key`)."""
+        uids = [(u.text or "").strip() for u in _children(path, "Uid")]
         if not uids:
             return prefix or GROUND
         key = "/".join(([prefix] if prefix else []) + uids)
@@ -279,13 +283,16 @@ class _Reader:
 
     def _weld_mate(self, element, mate: Mate, prefix: str, where: str) -> Mate | None:
         """A weld-like constraint (Creo's ``<Rigid>``, ``Lock``, ``Fixed``) written without constraint
-        geometry: a weld needs none, only its two instances (each side's ``InstancePath``)."""
-        sides = [side for side in element if _child(side, "InstancePath") is not None]
-        if len(sides) != 2:
-            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> names {len(sides)} instance(s), not two: ignored")
+        geometry: a weld needs none, only its two instances. Creo writes their two ``InstancePath``
+        elements directly in the constraint; other exporters put each in a geometry-less side."""
+        paths = _children(element, "InstancePath")
+        if len(paths) != 2:
+            paths = [_child(side, "InstancePath") for side in element if _child(side, "InstancePath") is not None]
+        if len(paths) != 2:
+            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> names {len(paths)} instance(s), not two: ignored")
             return None
         try:
-            keys = [self._instance_key(side, prefix, where) for side in sides]
+            keys = [self._path_key(path, prefix, where) for path in paths]
         except ExportError as exc:
             self.assembly.warn(f"constraint {mate.name} <{mate.tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
             return None
