@@ -328,7 +328,7 @@ def usable(mate: Mate) -> bool:
 def sphere_tangent(mate: Mate) -> bool:
     """A ``Tangent`` mate on a sphere (a ball rolling on a plane or in a groove): Simscape's import
     makes no joint from it (spheres and tangency are outside the mates it supports)."""
-    return mate.kind == "tangent" and SPHERE in (_shape(mate.first), _shape(mate.second))
+    return mate.kind == "tangent" and any(SPHERE in _shape(g) for g in (mate.first, mate.second))
 
 
 def _shape(g: MateGeometry) -> str:
@@ -355,7 +355,7 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
         if mate.first.part == mate.second.part:
             continue
         if sphere_tangent(mate):
-            ball, other = ((mate.first, mate.second) if _shape(mate.first) == SPHERE else (mate.second, mate.first))
+            ball, other = (mate.first, mate.second) if SPHERE in _shape(mate.first) else (mate.second, mate.first)
             result.warnings.append(f"mate {mate.name} <{mate.tag}> between a sphere of {shown_name(ball.part)} and "
                                    f"{shown_name(other.part)}: no joint from it (Simscape's import makes none from a "
                                    f"sphere's tangency), so it does not hold {shown_name(ball.part)}")
