@@ -588,3 +588,181 @@ def onshape_copter(folder: Path, arms: int = 6) -> Built:
     text = gen2_export(tree, "".join(welds), "".join(doc.parts), assemblies, model_units=("centimeter", "kilogram"))
     path = _write(folder, "Copter.xml", _printed(text, ".9f"))
     return Built(path, doc.mass(instances), {"arms": arms, "blades": blades})
+
+
+# -- issue 14: what the held-out real exports did wrong ----------------------------------------
+
+def simscape_link_gen1(folder: Path) -> Built:
+    """A first-generation file as Simscape Multibody Link 4.8 and later writes it: the same
+    ``PhysicalModelingXMLFile`` with the model element named ``<SimscapeMultibody>`` instead of
+    ``<SimMechanics>`` (a crank-rocker in millimetres and grams)."""
+    design = FourBar(crank=30.0, coupler=95.0, rocker=70.0, ground=90.0, crank_angle0=math.radians(60),
+                     plane=rotation((0, 1, 0), 0.4), origin_mm=np.array([20.0, -10.0, 40.0]))
+    path = design.export(folder, write_meshes=False)
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("<SimMechanics>", "<SimscapeMultibody>").replace("</SimMechanics>", "</SimscapeMultibody>"),
+                    encoding="utf-8")
+    return Built(path, 1e-3 * sum(design.masses().values()), {"fourbar": design})
+
+
+def _lever_with_skeleton(folder: Path, name: str, lightest_kg: float) -> Built:
+    """A lever pinned to a grounded base, a massless skeleton part (Creo's layout part) pinned to
+    the lever's tip, and a small spring pin bolted into the lever by mates. The skeleton moves and
+    has no mass; the spring pin is the lightest part (``lightest_kg``)."""
+    o, tip, pin_at = np.array([0.0, 0.0, 0.05]), np.array([0.12, 0.0, 0.05]), np.array([0.06, 0.0, 0.05])
+    doc = _Doc()
+    doc.part("BASE_prt", 1.0, (0, 0, 0), (2e-3, 2e-3, 3e-3, 0, 0, 0), name="BASE")
+    doc.part("LEVER_prt", 0.2, (0.06, 0, 0), (1e-5, 2.5e-4, 2.5e-4, 0, 0, 0), name="LEVER")
+    doc.part("SKEL_prt", 0.0, (0, 0, 0), (0, 0, 0, 0, 0, 0), name="SKEL")
+    doc.part("SPRING_PIN_prt", lightest_kg, (0, 0, 0), (lightest_kg * 1e-6,) * 3 + (0, 0, 0), name="SPRING_PIN")
+    instances = [Inst("1", "BASE_prt", np.eye(3), (0, 0, 0), ' grounded="true"', name="BASE"),
+                 Inst("2", "LEVER_prt", turned(1), o, name="LEVER"),
+                 Inst("3", "SKEL_prt", turned(2), tip, name="SKEL"),
+                 Inst("4", "SPRING_PIN_prt", turned(3), pin_at, name="SPRING_PIN")]
+    tree = doc.tree(*instances)
+    mates = [*doc.pin("hinge", "1", "2", o, Z), *doc.pin("layout", "2", "3", tip, Z),
+             *doc.pin("press_fit", "2", "4", pin_at, Z),
+             doc.mate("Concentric", "press_fit_key", ("cylinder", "2", pin_at + 0.01 * X, Z), ("cylinder", "4", pin_at + 0.01 * X, Z))]
+    text = gen2_export(tree, "", "".join(doc.parts), length="meter", mass="kilogram", constraints="".join(mates))
+    return Built(_write(folder, name, text), doc.mass(instances),
+                 {"skeleton": "SKEL", "lightest": "SPRING_PIN", "joints": {("1", "2"): "revolute", ("2", "3"): "revolute"}})
+
+
+def massless_link_tiny_parts(folder: Path) -> Built:
+    """Class 2: a massless moving part in an assembly whose lightest part weighs half a milligram:
+    a stand-in of a thousandth of that has an inertia near 1e-18 kg*m^2, which MuJoCo refuses."""
+    return _lever_with_skeleton(folder, "LEVER_TINY.xml", 5e-7)
+
+
+def massless_skeleton_moving(folder: Path) -> Built:
+    """Class 5: the same lever with a 10 g spring pin: a stand-in mass added to the skeleton would
+    change the total by 1e-5 of it; the export's total must stay exact."""
+    return _lever_with_skeleton(folder, "LEVER_SKEL.xml", 0.01)
+
+
+def _pinned_four_bar(s, a, b, p, normal=Y):
+    """Points of a four-bar: driven pivot S, crank pin A, rocker pin B, rocker pivot P."""
+    return {"S": np.asarray(s, float), "A": np.asarray(a, float), "B": np.asarray(b, float), "P": np.asarray(p, float),
+            "normal": normal}
+
+
+def _rigid(name: str, first_path, second_path, sides: bool = False) -> str:
+    """Creo's ``<Rigid>`` constraint as Simscape Multibody Link 7.4 writes it (Creo 11): the two
+    instances' ``InstancePath`` elements, no constraint geometry; ``sides``: each path inside a
+    geometry-less ``ConstraintGeometry`` instead."""
+    paths = [f'<InstancePath>{"".join(f"<Uid>{u}</Uid>" for u in path)}</InstancePath>' for path in (first_path, second_path)]
+    if sides:
+        paths = [f'<ConstraintGeometry geomType="Unknown">{p}</ConstraintGeometry>' for p in paths]
+    return f'<Rigid name="{name}">{"".join(paths)}</Rigid>'
+
+
+def creo_ball_beam_rigid(folder: Path) -> Built:
+    """Class 4: a ball-and-beam as Creo writes it: the servo bolted to the base and the ball
+    holder bolted to the beam by ``<Rigid>`` constraints without constraint geometry (the first as
+    Creo 11 writes it, the second with geometry-less sides); pins as
+    axis-and-plane coincidences. The servo horn, the rod, the holder and the beam form the
+    four-bar S-A-B-P: one freedom, one loop."""
+    o = np.array([0.0, 0.0, 0.0])
+    g = _pinned_four_bar(o + (0, 0, 0.05), o + (0.02, 0, 0.065), o + (0.15, 0, 0.12), o + (0.25, 0, 0.10))
+    doc = _Doc()
+    spec = [("BASE", "10", 0.5, o, np.eye(3), ' grounded="true"'), ("SERVO", "11", 0.06, o + (0, -0.02, 0.04), turned(1), ""),
+            ("HORN", "12", 0.01, g["S"], turned(2), ""), ("ROD", "13", 0.008, g["A"], turned(3), ""),
+            ("HOLDER", "14", 0.004, g["B"], turned(4), ""), ("BEAM", "15", 0.04, g["P"], turned(5), "")]
+    instances = []
+    for part, uid, mass, origin, rot, attrs in spec:
+        doc.part(f"{part}_prt", mass, (0.001, 0.0, 0.002), (mass * 1e-4,) * 3 + (0, 0, 0), name=part)
+        instances.append(Inst(uid, f"{part}_prt", rot, origin, attrs, name=part))
+    tree = doc.tree(*instances)
+    line_pin = lambda name, a, b, point: [  # noqa: E731  Creo: axis lines and planes coincide
+        doc.mate("Coincident", f"{name}_axis", ("line", a, point - 0.01 * Y, 0.02 * Y), ("line", b, point + 0.01 * Y, -0.02 * Y)),
+        doc.mate("Coincident", f"{name}_plane", ("plane", a, point, Y), ("plane", b, point, -Y))]
+    mates = [_rigid("RIGID_1", ["10"], ["11"]), *line_pin("PIN_S", "11", "12", g["S"]), *line_pin("PIN_A", "12", "13", g["A"]),
+             *line_pin("PIN_B", "13", "14", g["B"]), _rigid("RIGID_2", ["14"], ["15"], sides=True), *line_pin("PIN_P", "10", "15", g["P"])]
+    text = gen2_export(tree, "", "".join(doc.parts), length="meter", mass="kilogram", constraints="".join(mates))
+    return Built(_write(folder, "BALLBEAM_CREO.xml", text), doc.mass(instances),
+                 {**g, "welded": [("BASE", "SERVO"), ("HOLDER", "BEAM")]})
+
+
+def ball_in_groove(folder: Path) -> Built:
+    """Class 6: a beam on a pivot and a ball resting in its V groove, the ball held by two
+    sphere-plane ``Tangent`` mates (SolidWorks). Simscape makes no joint from them."""
+    p = np.array([0.0, 0.0, 0.1])
+    ball_at = p + (0.05, 0, 0.012)
+    left, right = unit((0, 0.7071, 0.7071)), unit((0, -0.7071, 0.7071))  # the groove's faces' normals
+    r = 0.01
+    doc = _Doc()
+    doc.part("base*:*Default", 0.5, (0, 0, 0.02), (1e-3, 1e-3, 1e-3, 0, 0, 0))
+    doc.part("beam*:*Default", 0.1, (0.05, 0, 0), (2e-5, 1e-4, 1e-4, 0, 0, 0))
+    doc.part("ball*:*Default", 0.03, (0, 0, 0), (1.2e-6, 1.2e-6, 1.2e-6, 0, 0, 0))
+    instances = [Inst("base-1", "base*:*Default", np.eye(3), (0, 0, 0), ' grounded="true"'),
+                 Inst("beam-1", "beam*:*Default", turned(1), p), Inst("ball-1", "ball*:*Default", turned(2), ball_at)]
+    tree = doc.tree(*instances)
+    mates = [*doc.pin("Pivot", "base-1", "beam-1", p, Y),
+             doc.mate("Tangent", "Tangent1", ("sphere", "ball-1", ball_at, None), ("plane", "beam-1", ball_at - r * left, left)),
+             doc.mate("Tangent", "Tangent2", ("plane", "beam-1", ball_at - r * right, right), ("sphere", "ball-1", ball_at, None))]
+    text = gen2_export(tree, "", "".join(doc.parts), constraints="".join(mates), model_units=("millimeter", "kilogram"))
+    return Built(_write(folder, "ballgroove.xml", text), doc.mass(instances), {"ball": "ball-1", "beam": "beam-1"})
+
+
+def planar_puck(folder: Path, tilt_axis=(0, 0, 1), tilt_angle: float = 0.6, digits: str = ".6g") -> Built:
+    """Class 3: a puck face-mated to a table (a planar joint: its pivot is not fixed by the mates)
+    and pinned to a link that turns on a bracket of the table, all away from the assembly origin;
+    numbers printed to six digits as real exporters print them. The table is level, turned by
+    ``tilt_angle`` about ``tilt_axis``."""
+    tilt = rotation(tilt_axis, tilt_angle)
+    n, ex = tilt[:, 2], tilt[:, 0]
+    origin = np.array([0.9, -0.6, 0.3])  # the table stands away from the assembly origin
+    pivot, pin = origin + 0.03 * n, origin + 0.08 * ex + 0.03 * n
+    contact = pin - 0.03 * n  # the puck sits on the table here
+    doc = _Doc()
+    doc.part("table*:*Default", 2.0, (0, 0, -0.01), (0.02, 0.02, 0.04, 0, 0, 0))
+    doc.part("link*:*Default", 0.05, (0.04, 0, 0), (1e-6, 3e-5, 3e-5, 0, 0, 0))
+    doc.part("puck*:*Default", 0.2, (0, 0, 0.01), (8e-5, 8e-5, 1.5e-4, 0, 0, 0))
+    instances = [Inst("table-1", "table*:*Default", tilt, origin, ' grounded="true"'),
+                 Inst("link-1", "link*:*Default", tilt @ rotation(Z, 0.3), pivot),
+                 Inst("puck-1", "puck*:*Default", tilt @ rotation(Z, 1.1), contact)]
+    tree = doc.tree(*instances)
+    mates = [*doc.pin("Bracket", "table-1", "link-1", pivot, n), *doc.pin("Knob", "link-1", "puck-1", pin, n),
+             doc.mate("Coincident", "Face", ("plane", "table-1", contact, n), ("plane", "puck-1", contact, -n))]
+    text = gen2_export(tree, "", "".join(doc.parts), constraints="".join(mates), model_units=("millimeter", "kilogram"))
+    return Built(_write(folder, "puck.xml", _printed(text, digits)), doc.mass(instances),
+                 {"normal": n, "contact": contact, "pin": pin, "pivot": pivot, "planar": ("table-1", "puck-1")})
+
+
+def conveyor_with_origin_mates(folder: Path, rollers: int = 50, bolts: int = 4) -> Built:
+    """Class 7: a large assembly (``rollers`` * (1 + ``bolts``) + 22 instances): a swing arm pinned
+    to a grounded frame carries rollers, each a rigid sub-assembly pinned to the arm; every roller's
+    axis is also mated ``Coincident`` with the assembly's Top Plane (the origin, an empty
+    ``InstancePath``), which places it but leaves it four freedoms against the world. Simscape
+    makes joints only from the pins: the arm's and each roller's spin."""
+    pitch, arm_length = 0.03, 0.03 * (rollers + 1)
+    doc = _Doc()
+    doc.part("frame*:*Default", 20.0, (0.5, 0, -0.1), (1.0, 1.0, 1.5, 0, 0, 0))
+    doc.part("arm*:*Default", 3.0, (arm_length / 2, 0, 0), (0.01, 0.5, 0.5, 0, 0, 0))
+    doc.part("roller*:*Default", 0.15, (0, 0, 0), (6e-5, 6e-5, 2e-5, 0, 0, 0))
+    doc.part("bolt*:*Default", 0.004, (0, 0, 0.005), (1e-8, 1e-8, 5e-9, 0, 0, 0))
+    axle = rotation(X, -math.pi / 2)  # the rollers' z along the world y
+    frame_bolts = tuple(Inst(f"bolt-{i + 1}", "bolt*:*Default", np.eye(3), (0.05 * i, 0.1, -0.1), ' grounded="true"')
+                        for i in range(20))
+    instances = [Inst("frame-1", "frame", np.eye(3), (0, 0, 0), ' grounded="true" rigid="true"',
+                      (Inst("frame-1", "frame*:*Default", np.eye(3), (0, 0, -0.05), ' grounded="true"'), *frame_bolts)),
+                 Inst("arm-1", "arm*:*Default", turned(1), (0, 0, 0))]
+    centres = [np.array([pitch * (k + 1), 0.0, 0.0]) for k in range(rollers)]
+    for k, c in enumerate(centres):
+        inner = (Inst("roller-1", "roller*:*Default", axle @ rotation(Z, 0.2 * k), c, ' grounded="true"'),
+                 *[Inst(f"bolt-{j + 1}", "bolt*:*Default", axle, c + 0.005 * np.array([math.cos(j), 0, math.sin(j)]))
+                   for j in range(bolts)])
+        instances.append(Inst(f"roller-{k + 1}", "roller", axle, c, ' rigid="true"', inner))
+    tree = doc.tree(*instances)
+    top_plane = ("plane", [], (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # the assembly's own Top Plane
+    mates = doc.pin("Swing", "frame-1/frame-1", "arm-1", np.zeros(3), Y)
+    for k, c in enumerate(centres):
+        key = f"roller-{k + 1}/roller-1"
+        mates += doc.pin(f"Axle{k + 1}", "arm-1", key, c, Y)
+        mates.append(gen2_mate("Coincident", f"OnTop{k + 1}", top_plane, doc.side("line", key, c, Y)))
+    assemblies = gen2_assembly("frame") + gen2_assembly("roller")
+    text = gen2_export(tree, "", "".join(doc.parts), assemblies, constraints="".join(mates),
+                       model_units=("millimeter", "kilogram"))
+    n_instances = 2 + len(frame_bolts) + rollers * (1 + bolts)
+    return Built(_write(folder, "conveyor.xml", text), doc.mass(instances),
+                 {"rollers": rollers, "instances": n_instances, "arm": "frame-1--arm-1"})

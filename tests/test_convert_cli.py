@@ -176,3 +176,23 @@ def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
     assert result.returncode == 0, result.stderr
     assert "cannot move" not in result.stdout
     assert "degrees of freedom: 1" in result.stdout
+
+
+def test_explain_names_the_mates_behind_each_joint(tmp_path, cli):
+    """``--explain``: per joint, the mates (by name) it was found from and what it became."""
+    from quirk_exports import creo_ball_beam_rigid
+
+    export = creo_ball_beam_rigid(tmp_path)
+    plain = cli("convert", export.path, "-o", tmp_path / "plain")
+    assert plain.returncode == 0, plain.stderr
+    assert "from mates" not in plain.stdout
+    result = cli("convert", export.path, "-o", tmp_path / "out", "--explain")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert "joint SERVO--HORN (revolute): from mates PIN_S_axis, PIN_S_plane -> MJCF joint(s) SERVO--HORN" in lines
+    assert any(line.startswith("joint ROD--HOLDER (revolute): from mates PIN_B_axis, PIN_B_plane -> closes a loop")
+               for line in lines)
+    assert any(line.startswith("joint BEAM fixed to HOLDER by mates (weld): from mates RIGID_2 -> ") for line in lines)
+    assert sum(line.startswith("joint ") and "from mates" in line for line in lines) == 6
+    assert lines.index(next(line for line in lines if line.startswith("joint SERVO"))) < lines.index(
+        next(line for line in lines if line.startswith("warnings:"))), "before the warnings"

@@ -11,11 +11,14 @@ import pytest
 from mechanism.converters import convert, read
 from mechanism.converters.names import sanitize
 from exports import rotation
-from quirk_exports import (INCH, X, Y, Z, ball_and_beam, circles_meet, creo_arm, furuta, hexapod_link, onshape_copter,
-                           proe_fourbar, robot_shin, scara_printer)
+from quirk_exports import (INCH, X, Y, Z, ball_and_beam, ball_in_groove, circles_meet, conveyor_with_origin_mates, creo_arm,
+                           creo_ball_beam_rigid, furuta, hexapod_link, massless_link_tiny_parts, massless_skeleton_moving,
+                           onshape_copter, planar_puck, proe_fourbar, robot_shin, scara_printer, simscape_link_gen1)
 
 BUILDERS = [proe_fourbar, ball_and_beam, furuta, hexapod_link, robot_shin, creo_arm, scara_printer, onshape_copter]
-UP = {furuta: "y"}  # the export's world is Y-up
+ISSUE_14 = [simscape_link_gen1, massless_link_tiny_parts, massless_skeleton_moving, planar_puck, creo_ball_beam_rigid,
+            ball_in_groove, conveyor_with_origin_mates]  # one stand-in per failure class of issue 14, in its order
+UP = {furuta: "y", planar_puck: "y"}  # furuta's world is Y-up; the puck's table stands in the xy plane: gravity along it
 
 
 @pytest.fixture(scope="module")
@@ -270,3 +273,138 @@ def test_onshape_subassembly_joints_repeat_per_instance(built):
     mujoco.mj_forward(model, data)
     for k, blade in enumerate(export.facts["blades"]):
         assert data.site("Blade" if k == 0 else f"Blade_{k + 1}").xpos == pytest.approx(blade, abs=1e-8)
+
+
+# -- issue 14: the classes of real exports the converter got wrong --------------------------------
+
+def _loop_error_under_gravity(mjcf_path, seconds=0.1, damping=0.05) -> float:
+    """The largest loop-closure error (m) while the model moves under gravity for ``seconds`` from
+    the assembly pose, every joint damped (``damping`` N*m*s/rad or N*s/m)."""
+    model = mujoco.MjModel.from_xml_path(str(mjcf_path))
+    model.dof_damping[:] = damping
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    worst = _loop_error(data)
+    for _ in range(int(round(seconds / model.opt.timestep))):
+        mujoco.mj_step(model, data)
+        worst = max(worst, _loop_error(data))
+    return worst
+
+
+@pytest.mark.parametrize("builder", ISSUE_14, ids=lambda b: b.__name__)
+def test_issue_14_exports_convert_with_the_exports_mass_and_closed_loops(built, builder):
+    """What the held-out real exports are checked for: MuJoCo loads the model, its total mass is the
+    export's (exactly: only float rounding), nothing floats, loops are closed at the assembly pose
+    and stay closed to 0.1 mm for 0.1 s under gravity with damped joints."""
+    export, report = built(builder)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    assert report.export_mass_kg == pytest.approx(export.mass_kg, rel=1e-12)
+    assert model.body_mass.sum() == pytest.approx(export.mass_kg, rel=1e-9)
+    assert mujoco.mjtJoint.mjJNT_FREE not in set(model.jnt_type)
+    assert _loop_error_under_gravity(report.mjcf_path) < 1e-4
+
+
+def test_simscape_multibody_link_first_generation_root(built, tmp_path):
+    """Class 1: Simscape Multibody Link 4.8+ names the first-generation model element
+    <SimscapeMultibody>: the same four-bar as under <SimMechanics>."""
+    export, report = built(simscape_link_gen1)
+    assert report.export_format.startswith("first-generation")
+    assert report.n_bodies == 4 and report.degrees_of_freedom == 1 and report.n_loop_closures == 1
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    fourbar = export.facts["fourbar"]
+    _, _, a, _ = fourbar.points()
+    assert data.site("crank_end").xpos == pytest.approx(fourbar.world(*a, 4.0) * 1e-3, abs=1e-9)
+    text = export.path.read_text(encoding="utf-8")  # the same model element written as the document's root
+    start, end = text.index("<SimscapeMultibody>"), text.index("</SimscapeMultibody>") + len("</SimscapeMultibody>")
+    bare = tmp_path / "bare.xml"
+    bare.write_text(text[start:end], encoding="utf-8")
+    again = convert(bare, tmp_path / "bare")
+    assert (again.n_bodies, again.degrees_of_freedom, again.total_mass_kg) == (4, 1, report.total_mass_kg)
+
+
+def test_massless_moving_part_gets_an_inertia_mujoco_accepts(built):
+    """Class 2: a massless moving part in an assembly of tiny parts: its stand-in inertia is floored
+    as every moving body's is (MuJoCo refuses moving bodies under 1e-15 kg*m^2)."""
+    export, report = built(massless_link_tiny_parts)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    body = model.body(model.site_bodyid[model.site("SKEL").id])
+    assert body.mass[0] > 0 and body.inertia.min() >= 1e-12
+    assert any("SKEL" in w and "no mass" in w for w in report.warnings)
+    assert model.body_mass.sum() == pytest.approx(export.mass_kg, rel=1e-12)
+
+
+def test_massless_moving_skeleton_borrows_mass_so_the_total_stays_exact(built):
+    """Class 5: the mass a massless moving skeleton needs is lent by the body it moves on, so the
+    model's total mass is the export's exactly (a stand-in added on top was 8e-6 of it)."""
+    export, report = built(massless_skeleton_moving)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    assert model.body_mass.sum() == pytest.approx(export.mass_kg, rel=1e-12)
+    assert report.total_mass_kg == pytest.approx(report.export_mass_kg, rel=1e-12)
+    lever = model.body(model.site_bodyid[model.site("LEVER").id]).mass[0]
+    skeleton = model.body(model.site_bodyid[model.site("SKEL").id]).mass[0]
+    assert skeleton > 0 and lever + skeleton == pytest.approx(0.2 + 0.01, rel=1e-12), "lever and its spring pin lend it"
+    assert any("SKEL" in w and "taken from body LEVER" in w for w in report.warnings)
+
+
+def test_planar_joint_pivot_stays_at_its_mates(built):
+    """Class 3: a face mate leaves the planar joint's pivot undetermined: it is put at the mates
+    (on the mated faces), not wherever rounding noise or the world origin puts it."""
+    export, report = built(planar_puck)
+    facts = export.facts
+    (planar,) = [j for j in read(export.path).joints if j.kind == "planar"]
+    assert np.linalg.norm(planar.base_frame.position - facts["contact"]) < 1e-5
+    hinge = [p for p in planar.primitives if p.kind == "hinge"][0]
+    assert abs(hinge.axis @ facts["normal"]) == pytest.approx(1, abs=1e-6)
+    assert report.degrees_of_freedom == 2 and report.n_loop_closures == 1
+
+
+def test_creo_rigid_constraints_without_geometry_weld_their_parts(built):
+    """Class 4: Creo's <Rigid> constraints carry no geometry; they weld their two parts, so the
+    servo sits on the base and the holder on the beam: a four-bar, one freedom, one loop."""
+    export, report = built(creo_ball_beam_rigid)
+    assert report.degrees_of_freedom == 1 and report.n_loop_closures == 1
+    assert not any("fixed to the world" in w for w in report.warnings)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    body = lambda site: model.site_bodyid[model.site(site).id]  # noqa: E731
+    for a, b in export.facts["welded"]:
+        assert body(a) == body(b)
+    assert body("BASE") == 0 or model.body(body("BASE")).jntnum[0] == 0
+    model, data, (drive,) = _driven(report.mjcf_path, "SERVO--HORN")
+    for step in range(400):
+        model.eq_data[drive, 0] = math.radians(10) * min(1.0, step / 300)
+        mujoco.mj_step(model, data)
+    mujoco.mj_forward(model, data)
+    s, p, rod = export.facts["S"], export.facts["P"], np.linalg.norm(export.facts["B"] - export.facts["A"])
+    a, b = data.site("ROD").xpos, data.site("HOLDER").xpos
+    assert np.linalg.norm(a - s) == pytest.approx(np.linalg.norm(export.facts["A"] - s), abs=1e-6)
+    assert np.linalg.norm(b - p) == pytest.approx(np.linalg.norm(export.facts["B"] - p), abs=1e-5)
+    assert np.linalg.norm(b - a) == pytest.approx(rod, abs=1e-5), "the rod joins the horn to the beam"
+    assert np.linalg.norm(b - export.facts["B"]) > 1e-3, "the beam moved"
+
+
+def test_sphere_tangent_mates_make_no_joint(built):
+    """Class 6: a ball held by sphere-plane Tangent mates in a groove: Simscape makes no joint from
+    them, and neither does the converter (a warning names the ball and the beam)."""
+    export, report = built(ball_in_groove)
+    ball, beam = export.facts["ball"], export.facts["beam"]
+    assert not [j for j in read(export.path).joints if ball in (j.base, j.follower) and not j.synthetic]
+    assert sum(ball in w and beam in w and "Tangent" in w and "no joint" in w for w in report.warnings) == 2
+    assert report.joints_by_type == {"hinge": 1, "slide": 0, "ball": 0, "free": 0}
+
+
+def test_loose_mates_to_the_assembly_origin_make_no_joints_to_the_world(built):
+    """Class 7: in a 270-instance assembly every roller's axis is also mated to the assembly's Top
+    Plane, which leaves it four freedoms against the world: no joint from those (one warning), so
+    the swing arm and the rollers turn on their pins, no loop locks them."""
+    export, report = built(conveyor_with_origin_mates)
+    rollers = export.facts["rollers"]
+    assert export.facts["instances"] >= 270
+    assembly = read(export.path)
+    assert not [j for j in assembly.joints if "<ground>" in (j.base, j.follower) and not j.synthetic]
+    assert report.joints_by_type == {"hinge": rollers + 1, "slide": 0, "ball": 0, "free": 0}
+    assert report.degrees_of_freedom == rollers + 1 and report.n_loop_closures == 0
+    (warning,) = [w for w in report.warnings if "assembly origin" in w]
+    assert warning.startswith(f"{rollers} part(s)") and "OnTop1" in warning
+    assert _settle(report.mjcf_path, export.facts["arm"], seconds=0.05) > 1e-3, "the arm swings under gravity"

@@ -24,6 +24,8 @@ FILES = {  # folder/file below $MECHANISM_REAL_EXPORTS, as docs/real_exports.md 
     "drone": "onshape-octocopter/Drone.xml",
     "creo": "creo-arm-mates-modelunits/ASM0002.xml",
     "scara": "solidworks-scara-printer-mates/finalassem.xml",
+    "creo_ballbeam": "creo-ballbeam-rigid/BALL_BEAM_V4.xml",
+    "dumbbell": "solidworks-dumbbell-stacker-mates/Assem1.xml",
 }
 ROOT = os.environ.get("MECHANISM_REAL_EXPORTS", "")
 pytestmark = pytest.mark.skipif(not ROOT, reason="set MECHANISM_REAL_EXPORTS to a folder with the real CAD exports "
@@ -245,3 +247,52 @@ def test_furuta_pendulum_mates(converted):
     assert arm.kind == "revolute"
     motor = joints["holder of Encoder-1--MH2530-6.35-10-1"]
     assert abs(arm.primitives[0].axis @ motor.primitives[0].axis) < 1e-6, "pendulum axis is perpendicular to the motor's"
+
+
+CREO_BALLBEAM_SMIMPORT = {  # Simscape's import (BALL_BEAM_V4_DataFile.m upstream): joint IDs [base:-:follower]
+    ("44", "45"): "revolute", ("60", "62"): "revolute", ("64", "88"): "revolute", ("85", "88"): "revolute",
+    ("88", "96"): "prismatic",
+}
+
+
+def test_creo_rigid_constraints_weld_and_give_simscapes_joints(converted):
+    """Creo 11 (Simscape Multibody Link 7.4) writes <Rigid> constraints as two bare InstancePaths,
+    no geometry (issue 14 class 4): they weld their parts, and the mates give Simscape's joints:
+    4 revolute + 1 prismatic, one loop, two freedoms (the servo and the ball on the beam)."""
+    assembly = read(real("creo_ballbeam"))
+    found = {(j.base, j.follower): j.kind for j in assembly.joints if not j.synthetic}
+    assert found == CREO_BALLBEAM_SMIMPORT
+    assert sum(bool(j.kind == "weld" and j.sources) for j in assembly.joints) == 9, "nine <Rigid> constraints"
+    report = converted("creo_ballbeam")
+    assert report.degrees_of_freedom == 2 and report.n_loop_closures == 1
+    assert not any("fixed to the world" in w for w in report.warnings)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    model.dof_damping[:] = 0.05
+    data = mujoco.MjData(model)
+    worst = 0.0
+    for _ in range(200):  # 0.1 s under gravity
+        mujoco.mj_step(model, data)
+        equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        worst = max(worst, float(np.abs(data.efc_pos[equality]).max(initial=0.0)))
+    assert worst < 1e-4
+
+
+DUMBBELL_SMIMPORT = {  # Simscape's import (Assem1_DataFile.m upstream): 4 cylindrical, 20 revolute, [base:-:follower]
+    **{pair: "cylindrical" for pair in (("Part1-1", "Part3-1"), ("Part1-1", "Part3-2"), ("Part1-1", "Part3-3"),
+                                         ("Part3-1", "Part5-1"))},
+    **{pair: "revolute" for pair in (
+        ("Part1-1", "Part3-14"), ("Part1-1", "Part3-15"), ("Part1-1", "Part3-16"), ("Part1-1", "Part3-4"),
+        ("Part2-1", "Part3-1"), ("Part2-1", "Part3-2"), ("Part2-1", "Part3-3"), ("Part2-1", "Part3-4"),
+        ("Part2-4", "Part3-13"), ("Part2-4", "Part3-14"), ("Part2-4", "Part3-15"), ("Part2-4", "Part3-16"),
+        ("Part3-13", "Part1-1"), ("Part3-13", "Part5-7"), ("Part3-14", "Part5-8"), ("Part3-3", "Part5-2"),
+        ("Part4-1", "Part5-1"), ("Part4-1", "Part5-2"), ("Part4-1", "Part5-7"), ("Part4-1", "Part5-8"))},
+}
+
+
+def test_solidworks_dumbbell_stacker_mates_give_simscapes_24_joints(converted):
+    """Simscape Multibody Link 5.1, SolidWorks 2016: 46 concentric and coincident mates between 16
+    instances give Simscape's 24 joints, kind, part pair and direction."""
+    assembly = read(real("dumbbell"))
+    names = {k: p.name for k, p in assembly.parts.items()}
+    assert {(names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic} == DUMBBELL_SMIMPORT
+    assert converted("dumbbell").n_loop_closures == 10

@@ -31,6 +31,9 @@ def register(subparsers) -> None:
                         help="a joint you turn (a crank, the motor shaft): it stays a joint of the model and loops close "
                              "elsewhere (repeatable; by default joints in a bearing on the frame stay, pins between moving "
                              "parts close the loops)")
+    parser.add_argument("--explain", action="store_true",
+                        help="also print, per joint, the CAD mates (by name) or the export joint it came from and "
+                             "what it became in the MJCF (a joint, a loop closure, a merged body)")
     parser.set_defaults(handler=run, inputs=("export",), outputs=(_model_file,))
 
 
@@ -48,5 +51,6 @@ def run(args) -> int:
 
     report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up,
                      drivers=tuple(args.driver))
-    print("\n".join(report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))))
+    print("\n".join(report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom),
+                                         explain=args.explain)))
     return 0

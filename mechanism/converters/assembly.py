@@ -72,6 +72,7 @@ class Joint:
     follower_frame: Pose  # the joint frame on the follower part, world, at the assembly pose
     primitives: list[Primitive] = field(default_factory=list)
     synthetic: bool = False  # made by a reader (grounding, rigid sub-assembly), not a CAD joint
+    sources: list[str] = field(default_factory=list)  # the CAD mates it was found from (mate inference)
 
     @property
     def is_weld(self) -> bool:

@@ -37,14 +37,16 @@ class ConversionReport:
     total_mass_kg: float  # of the compiled model (export masses plus any repair, see warnings)
     export_mass_kg: float  # sum of the part masses as the export states them
     warnings: list[str] = field(default_factory=list)
+    joint_origins: list[str] = field(default_factory=list)  # per export joint: what it came from, what it became
 
     @property
     def n_joints(self) -> int:
         return sum(self.joints_by_type.values())
 
-    def summary_lines(self, extra=()) -> list[str]:
+    def summary_lines(self, extra=(), explain: bool = False) -> list[str]:
         """The printed summary of a conversion, the one place for its wording. ``extra`` lines
-        (quantities the simulator computes from the model) go after the totals, before the warnings."""
+        (quantities the simulator computes from the model) go after the totals, before the warnings;
+        ``explain`` adds a line per joint naming the mates (or export joint) it came from."""
         joints = ", ".join(f"{count} {kind}" for kind, count in self.joints_by_type.items() if count) or "none"
         lines = [
             f"wrote {self.mjcf_path} ({self.export_format}, {self.n_parts} parts, {self.n_meshes} meshes in {self.mesh_dir})",
@@ -55,6 +57,7 @@ class ConversionReport:
             f"degrees of freedom: {self.degrees_of_freedom}",
             f"total mass: {self.total_mass_kg:.6g} kg (export: {self.export_mass_kg:.6g} kg)",
             *extra,
+            *(self.joint_origins if explain else []),
             f"warnings: {len(self.warnings)}",
         ]
         return lines + [f"warning: {warning}" for warning in self.warnings]
@@ -116,7 +119,30 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
         joints_by_type=dict(built.joints_by_type), n_loop_closures=built.n_closures, n_couplings=built.n_couplings,
         n_meshes=len(used), degrees_of_freedom=dof, total_mass_kg=float(model.body_mass.sum()), export_mass_kg=assembly.total_mass,
         warnings=assembly.warnings + plan.warnings + built.warnings + _locked_warning(locked),
+        joint_origins=_joint_origins(assembly, plan, built),
     )
+
+
+def _joint_origins(assembly, plan, built) -> list[str]:
+    """``joint <name> (<kind>): from mates a, b -> <what the MJCF has>`` for every joint of the
+    export or of the mate inference (welds the mates make included; grounding and rigid
+    sub-assemblies left out)."""
+    closing = {id(closure.joint) for closure in plan.closures}
+    lines = []
+    for joint in assembly.joints:
+        if joint.synthetic and not joint.sources:
+            continue
+        origin = f"from mates {', '.join(joint.sources)}" if joint.sources else "from the export's joint"
+        if id(joint) in closing:
+            result = "closes a loop (a loop: equality constraint)"
+        elif joint.name in built.joint_names:
+            result = "MJCF joint(s) " + ", ".join(built.joint_names[joint.name])
+        elif joint.is_weld:
+            result = "parts merged into one body"
+        else:
+            result = "inside one rigid body: no MJCF joint"
+        lines.append(f"joint {joint.name} ({joint.kind}): {origin} -> {result}")
+    return lines
 
 
 def _locked_warning(locked: list[str]) -> list[str]:

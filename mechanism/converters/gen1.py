@@ -3,7 +3,7 @@ Pro/E and Creo, SolidWorks, Inventor).
 
 What the format says, and how this reader takes it (checked against the LEGS export):
 
-* ``<SimMechanics>`` holds ``bodies``, ``joints``, ``grounds`` and nested ``subsystems``
+* ``<SimMechanics>`` (``<SimscapeMultibody>`` from Simscape Multibody Link 4.8 on) holds ``bodies``, ``joints``, ``grounds`` and nested ``subsystems``
   (sub-assemblies) with the same four lists. Joints may cross subsystems.
 * A ``Body`` has ``mass``/``massUnits``, ``inertia`` (9 values, ``inertiaUnits``) and
   ``frames``: ``CG`` (the centre of mass; the inertia is expressed in this frame's axes),
@@ -38,6 +38,8 @@ from mechanism.converters.units import inertia_factor, length_factor, mass_facto
 
 ROOT_TAG = "PhysicalModelingXMLFile"
 FORMAT = "first-generation PhysicalModelingXMLFile"
+# the model element: SimMechanics Link writes <SimMechanics>, Simscape Multibody Link 4.8 and later <SimscapeMultibody>
+MODEL_TAGS = ("SimMechanics", "SimscapeMultibody")
 
 PRIMITIVES = {"revolute": [HINGE], "prismatic": [SLIDE], "spherical": [BALL], "weld": [],
               "cylindrical": [SLIDE, HINGE]}
@@ -68,9 +70,12 @@ class _Reader:
 
     # -- structure ---------------------------------------------------------------------------
     def read(self, root) -> Assembly:
-        model = root.find("SimMechanics")
+        if str(root.tag).rsplit("}", 1)[-1] in MODEL_TAGS:  # the model element written as the document's root
+            model = root
+        else:
+            model = next((root.find(tag) for tag in MODEL_TAGS if root.find(tag) is not None), None)
         if model is None:
-            raise ExportError(f"export {self.path}: <{ROOT_TAG}> has no <SimMechanics> element")
+            raise ExportError(f"export {self.path}: <{ROOT_TAG}> has no <SimMechanics> (or <SimscapeMultibody>) element")
         title = _text(root, "name") or _text(model, "name")
         if title:
             self.assembly.name = title

@@ -135,7 +135,8 @@ class _Reader:
         self.assembly.joints.extend(self._fix_instances(referenced))
         names = {key: part.name for key, part in self.assembly.parts.items()}
         welded = [(j.base, j.follower) for j in self.assembly.joints if j.is_weld]
-        inferred = mates.infer_joints(mate_list, welded, names)
+        origins = frozenset({GROUND} | {key for key, (_, _, is_asm, _) in self.nodes.items() if is_asm})
+        inferred = mates.infer_joints(mate_list, welded, names, origins)
         self.assembly.joints.extend(inferred.joints)
         for message in inferred.warnings:
             self.assembly.warn(message)
@@ -206,9 +207,13 @@ class _Reader:
 
     # -- joints and mates --------------------------------------------------------------------
     def _instance_key(self, element, prefix: str, where: str) -> str:
-        """The instance an ``InstancePath`` names below the assembly ``prefix``; an empty path is that
-        assembly itself (the world at the top level: Onshape writes mates to the origin this way)."""
-        uids = [(u.text or "").strip() for u in _children(_child(element, "InstancePath"), "Uid")]
+        """The instance the ``InstancePath`` of ``element`` names below the assembly ``prefix``; an empty
+        path is that assembly itself (the world at the top level: Onshape writes mates to the origin this way)."""
+        return self._path_key(_child(element, "InstancePath"), prefix, where)
+
+    def _path_key(self, path, prefix: str, where: str) -> str:
+        """The instance key of an ``InstancePath`` element (see :meth:`_instance_key`)."""
+        uids = [(u.text or "").strip() for u in _children(path, "Uid")]
         if not uids:
             return prefix or GROUND
         key = "/".join(([prefix] if prefix else []) + uids)
@@ -268,10 +273,32 @@ class _Reader:
         except ExportError as exc:
             self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
             return None
+        mate = Mate(name=name, tag=tag, first=first, second=second)  # type: ignore[arg-type]
+        if (first is None or second is None) and mate.kind == "weld":
+            return self._weld_mate(element, mate, prefix, where)
         if first is None or second is None:
             self.assembly.warn(f"constraint {name} <{tag}> carries no usable geometry: ignored")
             return None
-        return Mate(name=name, tag=tag, first=first, second=second)
+        return mate
+
+    def _weld_mate(self, element, mate: Mate, prefix: str, where: str) -> Mate | None:
+        """A weld-like constraint (Creo's ``<Rigid>``, ``Lock``, ``Fixed``) written without constraint
+        geometry: a weld needs none, only its two instances. Creo writes their two ``InstancePath``
+        elements directly in the constraint; other exporters put each in a geometry-less side."""
+        paths = _children(element, "InstancePath")
+        if len(paths) != 2:
+            paths = [_child(side, "InstancePath") for side in element if _child(side, "InstancePath") is not None]
+        if len(paths) != 2:
+            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> names {len(paths)} instance(s), not two: ignored")
+            return None
+        try:
+            keys = [self._path_key(path, prefix, where) for path in paths]
+        except ExportError as exc:
+            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
+            return None
+        first, second = (MateGeometry(part=key, shape="origin", position=self._pose_of(key).position, axis=None)
+                         for key in keys)
+        return Mate(name=mate.name, tag=mate.tag, first=first, second=second)
 
     def _mate_geometry(self, element, prefix: str, where: str) -> MateGeometry | None:
         key = self._instance_key(element, prefix, where)

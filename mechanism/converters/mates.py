@@ -32,6 +32,7 @@ from mechanism.converters.graph import UnionFind
 from mechanism.converters.pose import Pose
 
 PLANE, AXIS, POINT = "plane", "axis", "point"
+SPHERE = "sphere"
 GEOMETRY_KINDS = {
     "plane": PLANE, "face": PLANE, "planarface": PLANE, "surface": PLANE,
     "cylinder": AXIS, "circle": AXIS, "arc": AXIS, "cone": AXIS, "line": AXIS, "axis": AXIS, "edge": AXIS,
@@ -58,6 +59,8 @@ MATE_KINDS = {
 
 RANK_TOLERANCE = 1e-4  # relative: exports print 6+ digits, genuine constraints give singular values >> this
 STEP = 1e-6  # finite-difference step (rad, and units of the pair's size)
+PIVOT_TOLERANCE = 1e-3  # singular value (of unit rotations) below which a pivot direction counts as free
+ORIGIN_PLACEMENT_DOF = 4  # mates to the assembly origin leaving this many freedoms or more place a part, they make no joint
 
 
 @dataclass
@@ -290,20 +293,28 @@ def _orthonormal_columns(matrix: np.ndarray) -> np.ndarray:
 
 
 def _rotation_centre(rotations, translations, slides, spin_basis, centre) -> np.ndarray:
-    """The point every allowed rotation passes through (least squares): for a twist with rotation
-    w about ``centre`` and translation v, the axis passes through p where w x (centre - p) = v,
-    up to the free translations."""
+    """The point every allowed rotation passes through: for a twist with rotation w about
+    ``centre`` and translation v, the axis passes through p where w x (centre - p) = v, up to the
+    free translations.
+
+    Solved for the offset ``p - centre`` with an absolute cut-off on the singular values (the
+    rotations are unit vectors, so the equations are of order one): a direction the equations do
+    not fix (a planar joint's pivot, a cylindrical joint's position along its axis) stays at the
+    mates' centre instead of turning the exporter's rounding noise into a pivot metres away."""
     rows, rhs = [], []
     drop = np.eye(3) - slides @ slides.T if slides.size else np.eye(3)
     for w_dir in spin_basis.T:
         coefficients, *_ = np.linalg.lstsq(rotations, w_dir, rcond=None)
         w, v = rotations @ coefficients, translations @ coefficients
         skew = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-        # w x (centre - p) = v  ->  -skew @ p = v - skew @ centre, free translations projected out
-        rows.append(drop @ -skew)
-        rhs.append(drop @ (v - skew @ centre))
-    solution, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
-    return solution
+        # w x (centre - p) = v  ->  skew @ (p - centre) = -v, free translations projected out
+        rows.append(drop @ skew)
+        rhs.append(drop @ -v)
+    matrix, target = np.vstack(rows), np.concatenate(rhs)
+    u, singular, vt = np.linalg.svd(matrix, full_matrices=False)
+    keep = singular > PIVOT_TOLERANCE
+    offset = vt[keep].T @ ((u[:, keep].T @ target) / singular[keep])
+    return centre + offset
 
 
 # -- from mates to joints --------------------------------------------------------------------
@@ -314,19 +325,41 @@ def usable(mate: Mate) -> bool:
     return kind is not None and (kind == "weld" or residuals(kind, mate.first, mate.second, 1.0) is not None)
 
 
-def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: dict[str, str]) -> Inferred:
+def sphere_tangent(mate: Mate) -> bool:
+    """A ``Tangent`` mate on a sphere (a ball rolling on a plane or in a groove): Simscape's import
+    makes no joint from it (spheres and tangency are outside the mates it supports)."""
+    return mate.kind == "tangent" and any(SPHERE in _shape(g) for g in (mate.first, mate.second))
+
+
+def _shape(g: MateGeometry) -> str:
+    return re.sub(r"[^a-z]", "", g.shape)
+
+
+def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: dict[str, str],
+                 origins: frozenset[str] = frozenset()) -> Inferred:
     """Joints (and welds) between the units the ``mates`` join. ``rigid_links``: part pairs the
-    instance tree already fixes together; ``names``: part key -> name for joint names and messages."""
+    instance tree already fixes together; ``names``: part key -> name for joint names and messages;
+    ``origins``: keys that stand for an assembly's own origin (the world, a sub-assembly's frame)."""
     result = Inferred()
     units = UnionFind()
     for a, b in rigid_links:
         units.union(a, b)
+    name = lambda key: names.get(key, key)  # noqa: E731
+    counts: dict[str, int] = {}
+    for label in names.values():
+        counts[label] = counts.get(label, 0) + 1
+    shown_name = lambda key: key if counts.get(names.get(key, key), 0) > 1 else name(key)  # noqa: E731  in messages
     usable_mates: list[Mate] = []
     unusable: dict[str, list[str]] = {}
     for mate in mates:
         if mate.first.part == mate.second.part:
             continue
-        if usable(mate):
+        if sphere_tangent(mate):
+            ball, other = (mate.first, mate.second) if SPHERE in _shape(mate.first) else (mate.second, mate.first)
+            result.warnings.append(f"mate {mate.name} <{mate.tag}> between a sphere of {shown_name(ball.part)} and "
+                                   f"{shown_name(other.part)}: no joint from it (Simscape's import makes none from a "
+                                   f"sphere's tangency), so it does not hold {shown_name(ball.part)}")
+        elif usable(mate):
             usable_mates.append(mate)
         else:
             unusable.setdefault(mate.tag, []).append(mate.name)
@@ -348,20 +381,32 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
     for group, found in welded_pairs:
         base, follower = _ends(group)
         frame = Pose(np.eye(3), found.anchor)
-        result.joints.append(Joint(name=f"{names.get(follower, follower)} fixed to {names.get(base, base)} by mates",
+        result.joints.append(Joint(name=f"{name(follower)} fixed to {name(base)} by mates",
                                    kind="weld", base=base, follower=follower, base_frame=frame, follower_frame=frame,
-                                   synthetic=True))
+                                   synthetic=True, sources=[m.name for m in group]))
+    placed: list[tuple[str, int, list[str]]] = []  # (part, freedoms, mates) placed against the origin
     for group in _pairs(usable_mates, units).values():
         found = _analyse(group, units)
         base, follower = _ends(group)
-        label = f"{names.get(base, base)}--{names.get(follower, follower)}"
+        label = f"{name(base)}--{name(follower)}"
+        mate_names = ", ".join(m.name for m in group)
         if found.kind == "free":
-            result.warnings.append(f"mates {', '.join(m.name for m in group)} between {names.get(base, base)} and "
-                                   f"{names.get(follower, follower)} leave all six freedoms: no joint")
+            result.warnings.append(f"mates {mate_names} between {name(base)} and {name(follower)} leave all six "
+                                   f"freedoms: no joint")
+            continue
+        if found.dof >= ORIGIN_PLACEMENT_DOF and all({m.first.part, m.second.part} & origins for m in group):
+            placed.append((shown_name(follower if base in origins else base), found.dof, [m.name for m in group]))
             continue
         frame = Pose(frame_with_z(found.main_axis), found.anchor)
         result.joints.append(Joint(name=label, kind=found.kind, base=base, follower=follower,
-                                   base_frame=frame, follower_frame=frame, primitives=found.primitives))
+                                   base_frame=frame, follower_frame=frame, primitives=found.primitives,
+                                   sources=[m.name for m in group]))
+    if placed:
+        shown = "; ".join(f"{part} ({dof} freedoms, mates {', '.join(group)})" for part, dof, group in placed[:5])
+        more = f"; and {len(placed) - 5} more part(s)" if len(placed) > 5 else ""
+        result.warnings.append(f"{len(placed)} part(s) are mated to the assembly origin only loosely, leaving "
+                               f"{ORIGIN_PLACEMENT_DOF} or more freedoms: {shown}{more}: those mates place the parts, "
+                               f"they make no joint to the world (as in Simscape's import)")
     return result
 
 

@@ -32,7 +32,8 @@ INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 EQUALITY_SOLREF = (2 * TIMESTEP_S, 1.0)
 EQUALITY_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
 CARRIER_MASS_FRACTION = 1e-3  # of the follower body's mass
-MISSING_MASS_FRACTION = 1e-3  # a massless moving body gets this fraction of the lightest real part
+MISSING_MASS_FRACTION = 1e-3  # a massless moving body gets this fraction of the lightest real part (lent by a neighbour)
+MIN_LENT_MASS_KG = 1e-9  # but at least this (MuJoCo refuses moving bodies under 1e-15 kg)
 LOOP_SPACING_FRACTION = 0.1  # revolute closures: connect points this fraction of the model size apart
 LOOP_SPACING_LIMITS_M = (0.005, 0.1)
 SIGNIFICANT_DIGITS = 10  # every number written is rounded: bytes do not depend on last-bit noise
@@ -54,6 +55,39 @@ def _quat(rotation: np.ndarray) -> list:
     if quat[0] < 0:
         quat = -quat
     return _r(quat)
+
+
+def _floored(inertia):
+    """(inertia, moments or None, floor): ``inertia`` with its principal moments raised to the floor
+    a moving MuJoCo body needs (and the triangle inequality restored); ``moments`` are the original
+    principal moments when a repair was needed, else None."""
+    moments, _ = mass_properties.principal(inertia)
+    floor = max(mass_properties.MIN_MOMENT, 1e-9 * moments[2])
+    if moments[0] < floor or moments[0] + moments[1] < moments[2]:
+        return mass_properties.clamp_to_physical(inertia, floor), moments, floor
+    return np.asarray(inertia, dtype=float), None, floor
+
+
+def _set_inertial(element, props, pose: Pose) -> None:
+    """Explicit mass, centre of mass and full inertia of a spec body whose frame is ``pose``."""
+    rotation = pose.rotation.T
+    local = rotation @ props.inertia @ rotation.T
+    element.explicitinertial = True
+    element.mass = _r(props.mass)
+    element.ipos = _r(rotation @ (props.com - pose.position))
+    element.fullinertia = _r([local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2], local[1, 2]])
+
+
+def _take_mass(element, mass: float) -> None:
+    """Lend ``mass`` out of a spec body: its mass and inertia shrink in proportion, its centre of
+    mass stays (the density scales down by a part in a thousand or less)."""
+    total = float(element.mass)
+    scale = (total - mass) / total
+    element.mass = _r(total - mass)
+    element.fullinertia = _r(np.asarray(element.fullinertia, dtype=float) * scale)
+    inertia = np.asarray(element.inertia, dtype=float)
+    if np.any(inertia):
+        element.inertia = _r(inertia * scale)
 
 
 @dataclass
@@ -119,6 +153,7 @@ class _Writer:
         self.body_poses: dict[int, Pose] = {}
         self.body_moves: dict[int, bool] = {}
         self.loop_spacing = self._loop_spacing()
+        self.massless: list[tuple] = []  # (plan body, spec body, pose) of moving bodies without mass
 
     # -- helpers -----------------------------------------------------------------------------
     def _loop_spacing(self) -> float:
@@ -161,6 +196,7 @@ class _Writer:
     def write(self) -> Built:
         for body in self.plan.depth_first():
             self._body(body)
+        self._lend_masses()
         for closure in self.plan.closures:
             self._closure(closure)
         self._couplings()
@@ -209,27 +245,53 @@ class _Writer:
         props = mass_properties.combine((p.mass, p.com, p.inertia) for p in parts if p.mass > 0)
         label = self.body_names[body.index]
         if props.mass <= 0:
-            if not moves:
-                return
-            lightest = min((p.mass for p in self.assembly.real_parts if p.mass > 0), default=1e-3)
-            mass = MISSING_MASS_FRACTION * lightest
-            props = mass_properties.MassProperties(mass, pose.position, mass_properties.sphere(mass, mass / 1000.0))
-            self.built.warnings.append(
-                f"body {label} moves on joint {body.joint.name} but its parts have no mass: given {mass:.3g} kg")
-        elif moves:
-            moments, _ = mass_properties.principal(props.inertia)
-            floor = max(mass_properties.MIN_MOMENT, 1e-9 * moments[2])
-            if moments[0] < floor or moments[0] + moments[1] < moments[2]:
-                props.inertia = mass_properties.clamp_to_physical(props.inertia, floor)
+            if moves:  # MuJoCo needs mass here: lent by a neighbour once every body is written
+                self.massless.append((body, element, pose))
+            return
+        if moves:
+            props.inertia, moments, floor = _floored(props.inertia)
+            if moments is not None:
                 self.built.warnings.append(
                     f"body {label}: inertia is singular (principal moments "
                     f"{', '.join(f'{m:.3g}' for m in moments)} kg*m^2): raised to at least {floor:.3g} kg*m^2")
-        rotation = pose.rotation.T
-        local = rotation @ props.inertia @ rotation.T
-        element.explicitinertial = True
-        element.mass = _r(props.mass)
-        element.ipos = _r(rotation @ (props.com - pose.position))
-        element.fullinertia = _r([local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2], local[1, 2]])
+        _set_inertial(element, props, pose)
+
+    def _lend_masses(self) -> None:
+        """Give every massless moving body the little mass MuJoCo needs, taken from a neighbouring
+        body (the one it moves on, else a body moving on it, else the heaviest): the model's total
+        mass stays the export's."""
+        lightest = min((p.mass for p in self.assembly.real_parts if p.mass > 0), default=1e-3)
+        for body, element, pose in self.massless:
+            label = self.body_names[body.index]
+            donor = self._donor([body.parent, *body.children])
+            if donor is None:
+                mass = MISSING_MASS_FRACTION * lightest
+                source = "added (no body in the model has mass to lend it): the total mass grows by as much"
+            else:
+                donor_element, donor_label = donor
+                mass = min(max(MISSING_MASS_FRACTION * min(lightest, donor_element.mass), MIN_LENT_MASS_KG),
+                           0.5 * donor_element.mass)
+                _take_mass(donor_element, mass)
+                source = f"taken from body {donor_label} (the total mass stays the export's)"
+            inertia, _, floor = _floored(mass_properties.sphere(mass, mass / 1000.0))
+            _set_inertial(element, mass_properties.MassProperties(mass, pose.position, inertia), pose)
+            self.built.warnings.append(
+                f"body {label} moves on joint {body.joint.name} but its parts have no mass: given {mass:.3g} kg "
+                f"{source}, inertia at least {floor:.3g} kg*m^2")
+
+    def _donor(self, candidates):
+        """(spec body, name) of the first candidate body index with mass, else the heaviest body."""
+        def usable(index):
+            element = self.spec_bodies.get(index) if index is not None else None
+            return element is not None and element is not self.spec.worldbody and element.mass > 0
+        for index in candidates:
+            if usable(index):
+                return self.spec_bodies[index], self.body_names[index]
+        heavy = [i for i in self.spec_bodies if usable(i)]
+        if not heavy:
+            return None
+        index = max(heavy, key=lambda i: self.spec_bodies[i].mass)
+        return self.spec_bodies[index], self.body_names[index]
 
     def _joints(self, element, joint: Joint, body_pose: Pose, reversed_: bool) -> list[str]:
         primitives = list(joint.primitives)
@@ -319,15 +381,12 @@ class _Writer:
         name = self.body_namer(f"{self.joint_names[id(joint)]}_carrier")
         carrier = base_element.add_body(name=name)
         self._set_pose(carrier, pose, base_pose)
-        follower = self.spec_bodies[closure.follower_body]
-        follower_mass = float(follower.mass) if closure.follower_body in self.spec_bodies and follower is not self.spec.worldbody else 0.0
-        mass = CARRIER_MASS_FRACTION * max(follower_mass, 1e-3)
-        if follower_mass > 2 * mass:  # the carrier is welded to the follower: move its mass there, the total stays exact
-            follower.mass = _r(follower_mass - mass)
-        carrier.explicitinertial = True
-        carrier.mass = _r(mass)
-        carrier.ipos = [0.0, 0.0, 0.0]
-        carrier.inertia = _r(np.diag(mass_properties.sphere(mass, mass / 1000.0)))
+        donor = self._donor([closure.follower_body, closure.base_body])
+        mass = CARRIER_MASS_FRACTION * (donor[0].mass if donor is not None else 1e-3)
+        if donor is not None:  # the carrier is welded to the follower: its mass is lent, the total stays exact
+            _take_mass(donor[0], mass)
+        inertia, _, _ = _floored(mass_properties.sphere(mass, mass / 1000.0))
+        _set_inertial(carrier, mass_properties.MassProperties(mass, pose.position, inertia), pose)
         self._joints(carrier, joint, pose, False)
         self._weld(label, name, self.body_names[closure.follower_body],
                    self.body_poses[closure.follower_body].inverse().apply(joint.follower_frame.position))
