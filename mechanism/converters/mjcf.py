@@ -31,7 +31,8 @@ INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 # 0.01% (tests/test_closed_chain.py); faster machines need a smaller timestep with solref = 2 x timestep.
 EQUALITY_SOLREF = (2 * TIMESTEP_S, 1.0)
 EQUALITY_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
-CARRIER_MASS_FRACTION = 1e-3  # of the follower body's mass
+CARRIER_MASS_FRACTION = 0.1  # of the follower body's mass properties, lent to a loop's carrier body
+LIGHT_CARRIER_FRACTION = 1e-3  # of a donor's mass when the follower has none to share
 MISSING_MASS_FRACTION = 1e-3  # a massless moving body gets this fraction of the lightest real part (lent by a neighbour)
 MIN_LENT_MASS_KG = 1e-9  # but at least this (MuJoCo refuses moving bodies under 1e-15 kg)
 LOOP_SPACING_FRACTION = 0.1  # revolute closures: connect points this fraction of the model size apart
@@ -381,15 +382,39 @@ class _Writer:
         name = self.body_namer(f"{self.joint_names[id(joint)]}_carrier")
         carrier = base_element.add_body(name=name)
         self._set_pose(carrier, pose, base_pose)
-        donor = self._donor([closure.follower_body, closure.base_body])
-        mass = CARRIER_MASS_FRACTION * (donor[0].mass if donor is not None else 1e-3)
-        if donor is not None:  # the carrier is welded to the follower: its mass is lent, the total stays exact
-            _take_mass(donor[0], mass)
-        inertia, _, _ = _floored(mass_properties.sphere(mass, mass / 1000.0))
-        _set_inertial(carrier, mass_properties.MassProperties(mass, pose.position, inertia), pose)
+        share = self._follower_share(closure.follower_body)
+        if share is not None:
+            # a share of the follower's own mass distribution (same centre, same inertia ellipsoid): the
+            # welded pair weighs and turns exactly as the follower did, and a carrier of real weight keeps
+            # the weld well conditioned (a light one let loops open by 0.1 mm under gravity)
+            _take_mass(self.spec_bodies[closure.follower_body], share.mass)
+            _set_inertial(carrier, share, pose)
+        else:
+            donor = self._donor([closure.follower_body, closure.base_body])
+            mass = LIGHT_CARRIER_FRACTION * (donor[0].mass if donor is not None else 1e-3)
+            if donor is not None:  # the carrier is welded to the follower: its mass is lent, the total stays exact
+                _take_mass(donor[0], mass)
+            inertia, _, _ = _floored(mass_properties.sphere(mass, mass / 1000.0))
+            _set_inertial(carrier, mass_properties.MassProperties(mass, pose.position, inertia), pose)
         self._joints(carrier, joint, pose, False)
         self._weld(label, name, self.body_names[closure.follower_body],
                    self.body_poses[closure.follower_body].inverse().apply(joint.follower_frame.position))
+
+    def _follower_share(self, follower: int):
+        """``CARRIER_MASS_FRACTION`` of the follower body's mass properties in world terms, or None
+        when it has no mass or no full inertia to share."""
+        element = self.spec_bodies.get(follower)
+        if element is None or element is self.spec.worldbody or not element.mass > 0:
+            return None
+        local = np.asarray(element.fullinertia, dtype=float)
+        if not np.all(np.isfinite(local)):
+            return None
+        tensor = np.array([[local[0], local[3], local[4]], [local[3], local[1], local[5]], [local[4], local[5], local[2]]])
+        body = self.body_poses[follower]
+        rotation = body.rotation
+        fraction = CARRIER_MASS_FRACTION
+        return mass_properties.MassProperties(fraction * float(element.mass), body.apply(np.asarray(element.ipos, dtype=float)),
+                                              fraction * (rotation @ tensor @ rotation.T))
 
     def _couplings(self) -> None:
         for coupling in self.assembly.couplings:
