@@ -10,7 +10,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "mechanism"
 
 # room -> layer; a room may import rooms of lower layers and itself only.
 LAYERS = {
-    "errors": 0,
+    "errors": 0, "tolerances": 0,
     "files": 1, "native": 1, "data": 1,
     "batch": 2, "converters": 2,
     "kinematics": 3, "physics": 3,

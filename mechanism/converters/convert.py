@@ -16,6 +16,7 @@ from mechanism.converters.errors import ExportError
 from mechanism.converters.geometry import load_meshes
 from mechanism.converters.load import read
 from mechanism.converters.names import sanitize
+from mechanism.tolerances import JOINT_RANK_TOLERANCE as RANK_TOLERANCE
 
 
 @dataclass
@@ -157,7 +158,6 @@ def _locked_warning(locked: list[str]) -> list[str]:
 # digits: axes that are parallel in the CAD model come out parallel to ~1e-6 rad, so a loop that
 # over-constrains a real motion (a pin mated to a plane and a bore) leaves a singular value near
 # 1e-8 where that motion should be, while genuine constraints give 1e-3 and more.
-RANK_TOLERANCE = 1e-6
 
 
 def mobility(model) -> tuple[int, list[str]]:

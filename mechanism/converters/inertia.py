@@ -10,9 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from mechanism.tolerances import INERTIA_RELATIVE_TOLERANCE as RELATIVE_TOLERANCE
 
-RELATIVE_TOLERANCE = 1e-6  # exports print 6+ significant digits
-MIN_MOMENT = 1e-12  # kg*m^2: the smallest principal moment a moving body keeps
 
 
 def principal(inertia) -> tuple[np.ndarray, np.ndarray]:

@@ -30,6 +30,7 @@ import numpy as np
 from mechanism.converters.assembly import BALL, HINGE, SLIDE, Joint, Primitive
 from mechanism.converters.graph import UnionFind
 from mechanism.converters.pose import Pose
+from mechanism.tolerances import MATE_RANK_TOLERANCE as RANK_TOLERANCE, PIVOT_TOLERANCE
 
 PLANE, AXIS, POINT = "plane", "axis", "point"
 SPHERE = "sphere"
@@ -57,9 +58,7 @@ MATE_KINDS = {
     "default": "weld", "coordsys": "weld", "csys": "weld",
 }
 
-RANK_TOLERANCE = 1e-4  # relative: exports print 6+ digits, genuine constraints give singular values >> this
 STEP = 1e-6  # finite-difference step (rad, and units of the pair's size)
-PIVOT_TOLERANCE = 1e-3  # singular value (of unit rotations) below which a pivot direction counts as free
 ORIGIN_PLACEMENT_DOF = 4  # mates to the assembly origin leaving this many freedoms or more place a part, they make no joint
 
 

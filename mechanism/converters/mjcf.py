@@ -23,6 +23,7 @@ from mechanism.converters.geometry import Mesh
 from mechanism.converters.names import Namer
 from mechanism.converters.pose import Pose
 from mechanism.converters.tree import Plan
+from mechanism.tolerances import MIN_LENT_MASS_KG, MIN_MOMENT
 
 TIMESTEP_S = 0.0005
 INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
@@ -34,7 +35,6 @@ EQUALITY_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
 CARRIER_MASS_FRACTION = 0.1  # of the follower body's mass properties, lent to a loop's carrier body
 LIGHT_CARRIER_FRACTION = 1e-3  # of a donor's mass when the follower has none to share
 MISSING_MASS_FRACTION = 1e-3  # a massless moving body gets this fraction of the lightest real part (lent by a neighbour)
-MIN_LENT_MASS_KG = 1e-9  # but at least this (MuJoCo refuses moving bodies under 1e-15 kg)
 LOOP_SPACING_FRACTION = 0.1  # revolute closures: connect points this fraction of the model size apart
 LOOP_SPACING_LIMITS_M = (0.005, 0.1)
 SIGNIFICANT_DIGITS = 10  # every number written is rounded: bytes do not depend on last-bit noise
@@ -63,7 +63,7 @@ def _floored(inertia):
     a moving MuJoCo body needs (and the triangle inequality restored); ``moments`` are the original
     principal moments when a repair was needed, else None."""
     moments, _ = mass_properties.principal(inertia)
-    floor = max(mass_properties.MIN_MOMENT, 1e-9 * moments[2])
+    floor = max(MIN_MOMENT, 1e-9 * moments[2])
     if moments[0] < floor or moments[0] + moments[1] < moments[2]:
         return mass_properties.clamp_to_physical(inertia, floor), moments, floor
     return np.asarray(inertia, dtype=float), None, floor

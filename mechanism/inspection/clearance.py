@@ -42,14 +42,11 @@ from mechanism.kinematics.cycle import DEFAULT_RESOLUTION_DEG, cycle_angles
 from mechanism.errors import UserError, close_matches
 from mechanism.kinematics.pose import joint_dof, solve_pose
 from mechanism.inspection.shapes import PartShape, overlap_volume, penetration
+from mechanism.tolerances import ANGLE_TOLERANCE_RAD, DEPTH_ANGLE_TOLERANCE_RAD, BOUNDARY_TOLERANCE_RAD, HULL_TOLERANCE_M
 
-ANGLE_TOLERANCE_RAD = 1e-5  # refinement of a minimum or of the largest overlap volume (0.0006 deg)
-DEPTH_ANGLE_TOLERANCE_RAD = 1e-4  # the deepest point's angle (depth is flat there)
-BOUNDARY_TOLERANCE_RAD = np.radians(1e-4)  # ends of an interference range
 MINIMA_REFINED = 3  # at most this many local minima refined per pair (those that may hold the smallest)
 SPEED_MARGIN = 1.25  # travel is measured between samples (chords): allow 25% more along the way
 HULL_DISTMAX_M = 1.0
-HULL_TOLERANCE_M = 1e-6  # MuJoCo's GJK tolerance: keeps the hull distance a lower bound
 
 
 @dataclass(frozen=True)

@@ -33,12 +33,12 @@ import numpy as np
 
 from mechanism.machine import parts
 from mechanism.errors import UserError
+from mechanism.tolerances import MIN_DEPTH_SPACING_M
 
 PRIMITIVE_SECTIONS = 256  # tessellation of primitives for the overlap solid only (distances use exact primitives)
 DEPTH_REFINEMENT = 4  # overlap surface refined to (overlap size / this) ...
 FINE_PASS_VERTICES = 3  # ... then 8x finer around the deepest few vertices
 ON_SURFACE_M = 1e-9  # a point this close to a surface lies on it
-MIN_DEPTH_SPACING_M = 1e-6
 
 
 def _fcl_geometry(model: mujoco.MjModel, geom: int):

@@ -22,9 +22,8 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError, close_matches
+from mechanism.tolerances import POSITION_TOLERANCE, RELATIVE_POSITION_TOLERANCE
 
-POSITION_TOLERANCE = 1e-10  # m or rad: far below any clearance or kinematic accuracy we report
-RELATIVE_POSITION_TOLERANCE = 1e-8  # of the model's size: a CAD export's rounding leaves ~1e-9 of it
 
 
 def position_tolerance(model: mujoco.MjModel) -> float:

@@ -40,12 +40,12 @@ from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
 from mechanism.physics.inputs import DutyMap
 from mechanism.physics.loads import FabricLoad, python_needle_load
 from mechanism.physics.motor import DCMotor, SupplyLimit, Thermal, python_supply_limit
+from mechanism.tolerances import ZERO_SNAP_RAD
 
 ACTUATOR = "drive_motor"  # the actuator the machine adds (its own name, not a CAD name)
 TORQUE_SENSOR = "drive_motor_torque"
 DEFAULT_TIMESTEP_S = 0.0005
 ZERO_SEARCH_SAMPLES = 180
-ZERO_SNAP_RAD = 1e-9  # a zero this close to the assembly pose is the pose (solver precision)
 BELT_TENSIONS = ("low", "normal", "hard")
 
 

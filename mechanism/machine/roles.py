@@ -22,9 +22,9 @@ import numpy as np
 from mechanism.errors import UserError
 from mechanism.kinematics.linkage import compute_tables, up_axis
 from mechanism.kinematics.pose import PoseError
+from mechanism.tolerances import REVOLVING_RATIO_TOLERANCE
 
 RATIO_SAMPLES = 72
-REVOLVING_RATIO_TOLERANCE = 1e-3  # a joint revolves with the driver when its ratio keeps one sign
 
 
 def _hinges(model: mujoco.MjModel) -> list[str]:

@@ -1,0 +1,31 @@
+"""Every numerical tolerance of the library, in one place, each with its unit and its reason.
+
+Modules import the names they use from here (as trimesh keeps its ``constants.tol``); a
+tolerance changed here changes everywhere it is used. Domain numbers (a machine's constants)
+never live here: they are in the machine's description.
+"""
+
+from __future__ import annotations
+
+import math
+
+# -- kinematics: solving a closed linkage's pose (kinematics.pose) --
+POSITION_TOLERANCE = 1e-10  # m or rad: far below any clearance or kinematic accuracy we report
+RELATIVE_POSITION_TOLERANCE = 1e-8  # of the model's size: a CAD export's rounding leaves ~1e-9 of it
+ZERO_SNAP_RAD = 1e-9  # a shaft zero this close to the assembly pose is the pose (solver precision)
+REVOLVING_RATIO_TOLERANCE = 1e-3  # a joint revolves with the driver when its ratio keeps one sign beyond this
+
+# -- clearance between part shapes over a cycle (inspection.clearance, inspection.shapes) --
+ANGLE_TOLERANCE_RAD = 1e-5  # refinement of a minimum or of the largest overlap volume (0.0006 deg)
+DEPTH_ANGLE_TOLERANCE_RAD = 1e-4  # the deepest point's angle (the depth is flat there)
+BOUNDARY_TOLERANCE_RAD = math.radians(1e-4)  # the ends of an interference range
+HULL_TOLERANCE_M = 1e-6  # MuJoCo's GJK tolerance: keeps the convex-hull distance a lower bound
+MIN_DEPTH_SPACING_M = 1e-6  # surface samples closer than this add nothing to a penetration depth
+
+# -- CAD exports: mass properties and mate inference (converters) --
+INERTIA_RELATIVE_TOLERANCE = 1e-6  # exports print 6+ significant digits
+MIN_MOMENT = 1e-12  # kg m^2: the smallest principal moment a moving body keeps (MuJoCo refuses 1e-15)
+MIN_LENT_MASS_KG = 1e-9  # the least mass lent to a massless moving body (MuJoCo refuses under 1e-15 kg)
+JOINT_RANK_TOLERANCE = 1e-6  # relative singular value below which a joint's freedoms count as locked by loops
+MATE_RANK_TOLERANCE = 1e-4  # relative: exports print 6+ digits, genuine mate constraints give singular values >> this
+PIVOT_TOLERANCE = 1e-3  # singular value (of unit rotations) below which a pivot direction counts as free
