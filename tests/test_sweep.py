@@ -170,6 +170,8 @@ def test_cli_sweep_killed_and_resumed_writes_the_same_csv(cli, tmp_path):
 
 @pytest.mark.parametrize("document,message", [
     ({"parameters": {"fly": "inertia:arm_shat_kgm2"}, "sweep": {"fly": [0, 1e-4]}}, "arm_shaft"),
+    ({"parameters": {"hook_timing_dg": None}, "sweep": {"hook_timing_dg": [0, 10]}}, "hook_timing_deg"),
+    ({"parameters": {"m": "mass:neddle_kg"}, "sweep": {"m": [0, 0.01]}}, "needle"),
     ({"parameters": {"fly": "inertia:arm_shaft_kgm2"}, "sweep": {"fly": [-1e-4, 1e-4]}}, ">= 0"),
     ({"parameters": {"R": "motor:resistanse_ohm"}, "sweep": {"R": [0, 0.1]}}, "resistance_ohm"),
     ({"parameters": {"R": "motor:resistance_ohm"}, "samples": {"count": 5, "tolerances": {"R": {"dist": "normal", "std": 0.1}}}}, "seed"),

@@ -113,6 +113,10 @@ def parameter(name: str, target: str | None = None, presets: dict[str, str] | No
     target = (target or (presets or {}).get(name, name)).strip()
     if _DYNAMIC.fullmatch(target):
         return Parameter(name, target)
+    if ":" not in target and presets is not None:  # a bare name: a preset, perhaps misspelt
+        known = [*presets, *OPERATING_POINT]
+        raise UserError(f"parameter {target!r} is neither a preset of the machine's description nor a target; "
+                        f"close matches: {close_matches(target, known)}")
     for single in target.split("+"):
         _parse_target(single)
     return Parameter(name, target)
