@@ -151,26 +151,24 @@ def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
 def drive_nominal(machine: Machine | None):
     """The machine's lumped drive numbers (:class:`~mechanism.dynamics.lumped.DriveNominal`) that
     identification, diagnosis and the test bench scale from: a machine's from its description
-    and CAD model (mechanism.sysid.nominal); without one, the shipped Sapphire 870's lumped
-    numbers as the thesis identified them (its whole machine, parts the CAD lacks included),
-    on which the earlier issues' recordings and tests were calibrated."""
+    and CAD model (mechanism.sysid.nominal); without one, the shipped machine's whole-machine
+    lumped numbers (its description's ``[lumped]``: parts the CAD lacks included), on which the
+    earlier issues' recordings and tests were calibrated."""
     from mechanism.sysid.nominal import machine_drive_nominal
 
     if machine is not None:
         return machine_drive_nominal(machine)
-    from mechanism.data.reference import thesis
     from mechanism.dynamics.lumped import DriveNominal, MotorConstants
 
-    ref = thesis()
-    motor, ident, mech = ref["main_motor"], ref["identified_parameters"], ref["mechanism"]
-    n = float(mech["motor_to_arm_ratio"])
-    constants = MotorConstants(motor["resistance_ohm"], motor["torque_constant_Nm_per_A"],
-                               motor["back_emf_constant_V_s_per_rad"], n)
-    return DriveNominal(constants, inertia_kgm2=ident["total_inertia_kgm2"] * n**2,
-                        coulomb_shaft_Nm=ident["kinetic_friction_arm_Nm"],
-                        viscous_shaft_Nm_s_per_rad=ident["viscous_cold_Nm_s_per_rad"] * n**2,
-                        joint_ratios=machine_drive_nominal(load_machine()).joint_ratios,
-                        supply_V=float(motor["operating_voltage_V"][1]))
+    shipped = load_machine()
+    description, n = shipped.description, shipped.motor_ratio
+    lumped, motor = description.section("lumped"), description.motor
+    constants = MotorConstants(motor["resistance_ohm"], motor["torque_constant_Nm_per_A"], motor["back_emf_V_s_per_rad"], n)
+    return DriveNominal(constants, inertia_kgm2=lumped["inertia_motor_side_kgm2"] * n**2,
+                        coulomb_shaft_Nm=lumped["coulomb_shaft_Nm"],
+                        viscous_shaft_Nm_s_per_rad=lumped["viscous_motor_side_Nm_s_per_rad"] * n**2,
+                        joint_ratios=machine_drive_nominal(shipped).joint_ratios,
+                        supply_V=description.section("supply")["voltage_V"])
 
 
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:

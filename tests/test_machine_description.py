@@ -94,6 +94,21 @@ def test_shipped_description_gives_the_thesis_drive():
         motor["resistance_ohm"], motor["torque_constant_Nm_per_A"], motor["back_emf_constant_V_s_per_rad"])
 
 
+def test_shipped_lumped_numbers_are_the_thesis_identification():
+    """The whole-machine numbers the default drive scales from are the thesis's identified ones."""
+    from mechanism.api import drive_nominal
+
+    lumped = mechanism.load_machine().description.section("lumped")
+    identified = thesis()["identified_parameters"]
+    assert lumped == {"inertia_motor_side_kgm2": identified["total_inertia_kgm2"],
+                      "coulomb_shaft_Nm": identified["kinetic_friction_arm_Nm"],
+                      "viscous_motor_side_Nm_s_per_rad": identified["viscous_cold_Nm_s_per_rad"]}
+    nominal = drive_nominal(None)
+    n = thesis()["mechanism"]["motor_to_arm_ratio"]
+    assert nominal.inertia_kgm2 == pytest.approx(identified["total_inertia_kgm2"] * n**2, rel=1e-12)
+    assert nominal.supply_V == thesis()["main_motor"]["operating_voltage_V"][1]
+
+
 def test_shipped_steady_speed_measurements_are_the_thesis_table_2():
     table = mechanism.read_table(DEFAULT_MODEL.parent / "measurements" / "steady_speeds.csv",
                                  required=["motor_voltage_V", "warm_s", "speed_rpm"])

@@ -154,6 +154,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "joint": _name("the rotary hook's joint"),
         "site": _name("the hook's point"),
     },
+    "lumped": {
+        "inertia_motor_side_kgm2": _positive("the whole machine's inertia seen at the motor, as a lumped model identified it", high=1e3),
+        "coulomb_shaft_Nm": _non_negative("the whole machine's kinetic Coulomb friction at the shaft [N m]", 1e4),
+        "viscous_motor_side_Nm_s_per_rad": _non_negative("the whole machine's viscous coefficient at the motor [N m s/rad]", 1e4),
+    },
     "inspect": {
         "probes": Key(list, "probes of the demo, 'point_or_joint:quantity'", item=str),
         "clearance_pairs": Key(list, "part pairs the demo checks, 'A:B'", item=str),
