@@ -16,23 +16,19 @@ from __future__ import annotations
 import importlib
 
 from mechanism.errors import UserError
+from mechanism.lazy import lazy_exports
 
 __version__ = "0.2.0"
 
-_LAZY = {name: "mechanism.api" for name in (
-    "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
-    "conversion_summary", "convert", "diagnose", "diagnosis_report", "driven_inertia_kgm2", "identify", "inspect",
-    "load_machine", "needle_motion", "plot_needle", "plot_simulation", "plot_sweep", "probe", "read_table",
-    "shipped_machines", "simulate", "sweep", "view", "write_bench_recording", "write_needle_csv", "write_table")}
-_LAZY["read_description"] = "mechanism.machine.description"
-
-__all__ = ["UserError", "__version__", *sorted(_LAZY)]
-
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'mechanism' has no attribute {name!r}")
+_lazy_names, __getattr__, _lazy_dir = lazy_exports(__name__, {
+    "api": ("Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
+            "conversion_summary", "convert", "diagnose", "diagnosis_report", "driven_inertia_kgm2", "identify",
+            "inspect", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "plot_sweep", "probe",
+            "read_table", "shipped_machines", "simulate", "sweep", "view", "write_bench_recording",
+            "write_needle_csv", "write_table"),
+    "machine.description": ("read_description",),
+})
+__all__ = ["UserError", "__version__", *_lazy_names]
 
 
 def __dir__() -> list[str]:

@@ -101,7 +101,7 @@ def plot_sweep(result, path: str | os.PathLike, x: str | None = None, group: str
 
 def driven_inertia_kgm2(machine: Machine | None = None) -> float:
     """The shaft side's own inertia (without the motor rotor's share): the scale of a flywheel."""
-    from mechanism.inspection.sweep import driven_inertia_kgm2 as run
+    from mechanism.inspection.sweep_metrics import driven_inertia_kgm2 as run
 
     return run(machine or load_machine())
 

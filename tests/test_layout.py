@@ -10,7 +10,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "mechanism"
 
 # room -> layer; a room may import rooms of lower layers and itself only.
 LAYERS = {
-    "errors": 0, "tolerances": 0,
+    "errors": 0, "tolerances": 0, "lazy": 0,
     "files": 1, "native": 1, "data": 1,
     "batch": 2, "converters": 2,
     "kinematics": 3, "physics": 3,
@@ -92,3 +92,24 @@ def test_the_converter_and_the_test_bench_stay_independent():
             assert LAYERS[room(target)] < LAYERS["converters"], f"{source} imports {target}: converters never import the simulator"
         if room(source) == "testbench":
             assert room(target) != "sysid", f"{source} imports {target}: the truth model must not know the diagnosis"
+
+
+def test_every_subpackage_names_a_curated_api_that_resolves():
+    """Each room by concern lists its public API in ``__all__``; every name resolves to an object
+    of the module it is listed from, and importing the package alone imports none of them."""
+    import importlib
+    import subprocess
+    import sys
+
+    rooms = ["dynamics", "files", "inspection", "kinematics", "machine", "physics", "sysid", "steppers", "batch",
+             "converters", "testbench"]
+    for room in rooms:
+        package = importlib.import_module(f"mechanism.{room}")
+        names = getattr(package, "__all__", None)
+        assert names, f"mechanism.{room} lists no public API"
+        for name in names:
+            assert getattr(package, name) is not None, f"mechanism.{room}.{name}"
+    probe = ("import sys, mechanism.inspection, mechanism.sysid; "
+             "print(any(m in sys.modules for m in ('fcl', 'mechanism.inspection.clearance', 'mechanism.sysid.diagnosis')))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=PACKAGE.parent)
+    assert out.stdout.strip() == "False", out.stderr

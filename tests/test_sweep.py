@@ -17,8 +17,9 @@ import pytest
 
 import mechanism
 from mechanism.dynamics.reduced import ReducedModel
-from mechanism.inspection.sweep import (METRICS, SweepOptions, journal_path, read_journal, run_sweep, sweep_fingerprint,
-                                        variant_machine, variant_metrics)
+from mechanism.inspection.sweep import SweepOptions, run_sweep, variant_machine
+from mechanism.inspection.sweep_journal import journal_path, read_journal, sweep_fingerprint
+from mechanism.inspection.sweep_metrics import METRICS, variant_metrics
 from mechanism.inspection.variants import VariantSet, parameter, variants_from_document
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -60,7 +60,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from mechanism.cli._machine import machine_from_args
     from mechanism.inspection.clearance import write_rows
-    from mechanism.inspection.sweep import METRICS, SweepOptions, journal_path, plot_sweep, run_sweep
+    from mechanism.inspection.sweep import METRICS, SweepOptions, plot_sweep, run_sweep
+    from mechanism.inspection.sweep_journal import journal_path
     from mechanism.inspection.variants import read_variants
 
     from mechanism.errors import UserError

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import hashlib
 import json
 import math
 import os
@@ -36,7 +35,6 @@ import mujoco
 import numpy as np
 
 from mechanism.dynamics.reduced import ReducedModel
-from mechanism.dynamics.simulation import SimulationResult
 from mechanism.errors import UserError, close_matches
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_derivative
 from mechanism.machine import parts
@@ -44,25 +42,14 @@ from mechanism.machine.description import FRICTION_KEYS, SCHEMA, MachineDescript
 from mechanism.machine.machine import (Machine, MachineConfig, duty_map_from, fabric_from_description,
                                        motor_from_description, supply_limit)
 from mechanism.physics.friction import FrictionSet
+from mechanism.inspection.sweep_journal import open_journal, read_journal, sweep_fingerprint
+from mechanism.inspection.sweep_metrics import METRICS, bearing_loads, variant_metrics
 from mechanism.inspection.variants import OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter
 
-TWO_PI = 2 * np.pi
-SETTLING_BAND = 0.02  # settled: within the steady ripple band widened by 2 % of the mean speed
-STEADY_CHANGE = 0.01  # the last two revolutions' mean speeds differ by less: steady state reached
 DESCRIPTION_SECTIONS = ("motor", "supply", "tool")  # description sections a sweep may offset
+REPLACED_IN_CODE = ("this machine's motor or fabric was replaced in code (MachineConfig): description offsets (motor:, "
+                    "tool:) would not reach it; describe it instead")
 POINT_MASS_INERTIA_KGM2 = 1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
-
-METRICS = {
-    "mean_speed_rpm": "mean shaft speed in steady state (the last revolution)",
-    "ripple_pp_rad_s": "shaft speed peak to peak over the last revolution",
-    "ripple_min_angle_deg": "shaft angle of the slowest point of the last revolution",
-    "settling_s": "time from the voltage step until the speed stays in the steady ripple band (+/- 2 % of the mean)",
-    "peak_current_A": "largest armature current of the run (the start)",
-    "rms_current_A": "RMS armature current over the last revolution (heating in steady state)",
-    "tool_above_plate_ms": "time per stitch (the last revolution) the tool is above the plate",
-    "breakaway_V": "smallest constant motor voltage that starts the machine from rest at every shaft angle",
-}
-
 
 @dataclass(frozen=True)
 class SweepOptions:
@@ -102,10 +89,14 @@ class _VariantMachine:
                  layers: int):
         self.__dict__.update(base.machine_state)
         self.model, self.tables, self.description = model, tables, description
-        self.config = replace(base.config, layers=layers)
-        self.motor = motor_from_description(description.motor)
+        self.config = config = replace(base.config, layers=layers)
+        edited = description is not base.description
+        if edited and (config.motor is not None or config.fabric is not None):
+            raise UserError(REPLACED_IN_CODE)
+        self.motor = config.motor or motor_from_description(description.motor)
         self.friction = FrictionSet(Machine.friction_laws(self))  # type: ignore[arg-type]
-        self.fabric = fabric_from_description(description.section("tool"), layers)
+        fabric = replace(config.fabric, layers=layers) if config.fabric is not None else None
+        self.fabric = fabric or fabric_from_description(description.section("tool"), layers)
         self.supply = supply_limit(description)
 
     tool_height_mm = Machine.tool_height_mm
@@ -435,105 +426,6 @@ def _run_group(runner: FullRunner, group: Sequence[np.ndarray]) -> list[dict[str
     return runner(group)
 
 
-def bearing_loads(result: SimulationResult, bearings: Sequence[str]) -> dict[str, float]:
-    """Peak reaction force [N] at each bearing over the run's last revolution (the whole run
-    when it never turned a revolution), from the ``bearing:<joint>`` force sensors."""
-    if not bearings:
-        return {}
-    assert result.sensordata is not None
-    machine_sensors = result.metadata.get("sensor_columns", {})
-    angle = result.arm_angle_rad
-    last = np.flatnonzero(angle <= angle[-1] - TWO_PI)
-    window = slice(int(last[-1]) + 1 if last.size else 0, None)
-    out = {}
-    for joint in bearings:
-        column = machine_sensors[f"bearing:{joint}"]
-        force = result.sensordata[window, column : column + 3]
-        out[f"bearing_{joint}_peak_N"] = float(np.max(np.linalg.norm(force, axis=1)))
-    return out
-
-
-# -- metrics --------------------------------------------------------------------------------
-
-
-def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str, Any]:
-    """:data:`METRICS` of one run from rest (a voltage step at t = 0), plus a ``note`` when the
-    run did not reach a steady state."""
-    t, angle, speed = result.time_s, result.arm_angle_rad, result.arm_velocity_rad_s
-    row: dict[str, Any] = {name: math.nan for name in METRICS}
-    row["peak_current_A"] = float(np.max(np.abs(result.current_A)))
-    row["breakaway_V"] = breakaway_voltage(reduced)
-    notes = []
-    last = np.flatnonzero(angle <= angle[-1] - TWO_PI)
-    if not last.size or t[last[-1]] < t[-1] / 2:
-        window = slice(int(len(t) * 0.75), None)
-        row["mean_speed_rpm"] = float(np.mean(speed[window]) * 60 / TWO_PI)
-        row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[window] ** 2)))
-        row["note"] = "no steady running: under one revolution in the second half of the run (stalled or too slow)"
-        return row
-    start = int(last[-1]) + 1
-    steady = slice(start, None)
-    period = t[-1] - np.interp(angle[-1] - TWO_PI, angle[: start + 1], t[: start + 1])
-    mean = TWO_PI / period
-    row["mean_speed_rpm"] = float(mean * 60 / TWO_PI)
-    low, high = float(np.min(speed[steady])), float(np.max(speed[steady]))
-    row["ripple_pp_rad_s"] = high - low
-    row["ripple_min_angle_deg"] = float(np.degrees(np.mod(angle[start + int(np.argmin(speed[steady]))], TWO_PI)))
-    row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[steady] ** 2)))
-    if np.isfinite(result.needle_z_mm).all():
-        row["tool_above_plate_ms"] = _time_above(t[start - 1 :], result.needle_z_mm[start - 1 :]) * 1e3
-    previous = np.flatnonzero(angle <= angle[-1] - 2 * TWO_PI)
-    if previous.size:
-        before = t[start - 1] - np.interp(angle[start - 1] - TWO_PI, angle[: start], t[: start])
-        if abs(before - period) > STEADY_CHANGE * period:
-            notes.append(f"not steady: the last two revolutions differ by {abs(before - period) / period:.1%}")
-    band = SETTLING_BAND * mean
-    outside = np.flatnonzero((speed[:start] < low - band) | (speed[:start] > high + band))
-    if notes:
-        row["settling_s"] = math.nan
-    else:
-        row["settling_s"] = float(t[outside[-1] + 1]) if outside.size else float(t[0])
-    row["note"] = "; ".join(notes)
-    return row
-
-
-def _time_above(t: np.ndarray, height: np.ndarray) -> float:
-    """Time a sampled height spends above 0, with the crossings interpolated linearly."""
-    dt, low, high = np.diff(t), height[:-1], height[1:]
-    both = (low > 0) & (high > 0)
-    crossing = (low > 0) != (high > 0)
-    share = np.where(crossing, np.maximum(low, high) / np.maximum(np.abs(low) + np.abs(high), 1e-300), 0.0)
-    return float(np.sum(dt[both]) + np.sum((dt * share)[crossing]))
-
-
-def driven_inertia_kgm2(machine: Machine) -> float:
-    """The shaft side's own inertia: the mean effective inertia at the shaft without the
-    motor rotor's share (its axial inertia times its ratio squared): what a flywheel on
-    the shaft is compared with."""
-    data = machine.reset(0.0)
-    mass = np.zeros((machine.model.nv, machine.model.nv))
-    mujoco.mj_fullM(machine.model, data, mass)
-    rotor = mass[machine.motor_dof, machine.motor_dof]
-    return float(machine.tables.mean_inertia_kgm2 - rotor * machine.motor_ratio**2)
-
-
-def breakaway_voltage(reduced: ReducedModel) -> float:
-    """The smallest constant motor voltage that starts the machine forward from rest at any
-    shaft angle: static friction against the motor's stall torque, gravity and cogging (the
-    integrator's own break-away test, solved for the voltage). NaN when the supply cannot."""
-    angles = reduced.tables.angle_rad
-    rest = np.zeros_like(angles)
-    static = reduced.static_friction(angles)
-    at_rest = reduced.generalized_force(angles, rest, rest)
-    per_volt = reduced.generalized_force(angles, rest, rest + 1.0) - at_rest
-    if np.any(per_volt <= 0):
-        return math.nan
-    needed = float(np.max((static - at_rest) / per_volt))
-    # linear in the voltage until the supply limits the current: check the answer
-    reached = reduced.generalized_force(angles, rest, rest + needed)
-    return needed if np.all(reached - static >= -1e-9 * np.maximum(static, 1e-9)) else math.nan
-
-
 # -- the batch ------------------------------------------------------------------------------
 
 
@@ -577,7 +469,7 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     todo = [i for i in range(len(variants)) if i not in done]
     start = time.perf_counter()
     with contextlib.ExitStack() as stack:
-        log = stack.enter_context(_open_journal(journal, fingerprint, fresh=not done)) if journal is not None else None
+        log = stack.enter_context(open_journal(journal, fingerprint, fresh=not done)) if journal is not None else None
 
         def keep(position: int, row: dict[str, Any]) -> None:
             if log is not None:
@@ -627,69 +519,6 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
                         setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
                         on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
     return [row for rows in results for row in rows]
-
-
-JOURNAL_FORMAT = "mechanism-sweep-journal/1"
-
-
-def journal_path(csv_path: str | os.PathLike) -> Path:
-    """Where a sweep writing ``csv_path`` keeps its rows until it is complete."""
-    csv_path = Path(csv_path)
-    return csv_path.with_name(csv_path.name + ".partial")
-
-
-def sweep_fingerprint(machine: Machine, variants: VariantSet, options: SweepOptions) -> str:
-    """What makes two sweeps the same: machine (description and model file), variants, run."""
-    digest = hashlib.sha256()
-    digest.update(repr(replace(machine.description, path=None)).encode())
-    digest.update(Path(machine.model_path).read_bytes())
-    digest.update(repr(machine.config).encode())
-    digest.update(json.dumps([[p.name, p.target] for p in variants.parameters]).encode())
-    digest.update(json.dumps(variants.names).encode())
-    digest.update(np.ascontiguousarray(variants.values, dtype=float).tobytes())
-    digest.update(repr(options).encode())
-    return digest.hexdigest()
-
-
-def read_journal(path: str | os.PathLike, fingerprint: str) -> dict[int, dict[str, Any]]:
-    """The rows an interrupted sweep left (a torn last line, from a kill mid-write, is dropped)."""
-    path = Path(path)
-    if not path.exists():
-        return {}
-    from mechanism.files.limits import read_bounded
-
-    lines = read_bounded(path, "sweep journal", 1 << 30).decode("utf-8", errors="replace").split("\n")
-    try:
-        header = json.loads(lines[0])
-    except json.JSONDecodeError:
-        header = None
-    if not isinstance(header, dict) or header.get("format") != JOURNAL_FORMAT:
-        raise UserError(f"{path}: not a sweep journal; delete it or choose another --csv")
-    if header.get("fingerprint") != fingerprint:
-        raise UserError(f"{path}: left by a different sweep (other machine, variants or run options); delete it to start "
-                        "over, or resume with the same inputs")
-    done = {}
-    for line in lines[1:]:
-        try:
-            entry = json.loads(line)
-            done[int(entry["index"])] = dict(entry["row"])
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
-            continue  # the torn line a kill leaves behind
-    return done
-
-
-@contextlib.contextmanager
-def _open_journal(path: str | os.PathLike, fingerprint: str, fresh: bool):
-    path = Path(path)
-    if fresh:
-        with open(path, "w", encoding="utf-8") as handle:
-            handle.write(json.dumps({"format": JOURNAL_FORMAT, "fingerprint": fingerprint}) + "\n")
-    else:
-        text = path.read_bytes()
-        if not text.endswith(b"\n"):  # drop the torn line before appending
-            path.write_bytes(text[: text.rfind(b"\n") + 1])
-    with open(path, "a", encoding="utf-8") as handle:
-        yield handle
 
 
 def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = None, group: str | None = None) -> Path:
@@ -743,6 +572,8 @@ def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: S
     the child body, at the joint's anchor, in the child's frame)."""
     base = SweepBase.of(machine, parameters, SweepOptions())
     variant = _sort(parameters, values)
+    if variant.description and (machine.config.motor is not None or machine.config.fabric is not None):
+        raise UserError(REPLACED_IN_CODE)
     description = edited_description(machine.description, variant.description) if variant.description else machine.description
     nominal = machine.model
     inertias = {_split(p.target)[1]: variant.inertia.get(_split(p.target)[1], 0.0) for p in parameters

@@ -1,1 +1,12 @@
-"""mechanism.sysid."""
+"""System identification: recordings, the lumped baseline, diagnosis of missing physics, fleets, reports."""
+
+from mechanism.lazy import lazy_exports
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "recording": ("Recording", "read_recording"),
+    "identification": ("identify", "IdentificationResult", "NotIdentifiable"),
+    "diagnosis": ("diagnose", "Diagnosis"),
+    "fleet": ("diagnose_fleet", "FleetResult"),
+    "report": ("diagnosis_report", "identification_report"),
+    "nominal": ("machine_drive_nominal",),
+})

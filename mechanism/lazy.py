@@ -1,0 +1,27 @@
+"""Curated package namespaces whose names are imported on first use.
+
+A subpackage's ``__init__`` lists its public API (``__all__``) by module; nothing is imported
+until a name is used, so ``import mechanism.inspection`` does not load fcl, and a package never
+imports its own modules in an order that could circle.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any, Callable
+
+
+def lazy_exports(package: str, exports: dict[str, tuple[str, ...]]) -> tuple[list[str], Callable[[str], Any], Callable[[], list[str]]]:
+    """``(__all__, __getattr__, __dir__)`` for ``package`` whose public names live in the
+    modules ``exports`` maps them from (module names relative to the package)."""
+    where = {name: f"{package}.{module}" for module, names in exports.items() for name in names}
+
+    def __getattr__(name: str) -> Any:
+        if name in where:
+            return getattr(importlib.import_module(where[name]), name)
+        raise AttributeError(f"module {package!r} has no attribute {name!r}")
+
+    def __dir__() -> list[str]:
+        return sorted(where)
+
+    return sorted(where), __getattr__, __dir__
