@@ -13,8 +13,6 @@ line starts fast.
 
 from __future__ import annotations
 
-import importlib
-
 from mechanism.errors import UserError
 from mechanism.lazy import lazy_exports
 
