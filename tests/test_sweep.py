@@ -231,3 +231,28 @@ def test_full_model_sweep_equals_single_runs_and_agrees_with_the_reduced_model(m
         assert full.rows[i]["ripple_pp_rad_s"] == pytest.approx(reduced.rows[i]["ripple_pp_rad_s"], rel=0.05)
         # the shaft's bearings carry at least the weight the shaft hangs on them
         assert full.rows[i][f"bearing_{shaft}_peak_N"] > 1.0
+
+
+def test_a_machine_that_is_not_one_dof_runs_on_the_full_model(tmp_path, machine):
+    """With its hook's worm gear taken out the shipped machine has two freedoms (the hook turns
+    freely): the reduced 1-DOF equation would still drive the hook through its ratio; the sweep
+    says so and runs the full model. The free hook barely loads the drive: the speed stays
+    within a per cent of the whole machine's."""
+    import shutil
+
+    from mechanism.machine.models import DEFAULT_DESCRIPTION, DEFAULT_MODEL
+
+    folder = tmp_path / "loose"
+    shutil.copytree(DEFAULT_MODEL.parent, folder)
+    mjcf = folder / DEFAULT_MODEL.name
+    text = mjcf.read_text()
+    gear = next(line for line in text.splitlines() if "coupling:" in line and 'polycoef="0 0.5' in line)
+    mjcf.write_text(text.replace(gear + "\n", ""))
+    loose = mechanism.load_machine(folder / DEFAULT_DESCRIPTION.name)
+    document = {"parameters": {"V": "voltage_V"}, "sweep": {"V": [12.0]}}
+    result = mechanism.sweep(loose, document, duration_s=1.5)
+    assert result.degrees_of_freedom == 2 and result.model.startswith("full") and result.options.full
+    row = result.table()[1]
+    assert np.isnan(row["breakaway_V"]) and not row["note"]
+    whole = mechanism.sweep(machine, document, duration_s=1.5).table()[1]
+    assert row["mean_speed_rpm"] == pytest.approx(whole["mean_speed_rpm"], rel=0.01)

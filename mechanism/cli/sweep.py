@@ -88,8 +88,7 @@ def run(args) -> int:
         plot_sweep(result, args.plot, args.plot_x, args.plot_group)
     unsteady = sum(1 for row in table if row["note"])
     kept = f", {result.resumed} kept from the interrupted run" if result.resumed else ""
-    model = "full multibody" if args.full else "reduced 1-DOF"
-    print(f"{len(table)} variants ({model} model) in {result.seconds:.1f} s{kept}; {unsteady} with a note (no steady running or a "
+    print(f"{len(table)} variants ({result.model}) in {result.seconds:.1f} s{kept}; {unsteady} with a note (no steady running or a "
           f"variant that cannot run); wrote {args.csv}")
     journal.unlink(missing_ok=True)
     return 0

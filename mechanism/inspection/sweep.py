@@ -388,6 +388,7 @@ FULL_GROUP = 8  # variants per rollout call and thread: enough to keep the pool 
 class _FullShared:
     base: SweepBase
     threads: int
+    one_dof: bool = True
 
 
 class FullRunner:
@@ -417,6 +418,8 @@ class FullRunner:
                 rows.append({**{name: math.nan for name in METRICS}, "note": str(result)})
                 continue
             row = variant_metrics(result, model)  # break-away from the same tables
+            if not self.shared.one_dof:  # the tables are the 1-DOF equation's: no break-away, no tool timing
+                row["breakaway_V"] = row["tool_above_plate_ms"] = math.nan
             row.update(bearing_loads(result, options.bearings))
             rows.append(row)
         return rows
@@ -436,6 +439,13 @@ class SweepResult:
     options: SweepOptions
     seconds: float = 0.0
     resumed: int = 0  # rows kept from an interrupted run
+    degrees_of_freedom: int = 1  # of the machine: other than 1, the full model ran (the reduced one is 1-DOF)
+
+    @property
+    def model(self) -> str:
+        if self.degrees_of_freedom != 1:
+            return f"full multibody model (the machine has {self.degrees_of_freedom} degrees of freedom)"
+        return "full multibody model" if self.options.full else "reduced 1-DOF model"
 
     def table(self) -> list[dict[str, Any]]:
         out = []
@@ -461,6 +471,11 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     from mechanism.batch import check_options, run_batch
 
     check_options(backend, workers)
+    from mechanism.kinematics.pose import degrees_of_freedom
+
+    mobility = degrees_of_freedom(machine.model, machine.reset(0.0))
+    if mobility != 1 and not options.full:  # the reduced model is the 1-DOF equation: not this machine's
+        options = replace(options, full=True)
     base = SweepBase.of(machine, variants.parameters, options)
     variants = with_defaults(variants, options)
     check_parameters(base, variants)
@@ -479,14 +494,14 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
                 on_row(todo[position], row)
 
         if options.full:
-            rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress)
+            rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress, mobility == 1)
         else:
             rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
                              workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
                              progress=progress, desc="variants", unit="variant")
     done.update(zip(todo, rows))
     return SweepResult(variants, [done[i] for i in range(len(variants))], options, time.perf_counter() - start,
-                       resumed=len(variants) - len(todo))
+                       resumed=len(variants) - len(todo), degrees_of_freedom=mobility)
 
 
 def with_defaults(variants: VariantSet, options: SweepOptions) -> VariantSet:
@@ -500,7 +515,7 @@ def with_defaults(variants: VariantSet, options: SweepOptions) -> VariantSet:
 
 
 def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Callable[[int, dict[str, Any]], None],
-              workers: int, backend: str, ray_address: str | None, progress: bool) -> list[dict[str, Any]]:
+              workers: int, backend: str, ray_address: str | None, progress: bool, one_dof: bool) -> list[dict[str, Any]]:
     """Groups of variants through ``mujoco.rollout``: locally one process whose rollout pool
     has ``workers`` threads; on Ray one thread per task, the cluster's tasks in parallel."""
     from mechanism.batch import run_batch
@@ -514,7 +529,7 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
         for offset, row in enumerate(rows):
             keep(int(starts[position]) + offset, row)
 
-    shared = _FullShared(base, workers if local else 1)
+    shared = _FullShared(base, workers if local else 1, one_dof)
     results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
                         setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
                         on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")

@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError, close_matches
-from mechanism.tolerances import POSITION_TOLERANCE, RELATIVE_POSITION_TOLERANCE
+from mechanism.tolerances import JOINT_RANK_TOLERANCE, POSITION_TOLERANCE, RELATIVE_POSITION_TOLERANCE
 
 
 
@@ -138,6 +138,18 @@ def velocity_ratios(model: mujoco.MjModel, data: mujoco.MjData, driver: str) -> 
         free[dadr] = False
         velocity[free] = -np.linalg.lstsq(jac[:, free], jac[:, dadr], rcond=None)[0]
     return velocity
+
+
+def degrees_of_freedom(model: mujoco.MjModel, data: mujoco.MjData) -> int:
+    """The mechanism's mobility at the current pose: joint velocities minus the rank of the
+    equality constraints' Jacobian (loops, couplings)."""
+    with position_only(model):
+        _, jac = equality_residual(model, data)
+    if not jac.size:
+        return int(model.nv)
+    singular = np.linalg.svd(jac, compute_uv=False)
+    rank = int(np.sum(singular > JOINT_RANK_TOLERANCE * max(singular[0], 1e-300)))
+    return int(model.nv) - rank
 
 
 def sweep(
