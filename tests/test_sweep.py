@@ -256,3 +256,25 @@ def test_a_machine_that_is_not_one_dof_runs_on_the_full_model(tmp_path, machine)
     assert np.isnan(row["breakaway_V"]) and not row["note"]
     whole = mechanism.sweep(machine, document, duration_s=1.5).table()[1]
     assert row["mean_speed_rpm"] == pytest.approx(whole["mean_speed_rpm"], rel=0.01)
+
+
+def test_a_coupling_ratio_variant(machine):
+    """Another motor pulley: the break-away voltage scales as 1/ratio (the stalled motor's torque
+    reaches the shaft times the ratio; the break-away friction is all on the shaft side, the
+    motor's own friction being viscous only), and each row is the single run of a Machine whose
+    compiled coupling has the new ratio."""
+    assert "static_Nm" not in machine.description.friction.get(machine.motor_joint, {})
+    coupling = next(name[len("coupling:"):] for name in (machine.model.equality(i).name for i in range(machine.model.neq))
+                    if name.startswith("coupling:") and machine.model.equality(name).data[1] == pytest.approx(machine.motor_ratio))
+    params = [parameter("r", f"ratio:{coupling}")]
+    values = np.array([[0.0], [1.0], [-2.0]])
+    rows = run_sweep(machine, VariantSet(params, ["a", "b", "c"], values), progress=False).rows
+    nominal = machine.motor_ratio
+    for row, (offset,) in zip(rows, values):
+        assert row["breakaway_V"] == pytest.approx(rows[0]["breakaway_V"] * nominal / (nominal + offset), rel=1e-9)
+    built, voltage = variant_machine(machine, params, values[1])
+    assert built.motor_ratio == pytest.approx(nominal + 1.0, rel=1e-9)
+    reduced = ReducedModel(built)
+    _assert_same(variant_metrics(reduced.simulate(voltage, 2.0), reduced), rows[1], 60.0)
+    with pytest.raises(mechanism.UserError, match="keep its sign"):
+        run_sweep(machine, VariantSet(params, ["bad"], np.array([[-nominal]])), progress=False)

@@ -1,4 +1,4 @@
-"""``mechanism sweep``: dynamic design variants (flywheel, counterweight, motor, friction, supply)."""
+"""``mechanism sweep``: dynamic design variants (flywheel, counterweight, pulley ratio, motor, friction, supply)."""
 
 from __future__ import annotations
 
@@ -14,13 +14,14 @@ def register(subparsers) -> None:
 
     parser = subparsers.add_parser(
         "sweep",
-        help="run dynamic design variants (flywheel, counterweight, motor, friction, supply) and tabulate what they do",
+        help="run dynamic design variants (flywheel, counterweight, pulley ratio, motor, friction, supply) and tabulate what they do",
         description=(
             "Run every variant of a variants file from rest under a voltage step on the reduced 1-DOF model (the "
             "exact equation of the linkage, ~2000x real time) and write one CSV row per variant: its parameters, "
             "then " + ", ".join(METRICS) + ". Targets (mechanism-variants/1, docs/sweeps.md): inertia:<joint>_kgm2 "
             "(a flywheel: inertia added about a frame-mounted joint's axis), mass:<part>_kg (a point mass at the "
-            "part's frame, moved with part:<name>:<x|y|z>_mm: a counterweight), motor:<key>, supply:<key>, "
+            "part's frame, moved with part:<name>:<x|y|z>_mm: a counterweight), ratio:<coupling> (another pulley), "
+            "motor:<key>, supply:<key>, "
             "tool:<key>, friction:<joint>:<key> (machine-description values, as offsets), the geometric targets "
             "of `mechanism clearance`, and the operating point voltage_V, duty_percent, layers (absolute). Rows "
             "stream to OUT.csv.partial as they finish; an interrupted sweep continues with --resume; OUT.csv "

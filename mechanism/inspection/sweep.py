@@ -114,6 +114,8 @@ def _split(target: str) -> tuple[str, str, str]:
         return kind, rest[: -len("_kgm2")], ""
     if kind == "mass":
         return kind, rest[: -len("_kg")], ""
+    if kind == "ratio":
+        return kind, rest, ""
     if kind == "friction":
         joint, _, key = rest.rpartition(":")
         return kind, joint, key
@@ -144,6 +146,11 @@ def check_parameters(base: SweepBase, variants: VariantSet) -> None:
             if name not in parts.part_names(model) and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) < 0:
                 raise UserError(f"{where}: no part named {name!r}; close matches: {close_matches(name, parts.part_names(model))}")
             _non_negative(values, variants, where, "added mass")
+        elif kind == "ratio":
+            eq = _coupling(model, name, where)
+            ratios = model.eq_data[eq, 1] + values
+            if np.any(ratios * model.eq_data[eq, 1] <= 0):
+                raise UserError(f"{where}: the ratio must keep its sign and stay non-zero (nominal {model.eq_data[eq, 1]:g})")
         elif kind == "friction":
             if name not in joints:
                 raise UserError(f"{where}: no joint named {name!r}; close matches: {close_matches(name, joints)}")
@@ -265,6 +272,7 @@ class _Variant:
     description: dict[tuple[str, str, str], float] = field(default_factory=dict)
     inertia: dict[str, float] = field(default_factory=dict)
     mass: dict[str, float] = field(default_factory=dict)
+    ratio: dict[str, float] = field(default_factory=dict)
     geometry: list[tuple[Parameter, float]] = field(default_factory=list)
     operating: dict[str, float] = field(default_factory=dict)
 
@@ -281,6 +289,8 @@ def _sort(parameters: Sequence[Parameter], values: Sequence[float]) -> _Variant:
             variant.inertia[name] = variant.inertia.get(name, 0.0) + value
         elif kind == "mass":
             variant.mass[name] = variant.mass.get(name, 0.0) + value
+        elif kind == "ratio":
+            variant.ratio[name] = variant.ratio.get(name, 0.0) + value
         elif kind == "operating":
             if not math.isnan(value):  # NaN: the run's default
                 variant.operating[name] = value
@@ -308,6 +318,24 @@ def _mass_point(model: mujoco.MjModel, nominal: mujoco.MjModel, part: str, geome
                 mujoco.mju_rotVecQuat(along, along.copy(), np.asarray(frame.quat, dtype=float))
                 position += value * 1e-3 * along
     return frame.body, position
+
+
+def _coupling(model: mujoco.MjModel, name: str, where: str) -> int:
+    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
+    if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
+        names = [n[len("coupling:"):] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or ""
+                                               for i in range(model.neq)) if n.startswith("coupling:")]
+        raise UserError(f"{where}: no coupling named {name!r}; close matches: {close_matches(name, names)}")
+    if np.any(model.eq_data[eq, 2:5]):
+        raise UserError(f"{where}: coupling {name!r} is not linear; its ratio cannot be offset")
+    return eq
+
+
+def change_ratios(model: mujoco.MjModel, offsets: dict[str, float]) -> None:
+    """Add to the ratio (``polycoef``'s linear term) of linear joint couplings, in place."""
+    for name, offset in offsets.items():
+        if offset:
+            model.eq_data[_coupling(model, name, f"ratio:{name}"), 1] += offset
 
 
 def add_point_mass(model: mujoco.MjModel, body: int, position_m: np.ndarray, mass_kg: float) -> None:
@@ -343,12 +371,13 @@ class VariantRunner:
     def tables(self, variant: _Variant) -> tuple[mujoco.MjModel, LinkageTables]:
         base, state = self.base, self.base.machine_state
         model, tables = base.model, base.tables
-        if variant.mass or variant.geometry:
+        if variant.mass or variant.geometry or any(variant.ratio.values()):
             model = self.model
             for name in ("body_pos", "eq_data", "geom_pos", "site_pos", "body_mass", "body_ipos", "body_inertia", "body_iquat"):
                 getattr(model, name)[:] = getattr(base.model, name)
             for param, value in variant.geometry:
                 apply_parameter(model, base.model, param, value)
+            change_ratios(model, variant.ratio)
             for part, mass in variant.mass.items():
                 body, position = _mass_point(model, base.model, part, variant.geometry)
                 add_point_mass(model, body, position, mass)
@@ -624,6 +653,7 @@ def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: S
     unedited = copy.deepcopy(built.model)
     for param, value in variant.geometry:
         apply_parameter(built.model, unedited, param, value)
+    change_ratios(built.model, variant.ratio)
     return built, _voltage(base, variant)
 
 

@@ -22,6 +22,8 @@ Dynamic targets change what the machine weighs and drives rather than its shape;
 ``inertia:<joint>_kgm2``          inertia added about the joint's axis on its child body (a flywheel)
 ``mass:<part>_kg``                a point mass added at the part's frame, moved with the part by
                                   ``part:<name>:<axis>_mm`` (a counterweight)
+``ratio:<coupling>``              the ratio of a linear coupling ``coupling:<name>`` (first joint
+                                  turns per turn of the second), as an offset: another pulley
 ``motor:<key>``, ``supply:<key>``, ``tool:<key>``, ``friction:<joint>:<key>``
                                   a numeric value of the machine description, as an offset
 ``voltage_V``, ``duty_percent``, ``layers``
@@ -70,8 +72,8 @@ EDITED_FIELDS = ("body_pos", "eq_data", "geom_pos", "site_pos")
 
 
 _TARGET = re.compile(r"(coupling|joint|body|part):([^:]+):([A-Za-z0-9_.-]+?)_(deg|mm)")
-_DYNAMIC = re.compile(r"inertia:.+_kgm2|mass:.+_kg|(motor|supply|tool):[A-Za-z0-9_]+|friction:[^:]+:[A-Za-z0-9_]+"
-                      r"|voltage_V|duty_percent|layers")
+_DYNAMIC = re.compile(r"inertia:.+_kgm2|mass:.+_kg|ratio:[^:]+|(motor|supply|tool):[A-Za-z0-9_]+"
+                      r"|friction:[^:]+:[A-Za-z0-9_]+|voltage_V|duty_percent|layers")
 OPERATING_POINT = ("voltage_V", "duty_percent", "layers")  # absolute values, not offsets
 
 
@@ -101,7 +103,8 @@ def _parse_target(target: str) -> tuple[str, str, str, str]:
         raise UserError(
             f"parameter target {target!r}: expected coupling:<name>:<joint>_deg, joint:<name>:<x|y|z|radial>_mm, "
             "body:<name>:<x|y|z>_mm or part:<name>:<x|y|z>_mm, a dynamic target (inertia:<joint>_kgm2, "
-            "mass:<part>_kg, motor:<key>, supply:<key>, tool:<key>, friction:<joint>:<key>, voltage_V, duty_percent, "
+            "mass:<part>_kg, ratio:<coupling>, motor:<key>, supply:<key>, tool:<key>, friction:<joint>:<key>, voltage_V, "
+            "duty_percent, "
             "layers), or a preset of the machine's description"
         )
     return match.group(1), match.group(2), match.group(3), match.group(4)
