@@ -17,7 +17,7 @@ def register(subparsers) -> None:
         help="run dynamic design variants (flywheel, counterweight, pulley ratio, motor, friction, supply) and tabulate what they do",
         description=(
             "Run every variant of a variants file from rest under a voltage step on the reduced 1-DOF model (the "
-            "exact equation of the linkage, ~2000x real time) and write one CSV row per variant: its parameters, "
+            "exact equation of the linkage, ~1000x real time on one core) and write one CSV row per variant: its parameters, "
             "then " + ", ".join(METRICS) + ". Targets (mechanism-variants/1, docs/sweeps.md): inertia:<joint>_kgm2 "
             "(a flywheel: inertia added about a frame-mounted joint's axis), mass:<part>_kg (a point mass at the "
             "part's frame, moved with part:<name>:<x|y|z>_mm: a counterweight), ratio:<coupling> (another pulley), "
