@@ -69,6 +69,7 @@ def read_journal(path: str | os.PathLike, fingerprint: str) -> dict[int, dict[st
 def open_journal(path: str | os.PathLike, fingerprint: str, fresh: bool):
     path = Path(path)
     if fresh:
+        path.parent.mkdir(parents=True, exist_ok=True)  # as the CSV's own folder will be
         with open(path, "w", encoding="utf-8") as handle:
             handle.write(json.dumps({"format": JOURNAL_FORMAT, "fingerprint": fingerprint}) + "\n")
     else:
