@@ -166,6 +166,21 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_pa
 
 
 @pytest.mark.slow
+def test_a_dynamic_sweep_on_the_cluster_equals_the_local_one(cli, ray_cluster, tmp_path):
+    """`mechanism sweep` by address: the base machine (description, compiled model, tables)
+    travels to the workers once and every row equals the local run's, byte for byte."""
+    variants = tmp_path / "v.json"
+    variants.write_text(json.dumps({"parameters": {"fly": "inertia:arm_shaft_kgm2", "R": "motor:resistance_ohm"},
+                                    "sweep": {"fly": [0, 5e-4, 1e-3], "R": [0, 0.2]}}))
+    common = ("sweep", "--variants", variants, "--duration", "1")
+    on_ray = cli(*common, "--backend", "ray", "--ray-address", ray_cluster, "--csv", tmp_path / "ray.csv")
+    assert on_ray.returncode == 0, on_ray.stderr
+    local = cli(*common, "--csv", tmp_path / "local.csv")
+    assert local.returncode == 0, local.stderr
+    assert (tmp_path / "ray.csv").read_text() == (tmp_path / "local.csv").read_text()
+
+
+@pytest.mark.slow
 def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path, monkeypatch):
     ray = pytest.importorskip("ray")
     monkeypatch.setenv("RAY_ADDRESS", ray_cluster)  # the cluster named by the environment, not the argument
