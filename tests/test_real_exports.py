@@ -26,6 +26,7 @@ FILES = {  # folder/file below $MECHANISM_REAL_EXPORTS, as docs/real_exports.md 
     "scara": "solidworks-scara-printer-mates/finalassem.xml",
     "creo_ballbeam": "creo-ballbeam-rigid/BALL_BEAM_V4.xml",
     "dumbbell": "solidworks-dumbbell-stacker-mates/Assem1.xml",
+    "quadruped": "solidworks-quadruped-mates/Assem4.xml",
 }
 ROOT = os.environ.get("MECHANISM_REAL_EXPORTS", "")
 pytestmark = pytest.mark.skipif(not ROOT, reason="set MECHANISM_REAL_EXPORTS to a folder with the real CAD exports "
@@ -296,3 +297,20 @@ def test_solidworks_dumbbell_stacker_mates_give_simscapes_24_joints(converted):
     names = {k: p.name for k, p in assembly.parts.items()}
     assert {(names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic} == DUMBBELL_SMIMPORT
     assert converted("dumbbell").n_loop_closures == 10
+
+
+QUADRUPED_SMIMPORT = {  # Simscape's import (Assem4_DataFile.m upstream): 8 revolute, [base:-:follower]
+    pair: "revolute" for pair in (("leg1-1", "thigh1-1"), ("thigh1-1", "base1-1"), ("thigh1-2", "leg1-2"),
+                                  ("base1-1", "thigh1-2"), ("leg2-1", "thigh2-1"), ("thigh2-1", "base1-1"),
+                                  ("thigh2-2", "leg2-2"), ("base1-1", "thigh2-2"))}
+
+
+def test_solidworks_quadruped_gives_simscapes_eight_revolutes(converted):
+    """Simscape Multibody Link 4.8, SolidWorks 2021: two grounded parts (one massless), four legs of
+    thigh and shank, each pinned by a concentric and a coincident mate: Simscape's 8 revolute
+    joints, part pair and direction, 8 freedoms and no loop."""
+    assembly = read(real("quadruped"))
+    names = {k: p.name for k, p in assembly.parts.items()}
+    assert {(names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic} == QUADRUPED_SMIMPORT
+    report = converted("quadruped")
+    assert report.degrees_of_freedom == 8 and report.n_loop_closures == 0
