@@ -263,10 +263,15 @@ def furuta(folder: Path) -> Built:
                                                              model_units=("millimeter", "kilogram")))
     joints = {("stand-1", "motor mount-1"): "revolute", ("bearing housing-1", "arm-1"): "cylindrical",
               ("bearing housing-1", "shaft coupling-1"): "cylindrical", ("motor mount-1", "shaft coupling-1"): "planar",
-              ("arm-1", "shaft coupling-1"): "revolute", ("stand cap-1", "bearing 6000 (10x26x8)-1"): "revolute",
-              ("encoder mount-1", "pendulum-1"): "revolute", ("pendulum holder-1", "bearing cap-3"): "cylindrical"}
+              ("arm-1", "shaft coupling-1"): "revolute",
+              # each pair its own joint, as Simscape's import: the bearing sits on the cap by a face (planar) and in
+              # the housing bolted to it by its bore (cylindrical); the pendulum turns in the encoder mount and in
+              # the holder bolted to the arm beside it: two joints, one loop
+              ("stand cap-1", "bearing 6000 (10x26x8)-1"): "planar", ("bearing housing-1", "bearing 6000 (10x26x8)-1"): "cylindrical",
+              ("encoder mount-1", "pendulum-1"): "revolute", ("pendulum holder-1", "pendulum-1"): "cylindrical",
+              ("pendulum holder-1", "bearing cap-3"): "cylindrical"}
     return Built(path, doc.mass(instances), {"joints": joints, "up": up, "motor_axis_point": o, "pivot": pivot,
-                                             "pendulum": "encoder mount-1--pendulum-1", "hidden": "motor mount-1"})
+                                             "pendulum": "pendulum holder-1--pendulum-1_hinge", "hidden": "motor mount-1"})
 
 
 # -- SimMechanics Link 4 hexapod leg link: legacy root, one rigid sub-assembly used twice -------

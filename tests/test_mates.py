@@ -114,9 +114,10 @@ def test_slider_crank_from_mates_follows_its_analytic_stroke(tmp_path):
     assert worst < 1e-3 * r, f"slider off its analytic stroke by {worst * 1e3:.4f} mm"
 
 
-def test_bearing_mated_to_two_bolted_parts_turns_on_one_revolute(tmp_path):
-    """Face mate to one part, bore mate to a part bolted to it: after the bolted pair merges, the
-    bearing's two mates together make one revolute (not a planar and a cylindrical in a loop)."""
+def test_bearing_mated_to_two_bolted_parts_gets_a_joint_per_pair(tmp_path):
+    """Face mate to one part, bore mate to a part bolted to it: as in Simscape's import, each pair
+    its own joint (a planar on the face, a cylindrical in the bore) closing a loop, in which the
+    bearing keeps exactly one freedom: it turns."""
     n, p = TILT[:, 2], np.array([0.0, 0.0, 0.1])
     poses = {"ground": (np.eye(3), np.zeros(3)), "cover": (TILT, p), "bearing": (TILT @ rotation((0, 0, 1), 1.0), p)}
     g = lambda shape, name, at, axis: mate_side(shape, name, poses[name], at, axis)
@@ -125,9 +126,10 @@ def test_bearing_mated_to_two_bolted_parts_turns_on_one_revolute(tmp_path):
                           g("cylinder", "cover", p - 0.03 * TILT[:, 0], n)),
                 gen2_mate("Coincident", "seat", g("plane", "ground", p, n), g("plane", "bearing", p, -n)),
                 gen2_mate("Concentric", "bore", g("cylinder", "cover", p, n), g("cylinder", "bearing", p, n))])
-    report = convert(_export(tmp_path, poses, {"ground": 1.0, "cover": 0.2, "bearing": 0.01}, mates), tmp_path / "out")
-    assert report.joints_by_type["hinge"] == 1 and report.joints_by_type["slide"] == 0
-    assert report.n_loop_closures == 0 and report.degrees_of_freedom == 1
+    export = _export(tmp_path, poses, {"ground": 1.0, "cover": 0.2, "bearing": 0.01}, mates)
+    assert sorted(j.kind for j in _joints(export).values()) == ["cylindrical", "planar"]
+    report = convert(export, tmp_path / "out")
+    assert report.n_loop_closures == 1 and report.degrees_of_freedom == 1
 
 
 def test_mates_to_the_assembly_origin_rigid_groups_and_rigid_subassemblies(tmp_path):
@@ -258,3 +260,23 @@ def test_planar_pivot_is_the_mates_centre_whatever_the_rounding_noise():
                            MateGeometry("b", "plane", point + rng.normal(size=3) * 1e-7, -noisy(normal)))])
         assert found.kind == "planar"
         assert np.linalg.norm(found.anchor - point) < 1e-6
+
+
+def test_mates_naming_the_root_assembly_tie_a_part_to_its_origin(tmp_path):
+    """SolidWorks writes mates to the assembly origin with an InstancePath holding the root
+    assembly's own uid: three plane coincidences with it fix the base to the world (before, they
+    were ignored as naming no instance, and the base was fixed only by the fallback), and a
+    revolute pair to the origin turns as Simscape's import makes it."""
+    poses = {"base": (np.eye(3), np.array([0.1, 0.2, 0.0])), "arm": (rotation((0, 0, 1), 0.4), np.array([0.1, 0.2, 0.05]))}
+    mates = [gen2_mate("Coincident", f"origin_{i}", mate_side("plane", "base", poses["base"], poses["base"][1], axis),
+                       ("plane", ["root"], poses["base"][1], axis)) for i, axis in enumerate(np.eye(3))]
+    mates += pin_mates("pin", "base", "arm", poses, poses["arm"][1], (0, 0, 1))
+    # ["root"]: the uid gen2_export gives the root assembly
+    export = _export(tmp_path, poses, {"base": 1.0, "arm": 0.2}, mates, grounded=())
+    report = convert(export, tmp_path / "out")
+    assert not any("not an instance" in w or "not connected to the ground" in w for w in report.warnings), report.warnings
+    assert report.degrees_of_freedom == 1 and report.joints_by_type["hinge"] == 1
+    assembly = read(export)
+    from mechanism.converters.assembly import GROUND
+
+    assert any(j.kind == "weld" and GROUND in (j.base, j.follower) for j in assembly.joints)

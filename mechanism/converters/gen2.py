@@ -93,6 +93,7 @@ class _Reader:
         self.folder = self.path.parent
         self.assembly = Assembly(name=self.path.stem, source=self.path, format=f"second-generation {root_tag}")
         self.nodes: dict[str, tuple] = {}  # instance key -> (parent node key, element, is_assembly, entity uid)
+        self.scope_uids: dict[str, str | None] = {}  # assembly instance key ("" for the root) -> its own uid
 
     def read(self, root) -> Assembly:
         # numbers are in DataUnits; exports without it (Creo's Simscape Multibody Link 6) write them in ModelUnits
@@ -113,6 +114,8 @@ class _Reader:
             raise ExportError(f"{where}: the instance tree contains no parts")
         scopes = [("", top)] + [(key, self.assembly_entities[entity]) for key, (_, _, is_asm, entity) in self.nodes.items()
                                 if is_asm and entity in self.assembly_entities]
+        # a path naming the assembly itself is its origin (SolidWorks writes mates to the origin so)
+        self.scope_uids = {prefix: scope.get("uid") for prefix, scope in scopes}
         referenced: set[str] = set()
         mate_list: list[Mate] = []
         related: list = []  # (prefix, element): gears, rack-and-pinions, screws...
@@ -208,13 +211,14 @@ class _Reader:
     # -- joints and mates --------------------------------------------------------------------
     def _instance_key(self, element, prefix: str, where: str) -> str:
         """The instance the ``InstancePath`` of ``element`` names below the assembly ``prefix``; an empty
-        path is that assembly itself (the world at the top level: Onshape writes mates to the origin this way)."""
+        path, or one naming the assembly's own uid, is that assembly itself (the world at the top level:
+        Onshape writes mates to the origin with an empty path, SolidWorks with the assembly's uid)."""
         return self._path_key(_child(element, "InstancePath"), prefix, where)
 
     def _path_key(self, path, prefix: str, where: str) -> str:
         """The instance key of an ``InstancePath`` element (see :meth:`_instance_key`)."""
         uids = [(u.text or "").strip() for u in _children(path, "Uid")]
-        if not uids:
+        if not uids or uids == [self.scope_uids.get(prefix)]:
             return prefix or GROUND
         key = "/".join(([prefix] if prefix else []) + uids)
         if key not in self.assembly.parts:

@@ -12,9 +12,13 @@ find the joints, as Simscape's ``smimport`` does. This module does the same, for
   mates allow. Its dimension is the number of freedoms; its rotation directions, the point the
   rotations pass through and its translations give the joint: weld, revolute, prismatic,
   cylindrical, planar, spherical, universal, pin-slot, or a compound of slides and hinges.
-* A pair the mates weld together merges into one unit and the pairs are analysed again (a bearing
-  mated to a plane of one part and to a bore of a part bolted to it turns on one revolute, not on a
-  planar and a cylindrical joint closing a loop).
+* Each pair is analysed once, as Simscape's import does: a pair the mates weld becomes one body, every
+  other pair its own joint, also where pairs close a loop through parts welded to each other (a
+  bearing mated to a plane of one part and to a bore of a part bolted to it turns on a planar and a
+  cylindrical joint closing a loop; weights stacked on a bracket, each mated to the bracket and to
+  its neighbour, are held by prismatic and planar joints that lock them). Re-analysing the pairs
+  after merging the welds would give fewer joints, but not the ones Simscape's import lists
+  (checked on a SolidWorks export whose Simscape DataFile lists 63 joints).
 
 Mate geometry comes in world coordinates (metres) at the assembly pose. Mate kinds with no
 positional meaning (gears, cams, unknown constraints) are not handled here.
@@ -367,15 +371,15 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
         result.warnings.append(f"{len(mate_names)} <{tag}> mate(s) ({shown}) have no positional meaning for their "
                                f"geometry or are not supported: ignored")
 
+    # each pair of units once, as Simscape's import does: no re-grouping after the welds are merged
     welded_pairs: list[tuple[list[Mate], Freedoms]] = []
-    while True:  # merge what the mates weld, then analyse the pairs between the merged units again
-        pairs = _pairs(usable_mates, units)
-        new_welds = [(group, found) for group in pairs.values() if (found := _analyse(group, units)).kind == "weld"]
-        if not new_welds:
-            break
-        for group, found in new_welds:
-            units.union(group[0].first.part, group[0].second.part)
+    jointed_pairs: list[list[Mate]] = []
+    for group in _pairs(usable_mates, units).values():
+        found = _analyse(group, units)
+        if found.kind == "weld":
             welded_pairs.append((group, found))
+        else:
+            jointed_pairs.append(group)
 
     for group, found in welded_pairs:
         base, follower = _ends(group)
@@ -384,7 +388,7 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
                                    kind="weld", base=base, follower=follower, base_frame=frame, follower_frame=frame,
                                    synthetic=True, sources=[m.name for m in group]))
     placed: list[tuple[str, int, list[str]]] = []  # (part, freedoms, mates) placed against the origin
-    for group in _pairs(usable_mates, units).values():
+    for group in jointed_pairs:
         found = _analyse(group, units)
         base, follower = _ends(group)
         label = f"{name(base)}--{name(follower)}"
