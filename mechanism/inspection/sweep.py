@@ -51,6 +51,7 @@ REPLACED_IN_CODE = ("this machine's motor or fabric was replaced in code (Machin
                     "tool:) would not reach it; describe it instead")
 POINT_MASS_INERTIA_KGM2 = 1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
 
+
 @dataclass(frozen=True)
 class SweepOptions:
     """The run every variant gets: a voltage step from rest at the shaft's zero."""

@@ -84,17 +84,17 @@ class Parameter:
     name: str
     target: str
 
-    @property
-    def dynamic(self) -> bool:
-        """A dynamic target (mass, inertia, description value, operating point): for sweeps only."""
-        return bool(_DYNAMIC.fullmatch(self.target))
-
     def check(self, model: mujoco.MjModel) -> None:
         """Raise UserError if the target does not exist in ``model``."""
         if self.dynamic:
             raise UserError(f"parameter {self.name}: {self.target!r} is a dynamic target (mass, inertia, a "
                             "description value, the operating point): `mechanism sweep` takes it, geometric checks do not")
         apply_parameter(model, model, self, 0.0, check_only=True)
+
+    @property
+    def dynamic(self) -> bool:
+        """A dynamic target (mass, inertia, description value, operating point): for sweeps only."""
+        return bool(_DYNAMIC.fullmatch(self.target))
 
 
 def _parse_target(target: str) -> tuple[str, str, str, str]:
