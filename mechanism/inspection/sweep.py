@@ -143,9 +143,10 @@ def check_parameters(base: SweepBase, variants: VariantSet) -> None:
         if kind == "inertia":
             _flywheel_joint(model, name, where)
             _non_negative(values, variants, where, "added inertia")
-        elif kind == "mass":
-            if name not in parts.part_names(model) and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) < 0:
-                raise UserError(f"{where}: no part named {name!r}; close matches: {close_matches(name, parts.part_names(model))}")
+        elif kind == "mass":  # a part, a named frame, a body or a geom: wherever the point mass sits
+            if name not in parts.frame_names(model):
+                raise UserError(f"{where}: no part, frame or body named {name!r}; close matches: "
+                                f"{close_matches(name, parts.frame_names(model))}")
             _non_negative(values, variants, where, "added mass")
         elif kind == "ratio":
             eq = _coupling(model, name, where)
