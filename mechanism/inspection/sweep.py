@@ -57,11 +57,11 @@ class SweepOptions:
     """The run every variant gets: a voltage step from rest at the shaft's zero."""
 
     voltage_V: float = 12.0
+    bearings: tuple[str, ...] = ()  # joints whose peak reaction force is reported (full model)
     duration_s: float = 2.0
     sample_rate_hz: float = 1000.0
     layers: int = 0
     full: bool = False  # the full multibody model (mujoco.rollout) instead of the reduced one
-    bearings: tuple[str, ...] = ()  # joints whose peak reaction force is reported (full model)
 
 
 @dataclass
