@@ -30,10 +30,9 @@ from mechanism.machine.machine import Machine, MachineConfig
 from mechanism.dynamics.simulation import MAX_DURATION_S, SimulationResult, unstable
 
 class _Tables(ctypes.Structure):
-    _fields_ = [(name, ctypes.c_void_p) for name in (
-        "inertia", "dinertia", "gravity", "motor_ratio", "viscous", "cogging",
-        "needle_depth", "needle_dz", "friction_ratio", "friction_scale", "friction_static_scale",
-        "friction_params")] + [
+    _POINTERS = ("inertia", "dinertia", "gravity", "motor_ratio", "viscous", "cogging", "needle_depth", "needle_dz",
+                 "friction_ratio", "friction_scale", "friction_static_scale", "friction_params")
+    _fields_ = [(name, ctypes.c_void_p) for name in _POINTERS] + [  # type: ignore[assignment]
         ("n", ctypes.c_int), ("nfriction", ctypes.c_int),
         ("kt", ctypes.c_double), ("ke", ctypes.c_double), ("resistance", ctypes.c_double),
         ("supply_V", ctypes.c_double), ("series_ohm", ctypes.c_double),

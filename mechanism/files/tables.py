@@ -120,12 +120,12 @@ def parse_table(
         for name, col in index.items():
             cell = row[col].strip()
             try:
-                value = float(cell)
+                number = float(cell)
             except ValueError:
                 raise UserError(f"{label}: line {row_number}, column {header[col]}: not a number ({cell[:20]!r})") from None
-            if not math.isfinite(value):
+            if not math.isfinite(number):
                 raise UserError(f"{label}: line {row_number}, column {header[col]}: value is {cell} (NaN/inf not allowed)")
-            values[name].append(value)
+            values[name].append(number)
     n_rows = len(next(iter(values.values()))) if values else 0
     if n_rows < min_rows:
         raise UserError(f"{label}: {n_rows} data row(s), at least {min_rows} needed")

@@ -47,6 +47,7 @@ from mechanism.inspection.sweep_metrics import METRICS, bearing_loads, variant_m
 from mechanism.inspection.variants import OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter
 
 DESCRIPTION_SECTIONS = ("motor", "supply", "tool")  # description sections a sweep may offset
+Values = Sequence[float] | np.ndarray  # one variant's parameter values, in the variants' order
 REPLACED_IN_CODE = ("this machine's motor or fabric was replaced in code (MachineConfig): description offsets (motor:, "
                     "tool:) would not reach it; describe it instead")
 POINT_MASS_INERTIA_KGM2 = 1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
@@ -279,7 +280,7 @@ class _Variant:
     operating: dict[str, float] = field(default_factory=dict)
 
 
-def _sort(parameters: Sequence[Parameter], values: Sequence[float]) -> _Variant:
+def _sort(parameters: Sequence[Parameter], values: Values) -> _Variant:
     variant = _Variant()
     for param, value in zip(parameters, values):
         value = float(value)
@@ -345,9 +346,9 @@ def add_point_mass(model: mujoco.MjModel, body: int, position_m: np.ndarray, mas
     if mass_kg == 0.0:
         return
     old_mass, old_com = float(model.body_mass[body]), np.array(model.body_ipos[body])
-    rotation = np.zeros(9)
-    mujoco.mju_quat2Mat(rotation, model.body_iquat[body])
-    rotation = rotation.reshape(3, 3)
+    flat = np.zeros(9)
+    mujoco.mju_quat2Mat(flat, model.body_iquat[body])
+    rotation = flat.reshape(3, 3)
     tensor = rotation @ np.diag(model.body_inertia[body]) @ rotation.T
     mass = old_mass + mass_kg
     com = (old_mass * old_com + mass_kg * position_m) / mass
@@ -390,7 +391,7 @@ class VariantRunner:
             tables = replace(tables, inertia_kgm2=inertia, dinertia_drad=periodic_derivative(inertia))
         return model, tables
 
-    def reduced(self, values: Sequence[float]) -> tuple[ReducedModel, float]:
+    def reduced(self, values: Values) -> tuple[ReducedModel, float]:
         variant = _sort(self.base.parameters, values)
         model, tables = self.tables(variant)
         description = edited_description(self.base.description, variant.description) if variant.description else self.base.description
@@ -398,7 +399,7 @@ class VariantRunner:
         machine = _VariantMachine(self.base, model, tables, description, layers)
         return ReducedModel(machine, len(tables.angle_rad)), _voltage(self.base, variant)  # type: ignore[arg-type]
 
-    def __call__(self, values: Sequence[float]) -> dict[str, Any]:
+    def __call__(self, values: Values) -> dict[str, Any]:
         try:
             reduced, voltage = self.reduced(values)
             options = self.base.options
@@ -607,7 +608,7 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = Non
 # -- the independent way: a real Machine per variant ------------------------------------------
 
 
-def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Sequence[float],
+def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Values,
                     bearings: Sequence[str] = ()) -> tuple[Machine, float]:
     """The variant as a full :class:`Machine` (edited description, the flywheel or mass compiled
     as a welded child body, geometry edited in the compiled model) and its motor voltage:

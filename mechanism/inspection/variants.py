@@ -406,8 +406,8 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None, allo
         raise UserError(f"{label}: no parameters")
     # an operating point left out of a row is the run's default (NaN), not an offset of 0
     missing = [math.nan if params[n].target in OPERATING_POINT else 0.0 for n in names]
-    values = np.array([[row.get(n, gap) for n, gap in zip(names, missing)] for _, row in rows], dtype=float)
-    return VariantSet([params[n] for n in names], [r[0] for r in rows], values)
+    table = np.array([[row.get(n, gap) for n, gap in zip(names, missing)] for _, row in rows], dtype=float)
+    return VariantSet([params[n] for n in names], [r[0] for r in rows], table)
 
 
 def _sweep_values(spec, where: str) -> list[float]:
@@ -534,7 +534,7 @@ class VariantChecker:
         self.model = _copy_model(config.model)
         self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg)
 
-    def __call__(self, values: Sequence[float]) -> dict:
+    def __call__(self, values: Sequence[float] | np.ndarray) -> dict:
         for name in EDITED_FIELDS:
             getattr(self.model, name)[:] = getattr(self.nominal, name)
         for param, value in zip(self.config.parameters, values):
@@ -584,7 +584,7 @@ class BatchResult:
     def table(self) -> list[dict]:
         out = []
         for name, values, row in zip(self.variants.names, self.variants.values, self.rows):
-            entry = {"variant": name}
+            entry: dict = {"variant": name}
             entry.update({p.name: float(v) for p, v in zip(self.variants.parameters, values)})
             entry.update(row)
             out.append(entry)
