@@ -69,14 +69,9 @@ def read_table(
     return parse_table(text, required, optional, aliases, min_rows, label)
 
 
-def parse_table(
-    text: str,
-    required: Sequence[str] = (),
-    optional: Sequence[str] = (),
-    aliases: Mapping[str, Sequence[str]] | None = None,
-    min_rows: int = 1,
-    label: str = "table",
-) -> Table:
+def parse_table(text: str, required: Sequence[str] = (), optional: Sequence[str] = (),
+                aliases: Mapping[str, Sequence[str]] | None = None, min_rows: int = 1, label: str = "table") -> Table:
+    """:func:`read_table` on text already read (``label`` names it in errors)."""
     lines = text.splitlines()
     metadata: dict[str, str] = {}
     start = 0
