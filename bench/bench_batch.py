@@ -61,12 +61,25 @@ def _fleet(paths, scratch: Path, reference: int | None = None) -> None:
         assert not failed, f"{len(failed)} recordings failed: {failed[0].get('error')}"
     n, k = len(paths), len(singles)
     single = float(np.mean([row["time_s"] for row in results[1].rows]))
+    # the same single runs on one thread: what a fleet worker on its one core has
+    import time
+
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.recording import read_recording
+
+    one_thread = []
+    for path in singles:
+        start = time.perf_counter()
+        diagnose(read_recording(path), workers=1, nominal=drive_nominal(None))
+        one_thread.append(time.perf_counter() - start)
+    single_1 = float(np.mean(one_thread))
     in_fleet = float(np.mean([row["time_s"] for row in results[2].rows]))
     one, two = results[1].seconds, results[2].seconds
     same = [row["effects"] for row in results[1].rows] == [row["effects"] for row in results[2].rows[:k]]
     print(f"fleet diagnosis of {n} recordings on 2 workers: {two:.1f} s, {two / n:.2f} s per recording of wall time; "
           f"each recording took {in_fleet:.2f} s in its worker against {single:.2f} s for a single run ({k} alone, "
-          f"{one:.1f} s): {in_fleet / single:.2f} x single; speed-up 1 -> 2 workers {single / (two / n):.2f}x "
+          f"{one:.1f} s): {in_fleet / single:.2f} x single, {in_fleet / single_1:.2f} x a single run on one thread "
+          f"({single_1:.2f} s, the core a fleet worker has); speed-up 1 -> 2 workers {single / (two / n):.2f}x "
           f"(a single diagnosis already fits on threads: the gain is what whole processes add); same effects: {same}")
 
 
