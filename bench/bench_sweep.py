@@ -22,7 +22,7 @@ import numpy as np
 def _variants(count: int, shaft: str):
     from mechanism.inspection.variants import variants_from_document
 
-    side = max(2, round(count ** (1 / 3)))
+    side = 10  # a 10 x 10 grid of flywheel and voltage, times count/100 motor resistances: count variants
     document = {"parameters": {"fly": f"inertia:{shaft}_kgm2", "V": "voltage_V", "R": "motor:resistance_ohm"},
                 "sweep": {"fly": {"start": 0, "stop": 2e-3, "num": side}, "V": {"start": 4, "stop": 14, "num": side},
                           "R": {"start": -0.2, "stop": 0.4, "num": max(1, count // (side * side))}}}
