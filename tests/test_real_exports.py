@@ -30,6 +30,7 @@ FILES = {  # folder/file below $MECHANISM_REAL_EXPORTS, as docs/real_exports.md 
     "ballbeam_v7": "solidworks-ballbeam-v7-mates/full_ass_V7_Ball_and_Beam.xml",
     "wrist": "creo9-icub-wrist-mates/IC_021_G_207_MECH.xml",
     "backhoe": "onshape-backhoe-joints/backhoe_arm_OS.xml",
+    "arm_robot": "onshape-arm-robot-joints/finalAssembly.xml",
 }
 ROOT = os.environ.get("MECHANISM_REAL_EXPORTS", "")
 pytestmark = pytest.mark.skipif(not ROOT, reason="set MECHANISM_REAL_EXPORTS to a folder with the real CAD exports "
@@ -345,4 +346,5 @@ def test_creo_9_wrist_and_onshape_backhoe_give_simscapes_joint_kinds(converted):
     Onshape's exporter with joints (fastened ones are welds): Simscape's 8 revolute and 7 cylindrical."""
     assert dict(_kinds("wrist")) == {"revolute": 9}
     assert dict(_kinds("backhoe")) == {"revolute": 8, "cylindrical": 7}
+    assert dict(_kinds("arm_robot")) == {"revolute": 13}  # Onshape 2024, servos fastened to their links
     assert converted("wrist").degrees_of_freedom == 3 and converted("backhoe").degrees_of_freedom == 3
