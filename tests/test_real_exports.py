@@ -31,6 +31,7 @@ FILES = {  # folder/file below $MECHANISM_REAL_EXPORTS, as docs/real_exports.md 
     "wrist": "creo9-icub-wrist-mates/IC_021_G_207_MECH.xml",
     "backhoe": "onshape-backhoe-joints/backhoe_arm_OS.xml",
     "arm_robot": "onshape-arm-robot-joints/finalAssembly.xml",
+    "massless_arm": "onshape-massless-arm-joints/Assembly1.xml",
 }
 ROOT = os.environ.get("MECHANISM_REAL_EXPORTS", "")
 pytestmark = pytest.mark.skipif(not ROOT, reason="set MECHANISM_REAL_EXPORTS to a folder with the real CAD exports "
@@ -74,7 +75,7 @@ def converted(tmp_path_factory):
 def test_real_export_converts_with_its_mass_and_nothing_floating(converted, key):
     report, path = converted(key), real(key)
     model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
-    assert model.body_mass.sum() == pytest.approx(stated_mass_kg(path), rel=1e-6)
+    assert model.body_mass.sum() == pytest.approx(stated_mass_kg(path), rel=1e-6, abs=1e-8)  # abs: an export of 0 kg
     assert mujoco.mjtJoint.mjJNT_FREE not in set(model.jnt_type)
     assert report.n_meshes or any("geometry file(s) are missing" in w for w in report.warnings)
     data = mujoco.MjData(model)
@@ -348,3 +349,11 @@ def test_creo_9_wrist_and_onshape_backhoe_give_simscapes_joint_kinds(converted):
     assert dict(_kinds("backhoe")) == {"revolute": 8, "cylindrical": 7}
     assert dict(_kinds("arm_robot")) == {"revolute": 13}  # Onshape 2024, servos fastened to their links
     assert converted("wrist").degrees_of_freedom == 3 and converted("backhoe").degrees_of_freedom == 3
+
+
+def test_onshape_arm_without_any_mass_gets_only_what_mujoco_needs(converted):
+    """Onshape without materials: every part weighs 0. Simscape's joints (10 revolute, 7 cylindrical);
+    the moving bodies get the least mass MuJoCo accepts (1e-9 kg in all), not milligrams."""
+    assert dict(_kinds("massless_arm")) == {"revolute": 10, "cylindrical": 7}
+    model = mujoco.MjModel.from_xml_path(str(converted("massless_arm").mjcf_path))
+    assert 0 < model.body_mass.sum() <= 1e-9 * (1 + 1e-9)

@@ -261,7 +261,8 @@ class _Writer:
         """Give every massless moving body the little mass MuJoCo needs, taken from a neighbouring
         body (the one it moves on, else a body moving on it, else the heaviest): the model's total
         mass stays the export's."""
-        lightest = min((p.mass for p in self.assembly.real_parts if p.mass > 0), default=1e-3)
+        # an export without any mass (an Onshape model without materials) gets only the least MuJoCo needs
+        lightest = min((p.mass for p in self.assembly.real_parts if p.mass > 0), default=MIN_LENT_MASS_KG / MISSING_MASS_FRACTION)
         for body, element, pose in self.massless:
             label = self.body_names[body.index]
             donor = self._donor([body.parent, *body.children])
