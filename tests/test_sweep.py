@@ -231,6 +231,11 @@ def test_full_model_sweep_equals_single_runs_and_agrees_with_the_reduced_model(m
         assert full.rows[i]["ripple_pp_rad_s"] == pytest.approx(reduced.rows[i]["ripple_pp_rad_s"], rel=0.05)
         # the shaft's bearings carry at least the weight the shaft hangs on them
         assert full.rows[i][f"bearing_{shaft}_peak_N"] > 1.0
+    # a run's default voltage reaches the full model too
+    plain = VariantSet([params[0]], ["a"], np.array([[0.0]]))
+    at_7V = [run_sweep(machine, plain, SweepOptions(voltage_V=7.0, full=full_model), progress=False).rows[0]["mean_speed_rpm"]
+             for full_model in (True, False)]
+    assert at_7V[0] == pytest.approx(at_7V[1], rel=2e-3) and at_7V[0] < 0.7 * full.rows[0]["mean_speed_rpm"]
 
 
 def test_a_machine_that_is_not_one_dof_runs_on_the_full_model(tmp_path, machine):

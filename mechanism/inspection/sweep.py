@@ -438,7 +438,8 @@ class FullRunner:
         from mechanism.dynamics.simulation import simulate_batch
 
         base, options = self.shared.base, self.shared.base.options
-        built = [variant_machine(self.machine, base.parameters, values, options.bearings) for values in group]
+        built = [variant_machine(self.machine, base.parameters, values, options.bearings, options.voltage_V)
+                 for values in group]
         reduced = [self.reduced_runner.reduced(values)[0] for values in group]
         for (variant, _), tables in zip(built, reduced):
             variant.tables = tables.tables  # the same geometry: no second tabulation (~0.1 s) for the tool height
@@ -609,15 +610,16 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = Non
 
 
 def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Values,
-                    bearings: Sequence[str] = ()) -> tuple[Machine, float]:
+                    bearings: Sequence[str] = (), voltage_V: float = SweepOptions.voltage_V) -> tuple[Machine, float]:
     """The variant as a full :class:`Machine` (edited description, the flywheel or mass compiled
     as a welded child body, geometry edited in the compiled model) and its motor voltage:
     slow, independent of the sweep's shortcuts, for checks, for ``--full`` and for a closer look
     at one variant. Every inertia and mass parameter adds its body, zero or not, so that all
     variants of one sweep share a size signature (``mujoco.rollout`` runs them together).
     ``bearings``: joints whose reaction force a ``bearing:<joint>`` force sensor measures (on
-    the child body, at the joint's anchor, in the child's frame)."""
-    base = SweepBase.of(machine, parameters, SweepOptions())
+    the child body, at the joint's anchor, in the child's frame); ``voltage_V``: the run's
+    voltage when the variant sets none."""
+    base = SweepBase.of(machine, parameters, SweepOptions(voltage_V=voltage_V))
     variant = _sort(parameters, values)
     if variant.description and (machine.config.motor is not None or machine.config.fabric is not None):
         raise UserError(REPLACED_IN_CODE)
