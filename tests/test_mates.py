@@ -160,13 +160,20 @@ def test_mates_to_the_assembly_origin_rigid_groups_and_rigid_subassemblies(tmp_p
 
 
 def test_unknown_and_unpositioned_constraints_are_reported(tmp_path):
-    poses = {"ground": (np.eye(3), np.zeros(3)), "part": (np.eye(3), np.array([0.1, 0, 0]))}
+    """A mate the exporter could not describe (<UnknownConstraint>, a SolidWorks lock) fixes its two
+    parts, as Simscape's import does (the real Furuta export's DataFile has no joint where its Lock3
+    is); a mate kind with no positional meaning for its geometry is reported and ignored."""
+    poses = {"ground": (np.eye(3), np.zeros(3)), "part": (np.eye(3), np.array([0.1, 0, 0])),
+             "free": (np.eye(3), np.array([0.3, 0, 0]))}
     unknown = gen2_unknown("Lock3", ["ground"], ["part"])
-    width = gen2_mate("Width", "Width1", ("plane", ["ground"], (0, 0, 0), (1, 0, 0)), ("plane", ["part"], (0, 0, 0), (1, 0, 0)))
-    report = convert(_export(tmp_path, poses, {"ground": 1, "part": 1}, [unknown, width]), tmp_path / "out")
-    assert any("Lock3" in w and "no usable geometry" in w for w in report.warnings)
+    width = gen2_mate("Width", "Width1", ("plane", ["ground"], (0, 0, 0), (1, 0, 0)), ("plane", ["free"], (0, 0, 0), (1, 0, 0)))
+    report = convert(_export(tmp_path, poses, {"ground": 1, "part": 1, "free": 1}, [unknown, width]), tmp_path / "out")
+    assert any("Lock3" in w and "fixes" in w and "Simscape" in w for w in report.warnings)
     assert any("Width1" in w and "not supported" in w for w in report.warnings)
-    assert any("connected to nothing" in w for w in report.warnings)
+    assert any("connected to nothing" in w and "free" in w for w in report.warnings)
+    assert not any("connected to nothing" in w and "part," in w for w in report.warnings)
+    model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
+    assert model.site_bodyid[model.site("part").id] == model.site_bodyid[model.site("ground").id]
 
 
 def _gear_train(folder, relation):

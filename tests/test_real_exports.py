@@ -243,12 +243,28 @@ def test_onshape_subassembly_joints_repeat_per_instance(converted):
     assert report.n_loop_closures == 8
 
 
+FURUTA_SMIMPORT = {  # Simscape's import of this file (fullAssembly_DataFile3.m in the same upstream commit)
+    **{pair: "cylindrical" for pair in (("second link holder-1", "link 2-1"), ("cover of the bearing-1", "holder of Encoder-1"),
+                                         ("cover of the bearing-1", "NTN_6000  (Bearing 10x26x8)-8"),
+                                         ("cover of the bearing-1", "MH2530-6.35-10-1"))},
+    **{pair: "planar" for pair in (("Base cover-1", "NTN_6000  (Bearing 10x26x8)-8"),
+                                    ("cross holder of the motor-1", "MH2530-6.35-10-1"))},
+    **{pair: "revolute" for pair in (("encoder fixation-1", "link 2-1"), ("Base-1", "cross holder of the motor-1"),
+                                      ("holder of Encoder-1", "MH2530-6.35-10-1"))},
+}
+
+
 def test_furuta_pendulum_mates(converted):
     """SolidWorks 2023, mates only, with an UnknownConstraint (a lock mate the exporter could not
-    describe): reported, and the pendulum arm still turns about the horizontal encoder axis."""
+    describe): it fixes its two parts, and every other pair of parts gets its own joint: Simscape's
+    9 joints, kind and part pair; the pendulum arm turns about the horizontal encoder axis."""
     report = converted("furuta")
-    assert any("Lock3" in w for w in report.warnings)
-    joints = {j.name: j for j in read(real("furuta")).joints if not j.synthetic}
+    assert any("Lock3" in w and "fixes" in w for w in report.warnings)
+    assembly = read(real("furuta"))
+    names = {k: p.name for k, p in assembly.parts.items()}
+    found = {frozenset((names[j.base], names[j.follower])): j.kind for j in assembly.joints if not j.synthetic}
+    assert found == {frozenset(pair): kind for pair, kind in FURUTA_SMIMPORT.items()}
+    joints = {j.name: j for j in assembly.joints if not j.synthetic}
     arm = joints["encoder fixation-1--link 2-1"]
     assert arm.kind == "revolute"
     motor = joints["holder of Encoder-1--MH2530-6.35-10-1"]

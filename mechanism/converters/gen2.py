@@ -302,6 +302,10 @@ class _Reader:
             return None
         first, second = (MateGeometry(part=key, shape="origin", position=self._pose_of(key).position, axis=None)
                          for key in keys)
+        if mate.tag.lower() == "unknownconstraint":
+            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> could not be described by the exporter: it fixes "
+                               f"{' and '.join('the world' if key == GROUND else self.assembly.parts[key].name for key in keys)} together, "
+                               "as Simscape's import does")
         return Mate(name=mate.name, tag=mate.tag, first=first, second=second)
 
     def _mate_geometry(self, element, prefix: str, where: str) -> MateGeometry | None:

@@ -60,6 +60,9 @@ MATE_KINDS = {
     "tangent": "tangent",
     "lock": "weld", "rigid": "weld", "fixed": "weld", "fix": "weld", "fastened": "weld", "weld": "weld",
     "default": "weld", "coordsys": "weld", "csys": "weld",
+    # a mate the exporter could not describe (a SolidWorks lock, width or symmetric mate): Simscape's
+    # import makes it rigid (the Furuta export's Lock3: its DataFile has no joint between the two parts)
+    "unknownconstraint": "weld",
 }
 
 STEP = 1e-6  # finite-difference step (rad, and units of the pair's size)
