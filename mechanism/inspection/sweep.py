@@ -44,7 +44,8 @@ from mechanism.machine.machine import (Machine, MachineConfig, duty_map_from, fa
 from mechanism.physics.friction import FrictionSet
 from mechanism.inspection.sweep_journal import open_journal, read_journal, sweep_fingerprint
 from mechanism.inspection.sweep_metrics import METRICS, bearing_loads, variant_metrics
-from mechanism.inspection.variants import OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter
+from mechanism.inspection.variants import (OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter,
+                                           linear_coupling)
 
 DESCRIPTION_SECTIONS = ("motor", "supply", "tool")  # description sections a sweep may offset
 Values = Sequence[float] | np.ndarray  # one variant's parameter values, in the variants' order
@@ -150,7 +151,7 @@ def check_parameters(base: SweepBase, variants: VariantSet) -> None:
                                 f"{close_matches(name, parts.frame_names(model))}")
             _non_negative(values, variants, where, "added mass")
         elif kind == "ratio":
-            eq = _coupling(model, name, where)
+            eq = linear_coupling(model, name, where, "its ratio cannot be offset")
             ratios = model.eq_data[eq, 1] + values
             if np.any(ratios * model.eq_data[eq, 1] <= 0):
                 raise UserError(f"{where}: the ratio must keep its sign and stay non-zero (nominal {model.eq_data[eq, 1]:g})")
@@ -323,22 +324,11 @@ def _mass_point(model: mujoco.MjModel, nominal: mujoco.MjModel, part: str, geome
     return frame.body, position
 
 
-def _coupling(model: mujoco.MjModel, name: str, where: str) -> int:
-    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
-    if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
-        names = [n[len("coupling:"):] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or ""
-                                               for i in range(model.neq)) if n.startswith("coupling:")]
-        raise UserError(f"{where}: no coupling named {name!r}; close matches: {close_matches(name, names)}")
-    if np.any(model.eq_data[eq, 2:5]):
-        raise UserError(f"{where}: coupling {name!r} is not linear; its ratio cannot be offset")
-    return eq
-
-
 def change_ratios(model: mujoco.MjModel, offsets: dict[str, float]) -> None:
     """Add to the ratio (``polycoef``'s linear term) of linear joint couplings, in place."""
     for name, offset in offsets.items():
         if offset:
-            model.eq_data[_coupling(model, name, f"ratio:{name}"), 1] += offset
+            model.eq_data[linear_coupling(model, name, f"ratio:{name}", "its ratio cannot be offset"), 1] += offset
 
 
 def add_point_mass(model: mujoco.MjModel, body: int, position_m: np.ndarray, mass_kg: float) -> None:
@@ -625,10 +615,10 @@ def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: V
         raise UserError(REPLACED_IN_CODE)
     description = edited_description(machine.description, variant.description) if variant.description else machine.description
     nominal = machine.model
-    inertias = {_split(p.target)[1]: variant.inertia.get(_split(p.target)[1], 0.0) for p in parameters
-                if p.dynamic and _split(p.target)[0] == "inertia"}
-    masses = {_split(p.target)[1]: variant.mass.get(_split(p.target)[1], 0.0) for p in parameters
-              if p.dynamic and _split(p.target)[0] == "mass"}
+    # every inertia and mass target adds its body, zero or not: one size signature for the whole sweep
+    targets = [_split(p.target) for p in parameters if p.dynamic]
+    inertias = {name: variant.inertia.get(name, 0.0) for kind, name, _ in targets if kind == "inertia"}
+    masses = {name: variant.mass.get(name, 0.0) for kind, name, _ in targets if kind == "mass"}
 
     def extend(spec: mujoco.MjSpec) -> None:
         if machine._extend is not None:

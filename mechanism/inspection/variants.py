@@ -151,10 +151,7 @@ def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Param
 def _apply_target(model, nominal, label: str, target: str, value: float, check_only: bool) -> None:
     kind, name, detail, unit = _parse_target(target)
     if kind == "coupling":
-        eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
-        couplings = [n[9:] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or "" for i in range(model.neq)) if n.startswith("coupling:")]
-        if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
-            raise UserError(f"parameter {label}: no coupling named {name!r}; close matches: {close_matches(name, couplings)}")
+        eq = linear_coupling(nominal, name, f"parameter {label}", "its offset cannot be shifted")
         joints = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj1id[eq]), mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj2id[eq])]
         if detail not in joints:
             raise UserError(f"parameter {label}: coupling {name!r} joins {joints[0]} and {joints[1]}, not {detail!r}")
@@ -162,8 +159,6 @@ def _apply_target(model, nominal, label: str, target: str, value: float, check_o
         slide = model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE
         if unit != ("mm" if slide else "deg"):
             raise UserError(f"parameter {label}: joint {detail!r} is a {'slide' if slide else 'hinge'}: use _{'mm' if slide else 'deg'}")
-        if np.any(nominal.eq_data[eq, 2:5]):
-            raise UserError(f"parameter {label}: coupling {name!r} is not linear; its offset cannot be shifted")
         if check_only:
             return
         delta = value / 1000.0 if slide else np.radians(value)
@@ -212,6 +207,19 @@ def _apply_target(model, nominal, label: str, target: str, value: float, check_o
         return
     for eq in loops:  # connect: anchor on body2 (the base) is eq_data[3:6] in body2's frame
         model.eq_data[eq, 3:6] = nominal.eq_data[eq, 3:6] + meters * direction
+
+
+def linear_coupling(model: mujoco.MjModel, name: str, where: str, why: str) -> int:
+    """The equality of the joint coupling ``coupling:<name>``, which must be linear (``why`` says
+    what a polynomial one would prevent)."""
+    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
+    if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
+        names = [n[len("coupling:"):] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or ""
+                                               for i in range(model.neq)) if n.startswith("coupling:")]
+        raise UserError(f"{where}: no coupling named {name!r}; close matches: {close_matches(name, names)}")
+    if np.any(model.eq_data[eq, 2:5]):
+        raise UserError(f"{where}: coupling {name!r} is not linear; {why}")
+    return eq
 
 
 def _body_direction(model, body: int, axis: str, joint: int | None = None) -> np.ndarray:
