@@ -18,7 +18,7 @@ demo: $(STAMP)
 
 # ruff (bugs, not taste) and mypy on the public API, then every test
 lint: $(STAMP)
-	$(VENV)/bin/ruff check mechanism tests bench
+	$(VENV)/bin/ruff check mechanism converters tests bench
 	$(VENV)/bin/mypy
 
 test: lint

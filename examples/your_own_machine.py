@@ -8,7 +8,7 @@ from pathlib import Path
 
 import mechanism
 
-export = Path(mechanism.__file__).parent / "models" / "sapphire870" / "cad" / "sewing_machine.xml"
+export = mechanism.shipped_export("sapphire870")  # or the path of your own export
 work = Path(tempfile.mkdtemp())
 (work / "machine.toml").write_text(f"""
 [machine]

@@ -1,6 +1,6 @@
 """``make demo``: the whole tool on every shipped machine, written to one folder.
 
-For each machine in ``mechanism/models/``: its CAD export -> converter -> MJCF -> tool motion
+For each shipped machine (``assets/machines/``): its CAD export -> converter -> MJCF -> tool motion
 -> simulation (against the machine's own speed measurements where it ships them) ->
 probes, clearance, a faulty design variant and the 3-D animation -> diagnosis of a virtual
 bench recording with a concealed effect; then ``index.html`` links every plot and file. The
@@ -37,11 +37,10 @@ class _Steps:
 
 
 def _convert(machine: mechanism.Machine, out: Path, final: Path) -> dict:
-    folder = machine.model_path.parent / "cad"
-    exports = sorted(folder.glob("*.xml")) if folder.is_dir() else []
-    if not exports:
+    export = mechanism.shipped_export(machine.name)
+    if export is None:
         return {"lines": [f"{machine.name}: no CAD export shipped; the model is {machine.model_path.name}"]}
-    report = mechanism.convert(exports[0], out / "model")
+    report = mechanism.convert(export, out / "model")
     lines = [line.replace(str(out), str(final)) for line in mechanism.conversion_summary(report)]
     (out / "model" / "conversion.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return {"lines": lines, "mjcf": f"model/{report.mjcf_path.name}"}
@@ -59,9 +58,9 @@ def _tool(machine: mechanism.Machine, out: Path) -> dict | None:
 
 
 def steady_speeds(machine: mechanism.Machine) -> list[dict]:
-    """The machine's shipped steady-speed measurements (``measurements/steady_speeds.csv``:
+    """The machine's shipped steady-speed measurements (``assets/measurements/<name>/steady_speeds.csv``:
     motor voltage, warm-up time, shaft speed; no tool load) against the full model."""
-    path = machine.model_path.parent / "measurements" / "steady_speeds.csv"
+    path = mechanism.shipped_folder("measurements", machine.name) / "steady_speeds.csv"
     if not path.is_file():
         return []
     table = mechanism.read_table(path, required=["motor_voltage_V", "warm_s", "speed_rpm"])

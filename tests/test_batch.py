@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from mechanism.batch import run_batch
+from mechanism.batch.runner import ray_temp_dir
 from mechanism.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -120,21 +121,30 @@ def _ray_cli() -> str:
 
 
 @pytest.fixture(scope="module")
-def ray_cluster():
+def ray_cluster(tmp_path_factory):
     """`ray start --head` on free ports, with a token (Ray's default since 2.5x; older Rays
     ignore RAY_AUTH_MODE); its workers import mechanism and this test module. The driver
-    sends the token to an address only in token mode: RAY_AUTH_MODE=token, as a user would."""
-    saved = os.environ.get("RAY_AUTH_MODE")
-    os.environ["RAY_AUTH_MODE"] = "token"
+    sends the token to an address only in token mode: RAY_AUTH_MODE=token, as a user would.
+    The token is made here and named by RAY_AUTH_TOKEN_PATH (Ray's documented variable): the
+    cluster never reads or writes ~/.ray, so the test passes on a machine that never ran Ray."""
+    import secrets
+
+    token = tmp_path_factory.mktemp("ray-auth") / "auth_token"
+    token.write_text(secrets.token_hex(32))
+    token.chmod(0o600)
+    overrides = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}
+    saved = {name: os.environ.get(name) for name in overrides}
+    os.environ.update(overrides)
     ray_cli = _ray_cli()
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]),
-               RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="token")
+               RAY_USAGE_STATS_ENABLED="0")
     env.pop("RAY_ADDRESS", None)
     port = _free_port()
     ports = {flag: _free_port() for flag in ("--node-manager-port", "--object-manager-port", "--dashboard-agent-listen-port",
                                              "--dashboard-agent-grpc-port", "--runtime-env-agent-port",
                                              "--metrics-export-port")}
     command = [ray_cli, "start", "--head", f"--port={port}", "--node-ip-address=127.0.0.1", "--num-cpus=2",
+               f"--temp-dir={ray_temp_dir()}",
                "--include-dashboard=false", "--disable-usage-stats", *(f"{flag}={value}" for flag, value in ports.items())]
     started = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
     try:
@@ -142,7 +152,8 @@ def ray_cluster():
         yield f"127.0.0.1:{port}"
     finally:
         subprocess.run([ray_cli, "stop", "--grace-period", "10"], env=env, capture_output=True, timeout=60)
-        os.environ.pop("RAY_AUTH_MODE") if saved is None else os.environ.update(RAY_AUTH_MODE=saved)
+        for name, value in saved.items():
+            os.environ.pop(name, None) if value is None else os.environ.update({name: value})
 
 
 @pytest.mark.slow
@@ -214,3 +225,21 @@ def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster,
     here = diagnose(read_recording(recording), candidates=["torque_ripple"], nominal=nominal).to_json()
     assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
     assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it
+
+
+@pytest.mark.slow
+def test_a_local_ray_instance_starts_from_a_deep_temporary_folder(tmp_path, monkeypatch):
+    """Ray's sockets live under its temporary folder and a socket path holds 107 characters: a
+    deep TMPDIR (as a deep working folder gives) must not stop a local instance."""
+    pytest.importorskip("ray")
+    deep = tmp_path / ("d" * 60) / ("e" * 60)
+    deep.mkdir(parents=True)
+    monkeypatch.setenv("TMPDIR", str(deep))
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", None)  # gettempdir() reads TMPDIR again
+    assert len(ray_temp_dir()) <= 32
+    import operator
+
+    assert run_batch(operator.add, [1, 2, 3], shared=10, workers=2, backend="ray", progress=False) == [11, 12, 13]

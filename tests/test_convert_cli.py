@@ -171,7 +171,7 @@ def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
 def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
     # The shipped sewing machine is exported at needle top dead centre, where the needle bar
     # is instantaneously immobile; it still moves, so no lock warning.
-    export = Path(__file__).resolve().parent.parent / "mechanism" / "models" / "sapphire870" / "cad" / "sewing_machine.xml"
+    export = Path(__file__).resolve().parent.parent / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml"
     result = cli("convert", export, "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     assert "cannot move" not in result.stdout

@@ -6,14 +6,14 @@ import tomllib
 import pytest
 
 from mechanism.machine.description import read_description
-from mechanism.machine.models import MODELS
+from mechanism.machine.models import shipped_description, shipped_export, shipped_folder
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["sapphire870", "press"])
 def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_path):
-    shipped = read_description(MODELS / name / f"{name}.toml")
-    export = next((MODELS / name / "cad").glob("*.xml"))
+    shipped = read_description(shipped_description(name))
+    export = shipped_export(name)
     draft = tmp_path / "draft.toml"
     result = cli("init", export, "-o", draft)
     assert result.returncode == 0, result.stderr
@@ -28,7 +28,7 @@ def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_pat
 
 
 def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
-    export = MODELS / "press" / "press.xml"
+    export = shipped_folder("mjcf", "press") / "press.xml"
     copy = tmp_path / "press.xml"
     copy.write_text(export.read_text())
     line = cli("init", copy, "-o", copy).assert_bad_input()

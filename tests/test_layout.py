@@ -2,11 +2,15 @@
 two rooms of one layer, and never in a circle. Every import counts, also those inside functions."""
 
 import ast
+import tomllib
 from pathlib import Path
 
 import networkx as nx
 
-PACKAGE = Path(__file__).resolve().parent.parent / "mechanism"
+REPO = Path(__file__).resolve().parent.parent
+PACKAGE = REPO / "mechanism"
+# the design card's top-level folders that the wheel maps into the package
+MAPPED = {"mechanism.converters": REPO / "converters"}
 
 # room -> layer; a room may import rooms of lower layers and itself only.
 LAYERS = {
@@ -14,7 +18,7 @@ LAYERS = {
     "files": 1, "native": 1, "data": 1,
     "batch": 2, "converters": 2,
     "kinematics": 3, "physics": 3,
-    "machine": 4, "models": 4,
+    "machine": 4,
     "dynamics": 5,
     "inspection": 6, "sysid": 6,
     "steppers": 7, "testbench": 7,
@@ -25,8 +29,17 @@ LAYERS = {
 
 
 def module_name(path: Path) -> str:
-    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    for package, folder in MAPPED.items():
+        if path.is_relative_to(folder):
+            parts = (*package.split("."), *path.relative_to(folder).with_suffix("").parts)
+            break
+    else:
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def sources() -> list[Path]:
+    return [*PACKAGE.rglob("*.py"), *(p for folder in MAPPED.values() for p in folder.rglob("*.py"))]
 
 
 def imports(path: Path) -> set[str]:
@@ -51,7 +64,7 @@ def room(module: str) -> str:
 
 
 def graph() -> nx.DiGraph:
-    modules = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+    modules = {module_name(p): p for p in sources()}
     g = nx.DiGraph()
     for name, path in modules.items():
         g.add_node(name)
@@ -113,3 +126,23 @@ def test_every_subpackage_names_a_curated_api_that_resolves():
              "print(any(m in sys.modules for m in ('fcl', 'mechanism.inspection.clearance', 'mechanism.sysid.diagnosis')))")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=PACKAGE.parent)
     assert out.stdout.strip() == "False", out.stderr
+
+
+def test_the_wheel_maps_the_design_cards_top_level_into_the_package():
+    """pyproject lists every package (the mapped ones from their top-level folders), so the wheel
+    misses none, and the top level is the card's: one copy of each file, nowhere else."""
+    setuptools = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    on_disk = {module_name(p.parent / "__init__.py") for p in sources() if p.name == "__init__.py"}
+    assert set(setuptools["packages"]) == on_disk | {"mechanism.assets"}
+    for package, folder in MAPPED.items():
+        assert setuptools["package-dir"][package] == folder.name
+    assert setuptools["package-dir"]["mechanism.assets"] == "assets"
+    for entry in ("pyproject.toml", "mechanism", "assets/mjcf", "assets/meshes", "converters", "tests", "README.md"):
+        assert (REPO / entry).exists(), entry
+    assert not (PACKAGE / "converters").exists() and not (PACKAGE / "models").exists()
+
+
+def test_ci_installs_with_the_home_folder_and_tests_with_an_empty_one():
+    script = (REPO / ".ci" / "run").read_text()
+    install, test = script.index("make .venv/.installed"), script.index('HOME="$fresh_home" make test')
+    assert install < test and "mktemp -d" in script

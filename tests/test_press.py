@@ -22,9 +22,9 @@ from mechanism.machine.models import load_model
 REPO = Path(__file__).resolve().parent.parent
 GENERATOR = REPO / "assets" / "cad" / "press" / "generate.py"
 PARAMS = json.loads((REPO / "assets" / "cad" / "press" / "press.params.json").read_text())
-FOLDER = REPO / "mechanism" / "models" / "press"
-EXPORT = FOLDER / "cad"
-MODEL = FOLDER / "press.xml"
+ASSETS = REPO / "assets"
+EXPORT = ASSETS / "cad" / "press" / "export"
+MODEL = ASSETS / "mjcf" / "press" / "press.xml"
 INCH, POUND = 0.0254, 0.45359237
 NS = "{urn:mathworks:SimscapeMultibody:import}"
 
@@ -97,12 +97,12 @@ def test_regenerating_the_export_and_the_mjcf_gives_the_committed_bytes(tmp_path
     assert sorted(p.name for p in (tmp_path / "cad").iterdir()) == sorted(p.name for p in EXPORT.iterdir())
     for path in EXPORT.iterdir():
         assert (tmp_path / "cad" / path.name).read_bytes() == path.read_bytes(), path.name
-    convert(tmp_path / "cad" / "press.xml", tmp_path, name="press", mesh_dir=tmp_path / "meshes")
-    assert (tmp_path / "press.xml").read_bytes() == MODEL.read_bytes()
-    meshes = FOLDER / "meshes"
-    assert sorted(p.name for p in (tmp_path / "meshes").iterdir()) == sorted(p.name for p in meshes.iterdir())
+    convert(tmp_path / "cad" / "press.xml", tmp_path / "mjcf" / "press", name="press", mesh_dir=tmp_path / "meshes" / "press")
+    assert (tmp_path / "mjcf" / "press" / "press.xml").read_bytes() == MODEL.read_bytes()
+    meshes = ASSETS / "meshes" / "press"
+    assert sorted(p.name for p in (tmp_path / "meshes" / "press").iterdir()) == sorted(p.name for p in meshes.iterdir())
     for path in meshes.iterdir():
-        assert (tmp_path / "meshes" / path.name).read_bytes() == path.read_bytes(), path.name
+        assert (tmp_path / "meshes" / "press" / path.name).read_bytes() == path.read_bytes(), path.name
 
 
 def test_generator_rejects_a_bad_parameter_file_with_one_line(tmp_path):

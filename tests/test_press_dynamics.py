@@ -14,7 +14,7 @@ import mechanism
 
 REPO = Path(__file__).resolve().parent.parent
 PARAMS = json.loads((REPO / "assets" / "cad" / "press" / "press.params.json").read_text())
-DESCRIPTION = REPO / "mechanism" / "models" / "press" / "press.toml"
+DESCRIPTION = REPO / "assets" / "machines" / "press.toml"
 DATASHEET = {key: entry["value"] for key, entry in PARAMS["datasheet"].items()}
 RATIO = PARAMS["worm_gear"]["wheel_teeth"]["value"] / PARAMS["worm_gear"]["worm_starts"]["value"]
 

@@ -21,10 +21,10 @@ from mechanism.kinematics.linkage import compute_tables
 from mechanism.data.reference import thesis
 
 REPO = Path(__file__).resolve().parent.parent
-CAD = REPO / "assets" / "cad"
-EXPORT = REPO / "mechanism" / "models" / "sapphire870" / "cad"
+CAD = REPO / "assets" / "cad" / "sapphire870"
+EXPORT = CAD / "export"
 PARAMS = json.loads((CAD / "sewing_machine.params.json").read_text())
-MESHES = REPO / "mechanism" / "models" / "sapphire870" / "meshes"
+MESHES = REPO / "assets" / "meshes" / "sapphire870"
 
 
 def param(section, name):
@@ -119,12 +119,13 @@ def test_export_names_the_frames_the_tools_rely_on():
 def test_committed_mjcf_is_what_the_converter_makes_of_the_committed_export(tmp_path):
     from mechanism.converters import convert
 
-    convert(EXPORT / "sewing_machine.xml", tmp_path / "mjcf", mesh_dir=tmp_path / "mjcf" / "meshes")
-    assert (tmp_path / "mjcf" / "sewing_machine.xml").read_text() == DEFAULT_MODEL.read_text()
-    fresh = sorted(p.name for p in (tmp_path / "mjcf" / "meshes").iterdir())
+    mjcf, meshes = tmp_path / "mjcf" / "sapphire870", tmp_path / "meshes" / "sapphire870"  # the assets/ layout
+    convert(EXPORT / "sewing_machine.xml", mjcf, mesh_dir=meshes)
+    assert (mjcf / "sewing_machine.xml").read_text() == DEFAULT_MODEL.read_text()
+    fresh = sorted(p.name for p in meshes.iterdir())
     assert fresh == sorted(p.name for p in MESHES.iterdir())
     for name in fresh:
-        assert (tmp_path / "mjcf" / "meshes" / name).read_bytes() == (MESHES / name).read_bytes(), name
+        assert (meshes / name).read_bytes() == (MESHES / name).read_bytes(), name
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mechanism
-from mechanism.machine.models import MODELS
+from mechanism.machine.models import shipped_folder
 
 MACHINES = mechanism.shipped_machines()
 
@@ -40,14 +40,14 @@ def test_self_contained_mjcf_steps_in_stock_mujoco(name, tmp_path):
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_scene_compiles_and_steps(name):
-    scene = MODELS / name / "scene.xml"
+    scene = shipped_folder("mjcf", name) / "scene.xml"
     assert scene.is_file(), f"{name} ships no scene.xml"
     _step_without_warnings(mujoco.MjModel.from_xml_path(str(scene)), 0.0, 0.2)
 
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_every_machine_has_a_readme_with_its_provenance(name):
-    readme = (MODELS / name / "README.md").read_text()
+    readme = (shipped_folder("mjcf", name) / "README.md").read_text()
     assert "mechanism convert" in readme  # how the MJCF was made from its CAD export
 
 
@@ -65,7 +65,8 @@ def test_the_wheel_carries_the_models_and_runs_outside_the_checkout(tmp_path):
     wheel = next(tmp_path.glob("mechanism-*.whl"))
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    assert (site / "mechanism" / "models" / "sapphire870" / "sapphire870.toml").is_file()
+    assert (site / "mechanism" / "assets" / "machines" / "sapphire870.toml").is_file()
+    assert (site / "mechanism" / "converters" / "__init__.py").is_file()
     code = "import mechanism; m = mechanism.load_machine(); print(m.model_path); print(mechanism.simulate(m, voltage_V=12, duration_s=1, reduced=True).mean_speed_rpm)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
                             env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site), "HOME": str(tmp_path)})

@@ -186,8 +186,21 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
             raise UserError(f"cannot connect to the Ray cluster at {address}: {first}{hint}") from None
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
-        ray.init(address="local", num_cpus=workers, include_dashboard=False, **quiet)
+        ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
     return True
+
+
+# Ray puts Unix sockets under its temporary folder (session_<date>_<pid>/sockets/plasma_store: about
+# 70 characters); a socket path may hold 107. Past this length the folder moves to /tmp.
+RAY_TEMP_DIR_MAX_CHARS = 32
+
+
+def ray_temp_dir() -> str:
+    """Ray's temporary folder for a local instance: the system's, or /tmp where that path is too long."""
+    import tempfile
+
+    preferred = os.path.join(tempfile.gettempdir(), "ray")
+    return preferred if len(preferred) <= RAY_TEMP_DIR_MAX_CHARS else f"/tmp/ray-{os.getuid()}"
 
 
 def _check_reachable(address: str, timeout_s: float = 5.0) -> None:

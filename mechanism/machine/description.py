@@ -291,7 +291,7 @@ def parse_description(data: dict[str, Any], source: str = "<description>", base:
         raise _fail(source, PRESET_TABLE, None, "expected name = \"target\" pairs")
     model = Path(sections["machine"]["model"])
     if not model.is_absolute():
-        model = (base or Path.cwd()) / model
+        model = Path(os.path.normpath((base or Path.cwd()) / model))  # "../mjcf/x.xml" reads as the folder it is in
     drive = sections["drive"]
     return MachineDescription(
         name=sections["machine"]["name"],

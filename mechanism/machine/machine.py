@@ -35,7 +35,7 @@ from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic
 from mechanism.kinematics.pose import joint_dof, solve_pose, velocity_ratios
 from mechanism.machine import parts
 from mechanism.machine.description import MachineDescription, read_description
-from mechanism.machine.models import DEFAULT_DESCRIPTION, MODELS, load_spec, resolve_model, shipped_machines
+from mechanism.machine.models import DEFAULT_DESCRIPTION, load_spec, resolve_model, shipped_description, shipped_machines
 from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
 from mechanism.physics.inputs import DutyMap
 from mechanism.physics.loads import FabricLoad, python_needle_load
@@ -224,7 +224,7 @@ def resolve_description(description: MachineDescription | str | os.PathLike | No
     if description is None:
         return read_description(DEFAULT_DESCRIPTION)
     if isinstance(description, str) and description in shipped_machines():
-        return read_description(MODELS / description / f"{description}.toml")
+        return read_description(shipped_description(description))
     return read_description(description)
 
 

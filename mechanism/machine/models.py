@@ -1,29 +1,54 @@
 """Where models live and how they are loaded (every load error is a UserError).
 
-Shipped machines are package data, one folder each (menagerie style): ``models/<name>/``
-holds ``<name>.toml`` (the machine description), the MJCF, ``scene.xml``, meshes and a
-README with provenance. A description's ``model`` may also name a CAD export: it is
-converted on first use into a cache folder keyed by the export's content hash.
+Shipped machines live in the repository's top-level ``assets/`` (the design card's layout),
+one name per machine: ``machines/<name>.toml`` (the description), ``mjcf/<name>/`` (the MJCF,
+``scene.xml`` and a README with provenance, menagerie style), ``meshes/<name>/``,
+``cad/<name>/export/`` (the CAD export the MJCF was converted from) and
+``measurements/<name>/``. The wheel installs the same tree as ``mechanism/assets/``, so the
+relative paths inside it (a description's ``model``, an MJCF's ``meshdir``) hold in both.
+A description's ``model`` may also name a CAD export: it is converted on first use into a
+cache folder keyed by the export's content hash.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-from importlib import resources
 from pathlib import Path
 
 from mechanism.errors import UserError
 
-MODELS = Path(str(resources.files("mechanism.models")))
+def _assets_root() -> Path:
+    package = Path(__file__).resolve().parent.parent
+    installed = package / "assets"  # the wheel maps the top-level assets/ here
+    return installed if installed.is_dir() else package.parent / "assets"
+
+
+ASSETS = _assets_root()
+MACHINES = ASSETS / "machines"
 DEFAULT_MACHINE = "sapphire870"
-DEFAULT_DESCRIPTION = MODELS / DEFAULT_MACHINE / f"{DEFAULT_MACHINE}.toml"
-DEFAULT_MODEL = MODELS / DEFAULT_MACHINE / "sewing_machine.xml"
+DEFAULT_DESCRIPTION = MACHINES / f"{DEFAULT_MACHINE}.toml"
+DEFAULT_MODEL = ASSETS / "mjcf" / DEFAULT_MACHINE / "sewing_machine.xml"
 MAX_EXPORT_FOLDER_BYTES = 1 << 30
 
 
 def shipped_machines() -> list[str]:
-    return sorted(p.name for p in MODELS.iterdir() if (p / f"{p.name}.toml").is_file())
+    return sorted(p.stem for p in MACHINES.glob("*.toml"))
+
+
+def shipped_description(name: str) -> Path:
+    return MACHINES / f"{name}.toml"
+
+
+def shipped_folder(kind: str, name: str) -> Path:
+    """A shipped machine's folder of one kind: ``mjcf``, ``meshes``, ``cad`` or ``measurements``."""
+    return ASSETS / kind / name
+
+
+def shipped_export(name: str) -> Path | None:
+    """The CAD export a shipped machine's MJCF was converted from, if it ships one."""
+    exports = sorted((shipped_folder("cad", name) / "export").glob("*.xml"))
+    return exports[0] if exports else None
 
 
 def model_path(path: str | os.PathLike | None = None) -> Path:

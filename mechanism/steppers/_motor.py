@@ -76,7 +76,7 @@ class StepperParams:
 
 def pm25s048(**overrides) -> StepperParams:
     """The PM25S-048 of the Sapphire 870 on a 24 V chopper drive: the shipped machine's
-    ``[stepper]`` (``mechanism/models/sapphire870/sapphire870.toml``; a test keeps the
+    ``[stepper]`` (``assets/machines/sapphire870.toml``; a test keeps the
     thesis's numbers there equal to the reference file's).
 
     ================  ============  =========================================================

@@ -17,7 +17,7 @@ and the supply cannot hold 24 V on the motor under load. :func:`fit_warming_and_
 both (``python -m mechanism.sysid.calibration --steady-speeds``).
 
 ``python -m mechanism.sysid.calibration`` prints the shaft's friction table for the shipped
-description (mechanism/models/sapphire870/sapphire870.toml); tests/test_dynamics.py checks
+description (assets/machines/sapphire870.toml); tests/test_dynamics.py checks
 the description against the thesis.
 """
 

@@ -3,7 +3,7 @@
 
     python assets/cad/press/generate.py [--params FILE] [-o DIR]
 
-writes, into DIR (default ``mechanism/models/press/cad``):
+writes, into DIR (default ``assets/cad/press/export``):
 
 * ``press.xml``: a second-generation ``SimscapeMultibodyImportXML`` 2.0 export as Simscape
   Multibody Link writes it from a SolidWorks assembly: no joints, the assembly's mates
@@ -40,7 +40,7 @@ from mechanism.files.outputs import atomic_dir  # noqa: E402  (the project's own
 
 def _sewing_generator():
     """The sewing machine's generator: its solid, STL and mass-property helpers are shared."""
-    spec = importlib.util.spec_from_file_location("sewing_machine_generator", HERE.parent / "generate.py")
+    spec = importlib.util.spec_from_file_location("sewing_machine_generator", HERE.parent / "sapphire870" / "generate.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
@@ -52,7 +52,7 @@ ParamError = shapes.ParamError
 box, cylinder, union = shapes.box, shapes.cylinder, shapes.union
 
 DEFAULT_PARAMS = HERE / "press.params.json"
-DEFAULT_OUT = REPO / "mechanism" / "models" / "press" / "cad"
+DEFAULT_OUT = HERE / "export"
 EXPORT_NAME = "press"
 PARAMS_FORMAT = "mechanism-cad-params/1"
 INCH = 0.0254  # m
