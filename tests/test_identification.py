@@ -195,3 +195,45 @@ def test_a_long_recording_is_fitted_on_segments_spread_over_it(tmp_path):
     assert result.params["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
     assert result.params["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
     assert result.rmse < 0.03
+
+
+class _Overflowing:
+    """A problem whose residual overflows at part of the trial points, as a fit's wild steps can."""
+
+    def residual(self, structure, values, part="fit"):
+        a = values["a"]
+        t = np.linspace(0.0, 1.0, 200)
+        np.exp(a * 900.0 * t)  # overflows for a > 0.79: the warning, not the value, is the point
+        return (a - 0.3) * t
+
+    def rmse(self, structure, values, part="val"):
+        return float(np.sqrt(np.mean(self.residual(structure, values) ** 2)))
+
+
+def test_parallel_fits_are_safe_under_overflow_as_error():
+    """The CLI makes numpy overflow an error for the whole process; fits on threads must neither
+    switch that off for each other (warnings filters are process-global) nor trip over it."""
+    import warnings
+    from types import SimpleNamespace
+
+    from mechanism.sysid.diagnosis import _fit_all
+    from mechanism.sysid.parameters import Parameter
+
+    structure = SimpleNamespace(parameters=[Parameter("a", 0.5, 0.0, 1.0)])
+    jobs = [(_Overflowing(), structure, [{"a": 0.95}, {"a": 0.9}], {"scout_nfev": 0, "max_nfev": 10})] * 4
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message="overflow encountered", category=RuntimeWarning)
+        for _ in range(25):
+            results = _fit_all(jobs, workers=2)
+            assert all(abs(r.values["a"] - 0.3) < 1e-3 for r in results)
+        with pytest.raises(RuntimeWarning):  # and the process-wide setting still holds afterwards
+            np.exp(np.array([1000.0]))
+
+
+def test_identification_switches_no_process_wide_numeric_or_warning_state():
+    import re
+    from pathlib import Path
+
+    for path in (Path(__file__).resolve().parent.parent / "mechanism" / "sysid").glob("*.py"):
+        text = path.read_text()
+        assert not re.search(r"catch_warnings|simplefilter|np\.seterr\(", text), path.name

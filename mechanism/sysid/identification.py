@@ -26,7 +26,6 @@ the Jacobian, a report kept apart.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -241,12 +240,14 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
         n_eval += 1
         if progress is not None:
             progress()
-        return problem.residual(structure, values_of(x), part)
+        # a trial point may overflow (the fit then steps back); numpy's error state is per thread,
+        # where the warnings filters are one list for the whole process and fits run on threads
+        with np.errstate(all="ignore"):
+            return problem.residual(structure, values_of(x), part)
 
     def run(x0, nfev):
         x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with np.errstate(all="ignore"):
             return least_squares(fun, x0, bounds=(lo, hi), x_scale="jac", diff_step=DIFF_STEP, method="trf",
                                  max_nfev=nfev, xtol=1e-5, ftol=1e-5, gtol=1e-8)
 
