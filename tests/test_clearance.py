@@ -110,3 +110,22 @@ def test_all_pairs_skip_parts_joined_to_each_other(needle_model):
     assert frozenset(("crank", "rod")) not in pairs  # the crank pin joint
     assert frozenset(("needle", "needle_bar")) not in pairs  # same body
     assert frozenset(("needle_bar", "needle_plate")) in pairs  # the frame holds more than the bushing
+
+
+def test_a_long_clearance_check_shows_its_progress(monkeypatch):
+    """`clearance --all-pairs` runs for a minute on a real machine: a bar (tqdm, shown on a
+    terminal after 2 s) counts every sample of the cycle and every pair to the end."""
+    import tqdm
+
+    seen = []
+
+    class Recorder(tqdm.tqdm):
+        def __init__(self, *args, **kwargs):
+            kwargs.update(disable=False, delay=0.0)
+            super().__init__(*args, **kwargs)
+            seen.append(self)
+
+    monkeypatch.setattr(tqdm, "tqdm", Recorder)
+    check_clearance(M.crank_and_post(mesh=False).compile(), [Pair("post", "pin")], driver="arm_shaft",
+                    resolution_deg=10.0, progress=True)
+    assert len(seen) == 1 and seen[0].total == 36 + 1 and seen[0].n == seen[0].total

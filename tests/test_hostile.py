@@ -350,3 +350,21 @@ def test_an_error_after_a_progress_fragment_starts_its_own_line():
     tracker.end_line()
     tracker.write("error: ray is not installed\n")
     assert stream.getvalue().splitlines()[-1] == "error: ray is not installed"
+
+
+def test_text_c_code_prints_on_stdout_becomes_one_warning_line_without_colour_codes(capfd):
+    """OpenCASCADE (through cascadio) prints coloured messages on descriptor 1: the verb's own
+    output stays on stdout, theirs becomes one plain ``warning:`` line on stderr."""
+    import argparse
+    import os
+
+    from mechanism.cli import run_verb
+
+    def handler(args):
+        os.write(1, b"\x1b[0;33mRWGltf_CafWriter skipped node 'x' without geometry data\x1b[0m\n")
+        print("result: 42 mm")
+
+    assert run_verb(argparse.Namespace(handler=handler)) == 0
+    captured = capfd.readouterr()
+    assert captured.out == "result: 42 mm\n"
+    assert captured.err == "warning: RWGltf_CafWriter skipped node 'x' without geometry data\n"

@@ -33,3 +33,14 @@ def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
     copy.write_text(export.read_text())
     line = cli("init", copy, "-o", copy).assert_bad_input()
     assert "input" in line
+
+
+def test_init_keeps_a_description_the_user_edited_unless_forced(cli, tmp_path):
+    export = shipped_folder("mjcf", "press") / "press.xml"
+    out = tmp_path / "machine.toml"
+    out.write_text("# my edits\n")
+    line = cli("init", export, "-o", out).assert_bad_input()
+    assert "--force" in line and out.read_text() == "# my edits\n"
+    result = cli("init", export, "-o", out, "--force")
+    assert result.returncode == 0, result.stderr
+    assert "[drive]" in out.read_text()

@@ -137,17 +137,17 @@ def check_paths(args: argparse.Namespace) -> None:
 
 
 def run_verb(args: argparse.Namespace) -> int:
-    """The verb as one output transaction, with third-party stderr captured: their text
-    becomes one ``warning:`` line, MuJoCo's instability report an error (nothing published)."""
+    """The verb as one output transaction, with third-party stderr and stdout captured: their
+    text becomes one ``warning:`` line, MuJoCo's instability report an error (nothing published)."""
     from mechanism.errors import UserError
-    from mechanism.files.capture import UNSTABLE_MARKERS, captured_stderr, summarize
+    from mechanism.files.capture import UNSTABLE_MARKERS, captured_stderr, captured_stdout, summarize
     from mechanism.files.outputs import transaction
 
     _quiet_mujoco_log()
     with transaction():
-        with captured_stderr() as captured:
+        with captured_stderr() as captured, captured_stdout() as printed:
             status = int(args.handler(args) or 0)
-        text = "".join(captured)
+        text = "".join(captured) + "".join(printed)
         if any(marker in text for marker in UNSTABLE_MARKERS):
             raise UserError(f"the simulation became unstable ({summarize(text, 200)}); check the parameters "
                             "(voltage, inductance, friction, loads) or use a smaller time step")

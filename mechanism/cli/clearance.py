@@ -74,7 +74,7 @@ def run(args) -> int:
               f"{batch.failed} fail the required clearance of {args.required:g} mm; wrote {args.csv}")
         failed = batch.failed > 0
     else:
-        report = check_clearance(model, pairs, args.cycle, args.resolution, args.required, args.driver)
+        report = check_clearance(model, pairs, args.cycle, args.resolution, args.required, args.driver, progress=True)
         write_rows(args.csv, report.rows(), comments=[f"required clearance: {args.required:g} mm; angles: {args.driver} [deg]"])
         if args.json:
             write_json(args.json, report.to_json())

@@ -21,6 +21,8 @@ def register(subparsers) -> None:
     parser.add_argument("model", metavar="EXPORT_OR_MJCF", help="a CAD export (converted once, cached) or a converted MJCF")
     parser.add_argument("-o", "--out", required=True, metavar="MACHINE.toml", help="the draft description to write")
     parser.add_argument("--name", metavar="NAME", help="machine name (default: the file's stem)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace MACHINE.toml if it exists (default: refuse, since a description is usually edited by hand)")
     parser.set_defaults(handler=run, inputs=("model",), outputs=("out",))
 
 
@@ -39,6 +41,8 @@ def run(args) -> int:
     out = Path(args.out)
     if out.resolve() == source.resolve():
         raise UserError(f"-o {out}: is the input; choose another file")
+    if out.exists() and not args.force:
+        raise UserError(f"-o {out}: exists (a description you may have edited); choose another file or add --force to replace it")
     mjcf = source if is_mjcf(source) else converted_model(source)
     reference = os.path.relpath(source.resolve(), out.resolve().parent)
     text, summary = draft_description(mjcf, reference, args.name or source.stem)

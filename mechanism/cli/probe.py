@@ -41,7 +41,7 @@ def register(subparsers) -> None:
                              "frame, from the joint anchor); once for all groups or once per group (default: the origin)")
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--cycle", action="store_true", help="one kinematic cycle of the arm shaft at --speed")
-    mode.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
+    mode.add_argument("--voltage", type=number(0, 1000, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
     parser.add_argument("--speed", type=number(0, 1e5, "rpm"), default=600.0, metavar="RPM", help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)")
     parser.add_argument("--revolutions", type=number(0, 100, low_open=True), default=1.0, metavar="N", help="arm revolutions for --cycle (default 1)")

@@ -28,7 +28,7 @@ def register(subparsers) -> None:
     )
     add_machine_arguments(parser)
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="constant motor terminal voltage [V], 0-30")
+    source.add_argument("--voltage", type=number(0, 1000, "V"), metavar="V", help="constant motor terminal voltage [V], 0 to the motor's rated voltage ([motor] rated_voltage_V, default 30)")
     source.add_argument("--profile", metavar="FILE",
                         help="voltage profile CSV with columns time_s (or time) and voltage_V (or voltage); "
                              "each voltage holds until the next time (zero-order hold)")

@@ -26,7 +26,7 @@ def register(subparsers) -> None:
     add_machine_arguments(parser)
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--cycle", action="store_true", help="one arm shaft revolution (the default)")
-    motion.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
+    motion.add_argument("--voltage", type=number(0, 1000, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
     motion.add_argument("--recording", metavar="FILE", help="replay a recording CSV (time, voltage, arm_angle) kinematically")
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
     parser.add_argument("--frames", type=int, default=120, metavar="N", help="animation frames (default 120)")

@@ -123,6 +123,7 @@ class ReducedModel:
             raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
         if not isinstance(voltage, VoltageProfile):
             voltage = VoltageProfile.constant(voltage)
+        self.machine.check_voltage(voltage)
         if not (np.isfinite(start_angle_rad) and np.isfinite(start_velocity_rad_s) and 10 <= sample_rate_hz <= 100_000):
             raise UserError("start angle and velocity must be finite and the sample rate 10 Hz to 100 kHz")
         nsample = int(round(duration_s * sample_rate_hz))

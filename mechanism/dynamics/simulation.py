@@ -184,6 +184,7 @@ class _Run:
             raise UserError("sample rate must be between 10 Hz and 100 kHz")
         if not isinstance(voltage, VoltageProfile):
             voltage = VoltageProfile.constant(voltage)
+        machine.check_voltage(voltage)
         from mechanism.files.limits import check_elements
 
         self.machine, self.start_angle_rad = machine, start_angle_rad

@@ -1,10 +1,11 @@
-"""Third-party text on stderr (MuJoCo, OpenCASCADE via cascadio, C libraries) captured and
-turned into our one-line form.
+"""Third-party text on stderr and stdout (MuJoCo, OpenCASCADE via cascadio, C libraries)
+captured and turned into our one-line form.
 
-C code writes to file descriptor 2 directly, past ``sys.stderr``. :func:`captured_stderr`
-points descriptor 2 at a temporary file for the duration of a run while Python's own
-``sys.stderr`` (our ``error:``/``warning:`` lines, progress bars) keeps writing to the real
-terminal; what was captured is handed back for the caller to report in one line.
+C code writes to file descriptors 1 and 2 directly, past ``sys.stdout``/``sys.stderr``.
+:func:`captured_stderr` and :func:`captured_stdout` point the descriptor at a temporary file
+for the duration of a run while Python's own stream (our results, ``error:``/``warning:``
+lines, progress bars) keeps writing to the real terminal; what was captured is handed back
+for the caller to report in one line (terminal colour codes removed).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import re
 import sys
 import tempfile
 
@@ -51,10 +53,13 @@ class LineTracker(io.TextIOBase):
         self.flush()
 
 
+TERMINAL_CODES = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")  # colours and cursor moves (OpenCASCADE colours its messages)
+
+
 def summarize(text: str, limit: int = 300) -> str:
-    """Several lines of captured text as one line (repeats dropped, trimmed)."""
+    """Several lines of captured text as one line (colour codes and repeats dropped, trimmed)."""
     seen, pieces = set(), []
-    for line in text.splitlines():
+    for line in TERMINAL_CODES.sub("", text).splitlines():
         line = " ".join(line.split())
         if line and line not in seen:
             seen.add(line)
@@ -63,40 +68,50 @@ def summarize(text: str, limit: int = 300) -> str:
     return joined if len(joined) <= limit else joined[: limit - 3] + "..."
 
 
-@contextlib.contextmanager
 def captured_stderr():
-    """Yield a list that, after the block, holds the text C code wrote on descriptor 2.
+    """Yield a list that, after the block, holds the text C code wrote on descriptor 2."""
+    return _captured(2, "stderr")
 
-    ``sys.stderr`` is re-pointed to a duplicate of the original descriptor, so Python-level
+
+def captured_stdout():
+    """Yield a list that, after the block, holds the text C code wrote on descriptor 1."""
+    return _captured(1, "stdout")
+
+
+@contextlib.contextmanager
+def _captured(fd: int, name: str):
+    """``sys.<name>`` is re-pointed to a duplicate of the original descriptor, so Python-level
     writes still reach the terminal; subprocesses started inside inherit the capture."""
     try:
-        os.fstat(2)
+        os.fstat(fd)
     except OSError:
-        yield []  # no descriptor 2 to capture (embedded interpreter)
+        yield []  # no such descriptor to capture (embedded interpreter)
         return
     result: list[str] = []
-    sys.stderr.flush()
-    saved = os.dup(2)
+    previous = getattr(sys, name)
+    with contextlib.suppress(Exception):
+        previous.flush()
+    saved = os.dup(fd)
     real = open(saved, "w", encoding="utf-8", errors="replace", buffering=1, closefd=False)
-    previous = sys.stderr
     inner = getattr(previous, "stream", None)
     if inner is not None:  # a LineTracker: keep tracking, write to the real terminal
         previous.stream = real
     else:
-        sys.stderr = real
+        setattr(sys, name, real)
     with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 2)
+        os.dup2(sink.fileno(), fd)
         try:
             yield result
         finally:
-            with contextlib.suppress(Exception):
-                sys.stdout.flush()
-            os.dup2(saved, 2)
+            for stream in (sys.stdout, sys.stderr):
+                with contextlib.suppress(Exception):
+                    stream.flush()
+            os.dup2(saved, fd)
             real.flush()
             if inner is not None:
                 previous.stream = inner
             else:
-                sys.stderr = previous
+                setattr(sys, name, previous)
             real.close()
             os.close(saved)
             sink.seek(0)

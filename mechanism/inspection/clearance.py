@@ -212,7 +212,7 @@ class ClearanceSweep:
         return self.shapes[pair.a].distance(self.shapes[pair.b])
 
     # -- the cycle -------------------------------------------------------------------
-    def run(self, full_curve: bool = False) -> list[PairClearance]:
+    def run(self, full_curve: bool = False, progress: bool = False) -> list[PairClearance]:
         """Sample the cycle, then refine minima and interferences for every pair.
 
         The exact distance is computed only at samples that can matter: a sample is
@@ -221,9 +221,22 @@ class ClearanceSweep:
         the smallest exact distance found, so far-apart stretches of the cycle cost one
         hull query each. ``full_curve`` computes every sample (for plots).
         """
+        import sys
+
+        from tqdm import tqdm
+
         n = len(self.angles)
         step = self.period / n
-        poses, lower, travel = self._sample()
+        # shown only on a terminal and only once the check has taken 2 s (many pairs, fine steps)
+        with tqdm(total=n + len(self.pairs), desc="clearance", unit="step", file=sys.stderr, leave=False,
+                  disable=not progress or None, delay=2.0) as bar:
+            poses, lower, travel = self._sample(bar.update)
+            results = self._pairs(poses, lower, travel, step, full_curve, bar.update)
+        self._start = poses[0].copy()  # the next run (a variant) starts near this branch
+        return results
+
+    def _pairs(self, poses, lower, travel, step, full_curve: bool, tick) -> list[PairClearance]:
+        n = len(self.angles)
         results = []
         for k, pair in enumerate(self.pairs):
             dip = SPEED_MARGIN * np.maximum(travel[k], np.roll(travel[k], 1))  # over the step before or after
@@ -237,10 +250,10 @@ class ClearanceSweep:
                 exact[i] = self.shapes[pair.a].distance(self.shapes[pair.b])[0]
                 smallest = min(smallest, exact[i])
             results.append(self._pair_result(pair, exact, dip, poses, step))
-        self._start = poses[0].copy()  # the next run (a variant) starts near this branch
+            tick(1)
         return results
 
-    def _sample(self):
+    def _sample(self, tick=lambda count: None):
         """Poses over the grid; per pair a convex-hull lower bound of the distance at each
         sample and how far any point of the two parts travels from one sample to the next
         [m] (geom displacement plus rotation times the geom's bounding radius)."""
@@ -268,6 +281,7 @@ class ClearanceSweep:
                     for gb in self.shapes[pair.b].geoms
                 )
                 lower[k, i] = max(hull - HULL_TOLERANCE_M, 0.0)
+            tick(1)
         # travel of each geom from sample i to i + 1 (periodic)
         shift = np.linalg.norm(np.roll(position, -1, axis=0) - position, axis=2)
         relative = np.einsum("ngji,ngjk->ngik", rotation, np.roll(rotation, -1, axis=0))
@@ -478,12 +492,13 @@ def check_clearance(
     resolution_deg: float = DEFAULT_RESOLUTION_DEG,
     required_mm: float = 0.0,
     driver: str | None = None,
+    progress: bool = False,
 ) -> ClearanceReport:
     """Minimum clearance and interferences of ``pairs`` (default: all moving pairs) over
-    ``revolutions`` turns of ``driver``."""
+    ``revolutions`` turns of ``driver`` (``progress``: a bar on stderr once it takes 2 s)."""
     pairs = list(pairs) if pairs else all_pairs(model)
     sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg)
-    return ClearanceReport(sweep.run(), required_mm, driver, revolutions, resolution_deg)
+    return ClearanceReport(sweep.run(progress=progress), required_mm, driver, revolutions, resolution_deg)
 
 
 def write_rows(path: str | os.PathLike, rows: Sequence[dict], comments: Sequence[str] = ()) -> None:

@@ -100,6 +100,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "torque_constant_Nm_per_A": _positive("torque constant Kt [N m/A]", required=True, high=100.0),
         "back_emf_V_s_per_rad": _positive("back-EMF constant Ke [V s/rad]", required=True, high=100.0),
         "inductance_H": _non_negative("winding inductance [H] (0: quasi-static current)", 10.0),
+        "rated_voltage_V": _positive("the highest terminal voltage a run may apply [V] (default 30)", high=1e3),
         "cogging_Nm": _non_negative("cogging torque amplitude [N m]", 100.0),
         "cogging_per_rev": Key(int, "cogging periods per motor turn", low=1, high=1000),
         "thermal_resistance_K_per_W": _positive("winding-to-ambient thermal resistance [K/W]", high=1e3),

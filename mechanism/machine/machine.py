@@ -37,7 +37,7 @@ from mechanism.machine import parts
 from mechanism.machine.description import MachineDescription, read_description
 from mechanism.machine.models import DEFAULT_DESCRIPTION, load_spec, resolve_model, shipped_description, shipped_machines
 from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
-from mechanism.physics.inputs import DutyMap
+from mechanism.physics.inputs import DEFAULT_RATED_VOLTAGE_V, DutyMap, VoltageProfile, check_rated_voltage
 from mechanism.physics.loads import FabricLoad, python_needle_load
 from mechanism.physics.motor import DCMotor, SupplyLimit, Thermal, python_supply_limit
 from mechanism.tolerances import ZERO_SNAP_RAD
@@ -385,6 +385,14 @@ class Machine:
 
     def duty_map(self) -> DutyMap:
         return duty_map_from(self.description)
+
+    @property
+    def rated_voltage_V(self) -> float:
+        return float(self.description.section("motor").get("rated_voltage_V", DEFAULT_RATED_VOLTAGE_V))
+
+    def check_voltage(self, voltage: VoltageProfile) -> None:
+        """Refuse an input above the motor's rated voltage (the description's, else 30 V)."""
+        check_rated_voltage(voltage, self.rated_voltage_V, self.description.where("motor", "rated_voltage_V"))
 
     # -- the shaft angle --
     def shaft_angle(self, qpos) -> np.ndarray:

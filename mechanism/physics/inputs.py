@@ -16,15 +16,20 @@ import numpy as np
 from mechanism.errors import UserError
 from mechanism.files.tables import check_increasing, read_table
 
-VOLTAGE_RANGE_V = (0.0, 30.0)
+DEFAULT_RATED_VOLTAGE_V = 30.0  # a motor that states no [motor] rated_voltage_V
+MAX_VOLTAGE_V = 1000.0  # any input beyond this is a typo, whatever the motor
 
 
-def _check_voltage(values, label: str) -> None:
+def _check_voltage(values, label: str, high: float = MAX_VOLTAGE_V) -> None:
     values = np.atleast_1d(values)
-    low, high = VOLTAGE_RANGE_V
-    bad = np.flatnonzero(~((values >= low) & (values <= high)))  # NaN fails both
+    bad = np.flatnonzero(~((values >= 0.0) & (values <= high)))  # NaN fails both
     if bad.size:
-        raise UserError(f"{label}: voltage {values[bad[0]]:g} V is outside {low:g}-{high:g} V")
+        raise UserError(f"{label}: voltage {values[bad[0]]:g} V is outside 0-{high:g} V")
+
+
+def check_rated_voltage(voltage: "VoltageProfile", rated_V: float, where: str) -> None:
+    """A voltage input within what the described motor is rated for (``where`` names the key)."""
+    _check_voltage(voltage.voltage_V, f"motor voltage (rated {rated_V:g} V by {where})", rated_V)
 
 
 @dataclass(frozen=True)
