@@ -140,12 +140,19 @@ def identify(machine: Machine | None, recording: str | os.PathLike, **options):
     return run(read_recording(recording), nominal=drive_nominal(machine), **options)
 
 
-def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
-    """Find the physics the machine's model is missing from a bench recording, model it, show the fit improve."""
+def diagnose(machine: Machine | None, recording: str | os.PathLike, *, recording_name: str | None = None, **options):
+    """Find the physics the machine's model is missing from a bench recording, model it, show the fit improve.
+    ``recording_name``: how the outputs name the recording (default: the path as given), e.g. its
+    path relative to the folder the outputs go to."""
+    import dataclasses
+
     from mechanism.sysid.diagnosis import diagnose as run
     from mechanism.sysid.recording import read_recording
 
-    return run(read_recording(recording), nominal=drive_nominal(machine), **options)
+    rec = read_recording(recording)
+    if recording_name is not None:
+        rec = dataclasses.replace(rec, source=recording_name)
+    return run(rec, nominal=drive_nominal(machine), **options)
 
 
 def drive_nominal(machine: Machine | None):

@@ -43,7 +43,10 @@ def _convert(machine: mechanism.Machine, out: Path, final: Path) -> dict:
     report = mechanism.convert(export, out / "model")
     lines = [line.replace(str(out), str(final)) for line in mechanism.conversion_summary(report)]
     (out / "model" / "conversion.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return {"lines": lines, "mjcf": f"model/{report.mjcf_path.name}"}
+    counts = {"parts": report.n_parts, "bodies": report.n_bodies, "joints": report.n_joints,
+              "loop_closures": report.n_loop_closures, "couplings": report.n_couplings,
+              "degrees_of_freedom": report.degrees_of_freedom}
+    return {"lines": lines, "mjcf": f"model/{report.mjcf_path.name}", "counts": counts}
 
 
 def _tool(machine: mechanism.Machine, out: Path) -> dict | None:
@@ -123,7 +126,7 @@ def _flywheel(machine: mechanism.Machine, out: Path) -> dict | None:
 def _diagnose(machine: mechanism.Machine, out: Path) -> dict:
     recording = out / f"bench_{DEMO_EFFECT}_seed{DEMO_SEED}.csv"
     truth = mechanism.write_bench_recording(machine, [DEMO_EFFECT], DEMO_SEED, recording)
-    result = mechanism.diagnose(machine, recording)
+    result = mechanism.diagnose(machine, recording, recording_name=recording.name)  # beside the outputs, not in staging
     document = result.to_json()
     (out / "diagnosis.json").write_text(json.dumps(document, indent=2), encoding="utf-8")
     mechanism.diagnosis_report(result, out / "diagnosis")
@@ -147,6 +150,7 @@ def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
     facts["flywheel"] = _flywheel(machine, out)
     step(f"{name}: probes, clearance with a faulty variant, 3-D animation")
     facts["inspection"] = [p.name for p in mechanism.inspect(machine, out)]
+    facts["clearance"] = _clearance_facts(out)
     step(f"{name}: diagnose a virtual bench recording with a concealed {DEMO_EFFECT}")
     facts["diagnosis"] = _diagnose(machine, out)
     return facts
@@ -162,9 +166,64 @@ def run(out: str | os.PathLike = "out", machines: list[str] | None = None) -> Pa
         for name in names:
             facts[name] = machine_section(name, work, out, step)
         (work / "demo.json").write_text(json.dumps(facts, indent=2, default=float), encoding="utf-8")
+        for name, machine_facts in facts.items():
+            (work / name / "tour.md").write_text(tour_table(machine_facts), encoding="utf-8")
         (work / "index.html").write_text(_index(facts), encoding="utf-8")
     print(f"wrote {out}/index.html ({time.perf_counter() - step.started:.0f} s)")
     return out / "index.html"
+
+
+def _clearance_facts(out: Path) -> dict:
+    """The clearance step's pairs and how many design variants fail (from the files it wrote)."""
+    import csv
+
+    facts: dict = {"pairs": [], "variants": 0, "failing_variants": 0}
+    if (out / "clearance.json").is_file():
+        document = json.loads((out / "clearance.json").read_text(encoding="utf-8"))
+        facts["pairs"] = [{"a": p["part_a"], "b": p["part_b"], "min_mm": p["min_distance_mm"]} for p in document["pairs"]]
+    if (out / "variants.csv").is_file():
+        with open(out / "variants.csv", encoding="utf-8") as handle:
+            rows = list(csv.DictReader(line for line in handle if not line.startswith("#")))
+        facts["variants"], facts["failing_variants"] = len(rows), sum(row["pass"] == "0" for row in rows)
+    return facts
+
+
+def tour_table(f: dict) -> str:
+    """The README's Tour table for one machine, written from this run's numbers (tour.md beside
+    the outputs; a test holds the README to it), so no number in it is typed by hand."""
+    name, rows = f["name"], []
+    if "counts" in f["conversion"]:
+        c = f["conversion"]["counts"]
+        rows.append(("convert the shipped CAD export",
+                     f"`{name}/{f['conversion']['mjcf']}` (+ meshes): {c['parts']} parts, {c['bodies']} bodies, "
+                     f"{c['joints']} joints, {c['loop_closures']} loop closures, {c['couplings']} belt/gear couplings, "
+                     f"{c['degrees_of_freedom']} degree{'' if c['degrees_of_freedom'] == 1 else 's'} of freedom"))
+    if f["tool"]:
+        t = f["tool"]
+        text = f"`tool.csv/png`: {t['stroke_mm']:.3f} mm stroke"
+        if t.get("hook_passage_deg") is not None:
+            text += (f"; the hook point passes the needle {t['needle_rise_at_passage_mm']:.1f} mm above bottom dead centre, "
+                     f"{t['hook_point_clearance_mm']:.2f} mm clear")
+        rows.append(("tool motion", text))
+    sim, dynamics = f["simulation"], []
+    if sim["steady_speeds"]:
+        worst = max(abs(r["error_percent"]) for r in sim["steady_speeds"])
+        dynamics.append(f"`steady_speeds.csv`: all {len(sim['steady_speeds'])} measured steady speeds within {worst:.1f} %")
+    dynamics.append("`simulate_steps.png`")
+    if "sewing_mean_rpm" in sim:
+        dynamics.append(f"`sewing_12_layers.png` (mean {sim['sewing_mean_rpm']:.0f} rpm at 7 V)")
+    rows.append(("dynamics", "; ".join(dynamics)))
+    clear = f.get("clearance") or {}
+    if clear.get("pairs"):
+        pairs = ", ".join(f"{p['a']} vs {p['b']} {p['min_mm']:.2f} mm" for p in clear["pairs"])
+        rows.append(("probes, clearance", f"`probes.csv/png`, `clearance.csv/json`, `variants.csv`: {pairs}; "
+                                          f"{clear['failing_variants']} of {clear['variants']} design variants interfere"))
+    rows.append(("3-D", "`machine.html`: self-contained meshcat animation, opens offline"))
+    d = f["diagnosis"]
+    rows.append(("diagnosis", f"`diagnosis/index.html`, `diagnosis.json`: a virtual bench recording with a concealed "
+                              f"{', '.join(d['concealed'])}; found {', '.join(d['found']) or 'nothing'}, velocity rmse "
+                              f"{d['baseline_rmse']:.2g} -> {d['final_rmse']:.2g} rad/s"))
+    return "| step | what you get |\n| --- | --- |\n" + "".join(f"| {step} | {text} |\n" for step, text in rows)
 
 
 def _index(facts: dict) -> str:

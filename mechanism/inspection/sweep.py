@@ -103,6 +103,8 @@ class _VariantMachine:
         self.supply = supply_limit(description)
 
     tool_height_mm = Machine.tool_height_mm
+    rated_voltage_V = Machine.rated_voltage_V
+    check_voltage = Machine.check_voltage
 
 
 # -- targets --------------------------------------------------------------------------------
