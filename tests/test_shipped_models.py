@@ -67,6 +67,7 @@ def test_the_wheel_carries_the_models_and_runs_outside_the_checkout(tmp_path):
     zipfile.ZipFile(wheel).extractall(site)
     assert (site / "mechanism" / "assets" / "machines" / "sapphire870.toml").is_file()
     assert (site / "mechanism" / "converters" / "__init__.py").is_file()
+    assert not (site / "mechanism" / "assets" / "recordings").exists()  # package data is the listed files only
     code = "import mechanism; m = mechanism.load_machine(); print(m.model_path); print(mechanism.simulate(m, voltage_V=12, duration_s=1, reduced=True).mean_speed_rpm)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
                             env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site), "HOME": str(tmp_path)})
