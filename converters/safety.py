@@ -20,21 +20,21 @@ MAX_DEPTH = 200  # nesting of sub-assemblies / elements we walk recursively
 
 
 def read_bounded(path: Path, limit: int, what: str) -> bytes:
-    """The bytes of an existing, non-empty regular file no larger than ``limit``."""
+    """The bytes of an existing, non-empty regular file no larger than ``limit`` (the one bounded
+    reader, :func:`mechanism.files.limits.read_bounded`, with the converter's error type)."""
+    from mechanism.errors import UserError
+    from mechanism.files.limits import read_bounded as read
+
     path = Path(path)
-    if not path.exists():
-        raise ExportError(f"{what} {path}: no such file")
-    if not path.is_file():
+    if path.exists() and not path.is_file() and not path.is_dir():
         raise ExportError(f"{what} {path}: not a regular file")
-    size = path.stat().st_size
-    if size == 0:
-        raise ExportError(f"{what} {path}: file is empty")
-    if size > limit:
-        raise ExportError(f"{what} {path}: {size} bytes is larger than the {limit} byte limit")
     try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise ExportError(f"{what} {path}: cannot read ({exc.strerror})") from None
+        data = read(path, what, limit)
+    except UserError as exc:
+        raise ExportError(str(exc)) from None
+    if not data:
+        raise ExportError(f"{what} {path}: file is empty")
+    return data
 
 
 def parse_xml(path: Path):

@@ -42,10 +42,15 @@ def max_elements() -> int:
     return int(_env_limit("MECHANISM_MAX_ELEMENTS", DEFAULT_MAX_ELEMENTS))
 
 
+def _size(count: int) -> str:
+    return f"{count // 2**20} MiB" if count >= 2**20 else f"{count} bytes"
+
+
 def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -> bytes:
     """The bytes of ``path``, read in chunks and stopped once past ``limit``: the size a file
     claims is not trusted (pipes, devices and growing files claim anything)."""
     path = Path(path)
+    adjustable = limit is None
     limit = max_input_bytes() if limit is None else limit
     if path.is_dir():
         raise UserError(f"{what} {path}: is a folder, expected a file")
@@ -58,8 +63,8 @@ def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -
                     break
                 total += len(chunk)
                 if total > limit:
-                    raise UserError(f"{what} {path}: larger than the input limit of {limit // 2**20} MiB "
-                                    f"(raise it with MECHANISM_MAX_INPUT_MB)")
+                    raise UserError(f"{what} {path}: larger than the input limit of {_size(limit)}"
+                                    + (" (raise it with MECHANISM_MAX_INPUT_MB)" if adjustable else ""))
                 chunks.append(chunk)
     except FileNotFoundError:
         raise UserError(f"{what} {path}: no such file") from None
