@@ -21,12 +21,16 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check mechanism converters tests bench
 	$(VENV)/bin/mypy
 
+# two pytest workers (pytest-xdist), one per core of the 2-core machines CI and developers have;
+# tests that share a Ray cluster stay together on one worker (xdist_group "ray")
+PYTEST := $(PY) -m pytest -q -n 2 --dist loadgroup
+
 test: lint
-	$(PY) -m pytest -q
+	$(PYTEST)
 
 # the same without the tests marked slow
 test-fast: lint
-	$(PY) -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
 
 bench: $(STAMP)
 	$(PY) -m bench

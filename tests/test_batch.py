@@ -16,6 +16,7 @@ from mechanism.batch.runner import ray_temp_dir
 from mechanism.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.xdist_group("ray")  # one Ray test at a time, on one pytest worker (make test runs two)
 
 # -- item functions (module level: workers import them by name) -------------------------------
 

@@ -59,7 +59,8 @@ def reexport(tmp_path_factory):
     names = set(re.findall(r'\bname="([^"]+)"', text))
     for name in sorted(names, key=len, reverse=True):
         text = text.replace(f'"{name}"', f'"{cad_name(name)}"')
-    text = text.replace('meshdir="meshes"', f'meshdir="{DEFAULT_MODEL.parent / "meshes"}"')
+    meshdir = re.search(r'meshdir="([^"]+)"', text).group(1)
+    text = text.replace(f'meshdir="{meshdir}"', f'meshdir="{(DEFAULT_MODEL.parent / meshdir).resolve()}"')
     shaft, motor, lower = cad_name("arm_shaft"), cad_name("motor"), cad_name("lower_shaft")
     text = text.replace(f'<joint name="{shaft}"/>', f'<joint name="{shaft}" axis="0 0 -1" ref="{-SHAFT_ZERO_RAD}"/>')
     assert 'axis="0 0 -1" ref=' in text
@@ -110,7 +111,7 @@ def test_shipped_lumped_numbers_are_the_thesis_identification():
 
 
 def test_shipped_steady_speed_measurements_are_the_thesis_table_2():
-    table = mechanism.read_table(DEFAULT_MODEL.parent / "measurements" / "steady_speeds.csv",
+    table = mechanism.read_table(mechanism.shipped_folder("measurements", "sapphire870") / "steady_speeds.csv",
                                  required=["motor_voltage_V", "warm_s", "speed_rpm"])
     rows = thesis()["steady_state_speed_table_2"]["rows"]
     expected = [(r[1], w, r[4 + k]) for k, w in enumerate((0, 30, 120)) for r in rows]

@@ -243,16 +243,19 @@ def test_a_machine_that_is_not_one_dof_runs_on_the_full_model(tmp_path, machine)
     freely): the reduced 1-DOF equation would still drive the hook through its ratio; the sweep
     says so and runs the full model. The free hook barely loads the drive: the speed stays
     within a per cent of the whole machine's."""
-    import shutil
+    import re
 
     from mechanism.machine.models import DEFAULT_DESCRIPTION, DEFAULT_MODEL
 
     folder = tmp_path / "loose"
-    shutil.copytree(DEFAULT_MODEL.parent, folder)
-    mjcf = folder / DEFAULT_MODEL.name
-    text = mjcf.read_text()
+    folder.mkdir()
+    text = DEFAULT_MODEL.read_text()
+    meshdir = re.search(r'meshdir="([^"]+)"', text).group(1)
+    text = text.replace(f'meshdir="{meshdir}"', f'meshdir="{(DEFAULT_MODEL.parent / meshdir).resolve()}"')
     gear = next(line for line in text.splitlines() if "coupling:" in line and 'polycoef="0 0.5' in line)
-    mjcf.write_text(text.replace(gear + "\n", ""))
+    (folder / DEFAULT_MODEL.name).write_text(text.replace(gear + "\n", ""))
+    description = re.sub(r'(?m)^model = .*$', f'model = "{DEFAULT_MODEL.name}"', DEFAULT_DESCRIPTION.read_text())
+    (folder / DEFAULT_DESCRIPTION.name).write_text(description)
     loose = mechanism.load_machine(folder / DEFAULT_DESCRIPTION.name)
     document = {"parameters": {"V": "voltage_V"}, "sweep": {"V": [12.0]}}
     result = mechanism.sweep(loose, document, duration_s=1.5)

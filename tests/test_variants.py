@@ -151,6 +151,7 @@ def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("ray")
 def test_ray_backend(tmp_path, nominal):
     ray = pytest.importorskip("ray", reason="Ray is not installed (optional: pip install 'mechanism[ray]')")
     variants = read_variants(_write(tmp_path, "v.json", {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, 0]}}))
