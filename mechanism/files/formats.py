@@ -1,0 +1,523 @@
+"""Recording files as benches write them: named numeric columns out of CSV/TSV (plain or
+``.gz``/``.bz2``/``.xz``/``.zip`` of one file), MATLAB ``.mat`` (v5 through scipy; v7.3/HDF5
+through h5py), Parquet and Feather (pyarrow), LabVIEW TDMS (npTDMS), and JSON (an array of
+records, JSON lines, or a key holding either).
+
+Every reader is bounded as :func:`mechanism.files.limits.read_bounded` is: the file's bytes
+are counted as read, a compressed stream is counted as it is decompressed (a zip bomb stops
+at the input limit, a zip member's declared size is checked first), and the values a file
+declares (matrix dimensions, row counts, channel lengths) are checked with
+:func:`~mechanism.files.limits.check_elements` before anything is allocated. A malformed
+file is one :class:`~mechanism.errors.UserError`; a missing optional library says which
+extra installs it.
+
+What comes back is a :class:`Columns`: names as the file writes them (struct fields and
+groups joined with ``.``, a MATLAB matrix's columns as ``name(:,j)``, a TDMS channel as
+``group/channel``), values as float arrays or, for text columns (ISO time stamps), lists of
+strings that :meth:`Columns.numeric` converts when a column is used. Unused columns never
+fail a read. :func:`write_columns` writes the formats the test bench offers.
+"""
+
+from __future__ import annotations
+
+import bz2
+import csv
+import gzip
+import io
+import json
+import lzma
+import math
+import os
+import zipfile
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from mechanism.errors import UserError
+from mechanism.files.limits import check_elements, max_input_bytes, read_bounded
+
+# format name -> (file name endings, optional extra or None, library, module)
+FORMATS = {
+    "csv": ((".csv", ".tsv", ".txt", ".dat"), None),
+    "mat": ((".mat",), None),
+    "parquet": ((".parquet", ".pq"), "parquet"),
+    "feather": ((".feather", ".arrow", ".ipc"), "parquet"),
+    "tdms": ((".tdms",), "tdms"),
+    "json": ((".json", ".jsonl", ".ndjson"), None),
+}
+COMPRESSIONS = (".gz", ".bz2", ".xz", ".zip")
+WRITE_FORMATS = ("csv", "csv.gz", "parquet", "mat")
+MAX_MATRIX_COLUMNS = 64  # a MATLAB matrix wider than this is not a signal table
+
+
+@dataclass
+class Columns:
+    """Named columns of one file, and the ``key: value`` metadata it carries."""
+
+    columns: dict[str, object]  # name -> float array, or a list of str (text)
+    metadata: dict[str, str] = field(default_factory=dict)
+    label: str = "recording"
+    format: str = "csv"
+    compression: str | None = None
+
+    @property
+    def names(self) -> list[str]:
+        return list(self.columns)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.columns
+
+    def length(self, name: str) -> int:
+        return len(self.columns[name])  # type: ignore[arg-type]
+
+    def numeric(self, name: str) -> np.ndarray:
+        """The column as floats; an ISO 8601 time-stamp column as seconds since the epoch."""
+        values = self.columns[name]
+        if isinstance(values, np.ndarray):
+            return values
+        return _text_to_numbers(values, f"{self.label}: column {name}")  # type: ignore[arg-type]
+
+
+def detect_format(path: str | os.PathLike) -> tuple[str, str | None]:
+    """(format, compression) from the file name; UserError for an unknown ending."""
+    name = Path(path).name.lower()
+    compression = next((c for c in COMPRESSIONS if name.endswith(c)), None)
+    if compression:
+        name = name[: -len(compression)]
+    for fmt, (endings, _) in FORMATS.items():
+        if name.endswith(endings):
+            if compression and fmt not in ("csv", "json"):
+                raise UserError(f"recording {path}: a compressed {fmt} file ({compression}) is not read; "
+                                f"{fmt} compresses inside the file")
+            return fmt, compression
+    if compression:  # rec.gz, rec.zip: text inside
+        return "csv", compression
+    known = ", ".join(e for endings, _ in FORMATS.values() for e in endings)
+    raise UserError(f"recording {path}: unknown file type; expected one of {known} (csv/tsv/json also as .gz, .bz2, .xz, .zip)")
+
+
+def read_columns(path: str | os.PathLike, what: str = "recording", records: str | None = None) -> Columns:
+    """Every column of a recording file (see the module docstring). ``records``: for JSON,
+    the key (dotted for nested objects) holding the list of records."""
+    path = Path(path)
+    label = f"{what} {path}"
+    fmt, compression = detect_format(path)
+    raw = read_bounded(path, what)
+    if compression:
+        raw = _decompress(raw, compression, label)
+    reader = {"csv": _read_csv, "mat": _read_mat, "parquet": _read_parquet, "feather": _read_feather,
+              "tdms": _read_tdms, "json": _read_json}[fmt]
+    try:
+        columns, metadata = reader(raw, label, records) if fmt == "json" else reader(raw, label)
+    except UserError:
+        raise
+    except MemoryError:
+        raise UserError(f"{label}: too large to read into memory") from None
+    except Exception as exc:  # noqa: BLE001 - a third-party reader's complaint about a malformed file
+        raise UserError(f"{label}: not a readable {fmt} file ({_one_line(exc)})") from None
+    if not columns:
+        raise UserError(f"{label}: no numeric columns found")
+    return Columns(columns, metadata, label, fmt, compression)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text[:200]
+
+
+def _needs(module: str, extension: str, extra: str, package: str):
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise UserError(f"reading {extension} needs {package}: pip install 'mechanism[{extra}]'") from None
+
+
+# -- compression ------------------------------------------------------------------------------
+
+def _decompress(raw: bytes, compression: str, label: str) -> bytes:
+    limit = max_input_bytes()
+    too_big = UserError(f"{label}: decompresses to more than the input limit of {limit // 2**20} MiB "
+                        f"(raise it with MECHANISM_MAX_INPUT_MB)")
+    if compression == ".zip":
+        try:
+            archive = zipfile.ZipFile(io.BytesIO(raw))
+            members = [m for m in archive.infolist() if not m.is_dir()]
+        except (zipfile.BadZipFile, OSError, ValueError) as exc:
+            raise UserError(f"{label}: not a readable zip archive ({_one_line(exc)})") from None
+        if len(members) != 1:
+            raise UserError(f"{label}: a zip archive must hold exactly one file, this one holds {len(members)}")
+        member = members[0]
+        if member.file_size > limit:
+            raise too_big
+        stream = archive.open(member)
+    else:
+        opener = {".gz": gzip.GzipFile, ".bz2": bz2.BZ2File, ".xz": lzma.LZMAFile}[compression]
+        stream = opener(fileobj=io.BytesIO(raw))
+    chunks, total = [], 0
+    try:
+        with stream:
+            while True:
+                chunk = stream.read(min(1 << 20, limit + 1 - total))
+                if not chunk:
+                    break
+                total += len(chunk)
+                if total > limit:
+                    raise too_big
+                chunks.append(chunk)
+    except UserError:
+        raise
+    except (OSError, EOFError, lzma.LZMAError, zipfile.BadZipFile, ValueError, RuntimeError) as exc:
+        raise UserError(f"{label}: corrupt or truncated {compression} data ({_one_line(exc)})") from None
+    return b"".join(chunks)
+
+
+# -- text tables --------------------------------------------------------------------------------
+
+def _text_to_numbers(values: Sequence[str], label: str) -> np.ndarray:
+    out = np.empty(len(values))
+    stamps = False
+    for i, cell in enumerate(values):
+        cell = cell.strip()
+        try:
+            out[i] = float(cell)
+            if not stamps:
+                continue
+        except ValueError:
+            pass
+        try:
+            stamp = datetime.fromisoformat(cell.replace("Z", "+00:00"))
+        except ValueError:
+            raise UserError(f"{label}, value {i + 1}: not a number ({cell[:20]!r})") from None
+        if i and not stamps:
+            raise UserError(f"{label}, value {i + 1}: a time stamp among numbers ({cell[:20]!r})")
+        stamps = True
+        out[i] = stamp.timestamp()
+    if not np.all(np.isfinite(out)):
+        i = int(np.flatnonzero(~np.isfinite(out))[0])
+        raise UserError(f"{label}, value {i + 1}: NaN or inf is not allowed")
+    return out
+
+
+def _read_csv(raw: bytes, label: str):
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise UserError(f"{label}: not UTF-8 text") from None
+    del raw
+    lines = text.splitlines()
+    metadata: dict[str, str] = {}
+    start = 0
+    while start < len(lines) and (lines[start].lstrip().startswith("#") or not lines[start].strip()):
+        comment = lines[start].lstrip().lstrip("#").strip()
+        if ":" in comment:
+            key, value = comment.split(":", 1)
+            metadata[key.strip()] = value.strip()
+        start += 1
+    if start >= len(lines):
+        raise UserError(f"{label}: empty (no header line)")
+    first = lines[start]
+    delimiter = "\t" if "\t" in first else (";" if ";" in first and "," not in first else ",")
+    rows = csv.reader(lines[start:], delimiter=delimiter)
+    try:
+        header = [name.strip() for name in next(rows)]
+    except csv.Error as exc:
+        raise UserError(f"{label}: cannot read the header line ({exc})") from None
+    if len(set(header)) != len(header):
+        raise UserError(f"{label}: duplicated column names in the header")
+    check_elements(float(len(lines) - start) * len(header), label)
+    cells: list[list[str]] = [[] for _ in header]
+    try:
+        for row_number, row in enumerate(rows, start=start + 2):
+            if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            if len(row) != len(header):
+                raise UserError(f"{label}: line {row_number} has {len(row)} fields, the header has {len(header)}")
+            for column, cell in zip(cells, row):
+                column.append(cell)
+    except csv.Error as exc:
+        raise UserError(f"{label}: malformed CSV ({exc})") from None
+    columns: dict[str, object] = {}
+    for name, values in zip(header, cells):
+        try:
+            array = np.array(values, dtype=float)
+        except ValueError:
+            columns[name] = values  # text: converted (time stamps) or refused when used
+            continue
+        columns[name] = array
+    return columns, metadata
+
+
+# -- JSON ---------------------------------------------------------------------------------------
+
+def _read_json(raw: bytes, label: str, records: str | None):
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise UserError(f"{label}: not UTF-8 text") from None
+    del raw
+    stripped = text.lstrip()
+    try:
+        if stripped.startswith("[") or (stripped.startswith("{") and "\n{" not in stripped.rstrip()):
+            data = json.loads(text)
+        else:  # JSON lines
+            data = [json.loads(line) for line in text.splitlines() if line.strip()]
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise UserError(f"{label}: not valid JSON ({_one_line(exc)})") from None
+    if records:
+        for key in records.split("."):
+            if not isinstance(data, dict) or key not in data:
+                found = ", ".join(list(data)[:12]) if isinstance(data, dict) else type(data).__name__
+                raise UserError(f"{label}: no key {key!r} holding the records (records = {records!r}); found {found}")
+            data = data[key]
+    if isinstance(data, dict) and data and all(isinstance(v, list) for v in data.values()):
+        flat_columns = {str(k): v for k, v in data.items()}  # columns of values
+    elif isinstance(data, list):
+        if not data:
+            raise UserError(f"{label}: no records")
+        flat_columns = {}
+        check_elements(float(len(data)) * max(1, len(data[0]) if isinstance(data[0], dict) else 1), label)
+        for i, record in enumerate(data):
+            if not isinstance(record, dict):
+                raise UserError(f"{label}: record {i + 1} is {type(record).__name__}, expected an object of named values")
+            for name, value in _flatten(record).items():
+                column = flat_columns.setdefault(name, [None] * i)
+                column.append(value)
+            for column in flat_columns.values():
+                if len(column) < i + 1:
+                    column.append(None)
+    else:
+        hint = "; name the key holding them with records = \"...\"" if isinstance(data, dict) else ""
+        raise UserError(f"{label}: expected a list of records{hint}")
+    columns: dict[str, object] = {}
+    for name, values in flat_columns.items():
+        if any(v is None for v in values):
+            continue  # not in every record: not a signal
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            columns[name] = np.asarray(values, dtype=float)
+        elif all(isinstance(v, str) for v in values):
+            columns[name] = list(values)
+    return columns, {}
+
+
+def _flatten(record: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in record.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+# -- MATLAB -------------------------------------------------------------------------------------
+
+def _read_mat(raw: bytes, label: str):
+    if raw[:128].find(b"MATLAB 7.3") >= 0 or raw[:8] == b"\x89HDF\r\n\x1a\n" or raw[512:520] == b"\x89HDF\r\n\x1a\n":
+        return _read_mat73(raw, label)
+    import scipy.io
+
+    try:
+        found = scipy.io.whosmat(io.BytesIO(raw))
+    except Exception as exc:  # noqa: BLE001
+        raise UserError(f"{label}: not a readable MATLAB file ({_one_line(exc)})") from None
+    check_elements(float(sum(math.prod(shape) for _, shape, _ in found)), label)
+    data = scipy.io.loadmat(io.BytesIO(raw), squeeze_me=True, struct_as_record=False, mat_dtype=False)
+    columns: dict[str, object] = {}
+    metadata: dict[str, str] = {}
+    for name, value in data.items():
+        if isinstance(value, str):
+            metadata[name.removeprefix("meta_")] = value
+        elif not name.startswith("__"):
+            _mat_value(columns, name, value, label)
+    return columns, metadata
+
+
+def _mat_value(columns: dict, name: str, value, label: str, depth: int = 0) -> None:
+    from scipy.io.matlab import mat_struct
+
+    if depth > 8:
+        return
+    if isinstance(value, mat_struct):
+        for key in value._fieldnames:
+            _mat_value(columns, f"{name}.{key}", getattr(value, key), label, depth + 1)
+        return
+    if isinstance(value, np.ndarray) and value.dtype == object:
+        if value.ndim == 1 and value.size <= MAX_MATRIX_COLUMNS:
+            for i, item in enumerate(value):
+                _mat_value(columns, f"{name}({i + 1})", item, label, depth + 1)
+        return
+    _numeric_array(columns, name, value)
+
+
+def _numeric_array(columns: dict, name: str, value) -> None:
+    array = np.asarray(value)
+    if array.dtype.kind not in "iufb" or array.size < 2:
+        return
+    array = array.astype(float)
+    if array.ndim == 1:
+        columns[name] = array
+    elif array.ndim == 2:
+        if array.shape[1] > array.shape[0]:
+            array = array.T
+        if array.shape[1] == 1:
+            columns[name] = array[:, 0]
+        elif array.shape[1] <= MAX_MATRIX_COLUMNS:
+            for j in range(array.shape[1]):
+                columns[f"{name}(:,{j + 1})"] = array[:, j].copy()
+
+
+def _read_mat73(raw: bytes, label: str):
+    h5py = _needs("h5py", ".mat v7.3", "mat73", "h5py")
+    columns: dict[str, object] = {}
+    with h5py.File(io.BytesIO(raw), "r") as handle:
+        datasets = []
+
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset) and not name.startswith("#"):
+                datasets.append((name, obj))
+
+        handle.visititems(visit)
+        check_elements(float(sum(math.prod(d.shape) for _, d in datasets)), label)
+        for name, dataset in datasets:
+            kind = dataset.attrs.get("MATLAB_class", b"double")
+            kind = kind.decode() if isinstance(kind, bytes) else str(kind)
+            if kind in ("char", "cell", "struct", "logical") or dataset.dtype.kind not in "iuf":
+                continue
+            _numeric_array(columns, name.replace("/", "."), np.asarray(dataset[()]))
+    return columns, {}
+
+
+# -- Arrow --------------------------------------------------------------------------------------
+
+def _arrow_columns(table, label: str) -> dict:
+    columns: dict[str, object] = {}
+    for name in table.column_names:
+        column = table.column(name)
+        kind = str(column.type)
+        if kind.startswith(("int", "uint", "float", "double", "halffloat", "bool")):
+            if column.null_count:
+                continue
+            columns[name] = np.asarray(column.to_numpy(), dtype=float)
+        elif kind.startswith("timestamp"):
+            columns[name] = column.cast("int64").to_numpy().astype(float) * _timestamp_seconds(kind)
+        elif kind in ("string", "large_string"):
+            columns[name] = [str(v) for v in column.to_pylist()]
+    return columns
+
+
+def _timestamp_seconds(kind: str) -> float:
+    unit = kind[len("timestamp["):].split(",")[0].rstrip("]")
+    return {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}.get(unit, 1e-9)
+
+
+def _read_parquet(raw: bytes, label: str):
+    _needs("pyarrow", ".parquet", "parquet", "pyarrow")
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    handle = pq.ParquetFile(pa.BufferReader(raw))
+    meta = handle.metadata
+    check_elements(float(meta.num_rows) * meta.num_columns, label)
+    total = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+    if total > max_input_bytes():
+        raise UserError(f"{label}: declares {total / 2**20:.3g} MiB of data, more than the input limit of "
+                        f"{max_input_bytes() // 2**20} MiB (raise it with MECHANISM_MAX_INPUT_MB)")
+    table = handle.read()
+    metadata = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (table.schema.metadata or {}).items()
+                if not k.startswith(b"ARROW:") and k != b"pandas"}
+    return _arrow_columns(table, label), metadata
+
+
+def _read_feather(raw: bytes, label: str):
+    _needs("pyarrow", ".feather", "parquet", "pyarrow")
+    import pyarrow as pa
+    import pyarrow.ipc as ipc
+
+    reader = ipc.open_file(pa.BufferReader(raw))
+    batches, total = [], 0
+    for i in range(reader.num_record_batches):
+        batch = reader.get_batch(i)
+        total += batch.num_rows * batch.num_columns
+        check_elements(float(total), label)
+        batches.append(batch)
+    return _arrow_columns(pa.Table.from_batches(batches, schema=reader.schema), label), {}
+
+
+# -- LabVIEW TDMS -------------------------------------------------------------------------------
+
+def _read_tdms(raw: bytes, label: str):
+    nptdms = _needs("nptdms", ".tdms", "tdms", "npTDMS")
+    meta = nptdms.TdmsFile.read_metadata(io.BytesIO(raw))
+    channels = [c for g in meta.groups() for c in g.channels()]
+    check_elements(float(sum(len(c) for c in channels)), label)
+    data = nptdms.TdmsFile.read(io.BytesIO(raw))
+    columns: dict[str, object] = {}
+    names = [c.name for g in data.groups() for c in g.channels()]
+    for group in data.groups():
+        for channel in group.channels():
+            values = channel[:]
+            if len(values) < 2:
+                continue
+            if np.asarray(values).dtype.kind == "M":  # LabVIEW time stamps
+                array = np.asarray(values).astype("datetime64[ns]").astype(np.int64) * 1e-9
+            elif np.asarray(values).dtype.kind in "iufb":
+                array = np.asarray(values, dtype=float)
+            else:
+                continue
+            columns[f"{group.name}/{channel.name}"] = array
+            if names.count(channel.name) == 1 and channel.name not in columns:
+                columns[channel.name] = array  # a unique channel name alone is enough
+            if "wf_increment" in channel.properties and f"{channel.name}.time" not in columns:
+                columns[f"{group.name}/{channel.name}.time"] = channel.time_track()
+    return columns, {}
+
+
+# -- writing (the test bench) -------------------------------------------------------------------
+
+def write_columns(path: str | os.PathLike, columns: Mapping[str, np.ndarray], comments: Sequence[str] = (),
+                  fmt: str = "csv", metadata: Mapping[str, str] | None = None) -> Path:
+    """Write named columns (units in the names) as ``fmt`` (one of :data:`WRITE_FORMATS`),
+    atomically. CSV carries ``comments`` as ``#`` lines; Parquet and MAT carry ``metadata``
+    (``key: value``) in the file's own metadata / a ``metadata`` text variable."""
+    from mechanism.files.outputs import atomic_file, atomic_path
+    from mechanism.files.tables import write_table
+
+    path = Path(path)
+    metadata = dict(metadata or {})
+    if fmt == "csv":
+        return write_table(path, columns, comments=comments, fmt="%.10g")
+    if fmt == "csv.gz":
+        text = io.StringIO()
+        for line in comments:
+            text.write(f"# {line}\n")
+        writer = csv.writer(text, lineterminator="\n")
+        writer.writerow(list(columns))
+        for row in np.column_stack([np.asarray(v, dtype=float) for v in columns.values()]):
+            writer.writerow(["%.10g" % v for v in row])
+        with atomic_file(path, "wb") as handle:
+            handle.write(gzip.compress(text.getvalue().encode(), mtime=0))
+        return path
+    if fmt == "parquet":
+        pa = _needs("pyarrow", ".parquet", "parquet", "pyarrow")
+        import pyarrow.parquet as pq
+
+        table = pa.table({k: np.asarray(v, dtype=float) for k, v in columns.items()})
+        table = table.replace_schema_metadata({k.encode(): str(v).encode() for k, v in metadata.items()})
+        with atomic_path(path) as temporary:
+            pq.write_table(table, temporary)
+        return path
+    if fmt == "mat":
+        import scipy.io
+
+        data = {k: np.asarray(v, dtype=float).reshape(-1, 1) for k, v in columns.items()}
+        data.update({f"meta_{k}": str(v) for k, v in metadata.items()})
+        with atomic_file(path, "wb") as handle:
+            scipy.io.savemat(handle, data, do_compression=True)
+        return path
+    raise UserError(f"unknown recording format {fmt!r}; one of {', '.join(WRITE_FORMATS)}")
