@@ -137,6 +137,11 @@ def _needs(module: str, extension: str, extra: str, package: str):
         raise UserError(f"reading {extension} needs {package}: pip install 'mechanism[{extra}]'") from None
 
 
+def require_pyarrow(extension: str = ".parquet"):
+    """pyarrow, or the one-line error naming the extra that installs it."""
+    return _needs("pyarrow", extension, "parquet", "pyarrow")
+
+
 # -- compression ------------------------------------------------------------------------------
 
 def _decompress(raw: bytes, compression: str, label: str) -> bytes:
@@ -156,8 +161,9 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
             raise too_big
         stream = archive.open(member)
     else:
-        opener = {".gz": gzip.GzipFile, ".bz2": bz2.BZ2File, ".xz": lzma.LZMAFile}[compression]
-        stream = opener(fileobj=io.BytesIO(raw))
+        source = io.BytesIO(raw)
+        stream = (gzip.GzipFile(fileobj=source) if compression == ".gz"
+                  else bz2.BZ2File(source) if compression == ".bz2" else lzma.LZMAFile(source))
     chunks, total = [], 0
     try:
         with stream:

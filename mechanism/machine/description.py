@@ -168,7 +168,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "voltage": _name("motor voltage [V] after the expression (default: voltage, voltage_V)"),
         "shaft_angle": _name("the described shaft's angle, a column or expression (default: shaft_angle, arm_angle, ..._rad)"),
         "shaft_angle_unit": Key(str, "unit of shaft_angle (default rad)", choices=("rad", "deg", "rev", "counts", "m", "mm")),
-        "counts_per_rev": Key(int, "encoder counts per shaft turn: the unit of counts, and the encoder resolution", low=4, high=2**31),
+        "counts_per_rev": Key(int, "encoder counts per shaft turn: the unit of counts, and the encoder resolution", low=4, high=1e9),
         "travel_per_rev_mm": _positive("with m or mm: travel per shaft turn [mm] (a screw's lead, a pulley's circumference)", high=1e6),
         "direction": Key(int, "+1, or -1 to flip the sign: shaft_angle = direction * angle + offset_rad", low=-1, high=1),
         "offset_rad": Key(float, "added after the direction [rad]", low=-1e6, high=1e6),

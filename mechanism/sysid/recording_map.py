@@ -67,8 +67,9 @@ def _check_table(table, source: str) -> dict:
         raise UserError(f"{where} shaft_angle_unit = \"{unit}\" needs travel_per_rev_mm (travel per shaft turn: a screw's "
                         "lead, a pulley's circumference)")
     for key in ("time", "voltage", "shaft_angle", "current"):
-        if key in checked:
-            parse_expression(checked[key], f"{where} {key}")
+        text = checked.get(key)
+        if text is not None and _OPERATOR.search(_QUOTED.sub("x", text)):
+            parse_expression(text, f"{where} {key}")  # a plain name may be a file's column: checked when read
     return checked
 
 
@@ -102,6 +103,7 @@ def resolve_recording_map(description=None, map_path: str | Path | None = None) 
 # -- expressions --------------------------------------------------------------------------------
 
 _QUOTED = re.compile(r"`([^`]+)`")
+_OPERATOR = re.compile(r"[-+*/%@&|^<>=,!~\s]")
 
 
 def parse_expression(text: str, where: str) -> tuple[ast.Expression, dict[str, str]]:
