@@ -439,3 +439,15 @@ def test_recording_map_object_is_accepted_as_is(tmp_path, truth):
     path.write_text(csv_text(truth, names=("T", "V", "A", "I")))
     rec = read_recording(path, RecordingMap({"time": "T", "voltage": "V", "shaft_angle": "A", "current": "I"}, "code"))
     check_same(rec, truth)
+
+
+def test_the_readmes_column_maps_are_valid_maps(tmp_path):
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    blocks = [block.split("```", 1)[0] for block in readme.split("```toml")[1:]]
+    maps = [b for b in blocks if "[recording]" in b]
+    assert len(maps) >= 5  # one per format
+    for block in maps:
+        text = "\n".join(line.strip() for line in block.splitlines() if not line.strip().startswith("#"))
+        path = tmp_path / "m.toml"
+        path.write_text(text)
+        assert read_recording_map(path).table  # every key known, every value in range
