@@ -451,3 +451,33 @@ def test_the_readmes_column_maps_are_valid_maps(tmp_path):
         path = tmp_path / "m.toml"
         path.write_text(text)
         assert read_recording_map(path).table  # every key known, every value in range
+
+
+def test_matrix_columns_headerless_text_and_json_quirks(tmp_path, truth):
+    import scipy.io
+
+    # one N x 3 matrix (t, u, y): its columns by MATLAB's 1-based name or numpy's 0-based one
+    scipy.io.savemat(tmp_path / "m.mat", {"data": np.column_stack([truth["time"], truth["voltage"], truth["angle"]])})
+    for names in (("data(:,1)", "data(:,2)", "data(:,3)"), ("data[:, 0]", "data[1]", "data(3)")):
+        mapping = map_file(tmp_path, 'time = "%s"\nvoltage = "%s"\nshaft_angle = "%s"\n' % names)
+        check_same(read_recording(tmp_path / "m.mat", mapping), truth)
+    # a headerless whitespace table: col1, col2, ...
+    rows = "\n".join(f"{a:.12g}  {b:.12g}\t{c:.12g}" for a, b, c in zip(truth["time"], truth["voltage"], truth["angle"]))
+    (tmp_path / "r.dat").write_text(rows.replace("\t", "  ") + "\n")
+    check_same(read_recording(tmp_path / "r.dat", map_file(tmp_path, 'time = "col1"\nvoltage = "col2"\nshaft_angle = "col3"\n')),
+               truth)
+    # semicolons and decimal commas, as a European spreadsheet writes them
+    rows = "\n".join(f"{a:.12g};{b:.12g};{c:.12g}".replace(".", ",") for a, b, c in zip(truth["time"], truth["voltage"], truth["angle"]))
+    (tmp_path / "r.csv").write_text("time;voltage;arm_angle\n" + rows + "\n")
+    check_same(read_recording(tmp_path / "r.csv"), truth)
+    # JSON: the one list of records found without records =, numbers as text, ISO time stamps
+    stamps = [f"2026-11-26T17:00:{t:09.6f}+00:00" for t in truth["time"]]
+    entries = [{"t": s, "v": str(u), "pos": {"rad": a}} for s, u, a in zip(stamps, truth["voltage"], truth["angle"])]
+    (tmp_path / "r.json").write_text(json.dumps({"meta": {"rate": 1000}, "log": entries}))
+    rec = read_recording(tmp_path / "r.json", map_file(tmp_path, 'time = "t"\nvoltage = "v"\nshaft_angle = "pos.rad"\n'))
+    check_same(rec, truth, angle_tol=1e-9)
+    # a record without a field: named when the field is used
+    del entries[7]["v"]
+    (tmp_path / "r.json").write_text(json.dumps(entries))
+    with pytest.raises(UserError, match="column v: missing from record 8"):
+        read_recording(tmp_path / "r.json", map_file(tmp_path, 'time = "t"\nvoltage = "v"\nshaft_angle = "pos.rad"\n'))

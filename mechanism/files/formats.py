@@ -28,6 +28,7 @@ import json
 import lzma
 import math
 import os
+import re
 import zipfile
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -67,18 +68,39 @@ class Columns:
     def names(self) -> list[str]:
         return list(self.columns)
 
+    def find(self, name: str) -> str | None:
+        """The column's name as stored: ``name`` itself, or a matrix column written
+        ``m[:, 0]``/``m[0]`` (0-based) or ``m(1)`` for ``m(:,1)`` (MATLAB's 1-based form)."""
+        if name in self.columns:
+            return name
+        compact = name.replace(" ", "")
+        if compact in self.columns:
+            return compact
+        match = _INDEXED.match(compact)
+        if match:
+            base, index = match.group(1), int(match.group(3))
+            column = index + 1 if match.group(2) == "[" else index
+            for candidate in (f"{base}(:,{column})", f"{base}({column})"):
+                if candidate in self.columns:
+                    return candidate
+        return None
+
     def __contains__(self, name: str) -> bool:
-        return name in self.columns
+        return self.find(name) is not None
 
     def length(self, name: str) -> int:
-        return len(self.columns[name])  # type: ignore[arg-type]
+        return len(self.columns[self.find(name) or name])  # type: ignore[arg-type]
 
     def numeric(self, name: str) -> np.ndarray:
-        """The column as floats; an ISO 8601 time-stamp column as seconds since the epoch."""
+        """The column as floats; an ISO 8601 time-stamp column as seconds since its first stamp."""
+        name = self.find(name) or name
         values = self.columns[name]
         if isinstance(values, np.ndarray):
             return values
         return _text_to_numbers(values, f"{self.label}: column {name}")  # type: ignore[arg-type]
+
+
+_INDEXED = re.compile(r"^(.+?)([\[(])(?::,)?(\d+)[\])]$")
 
 
 def detect_format(path: str | os.PathLike) -> tuple[str, str | None]:
@@ -187,8 +209,11 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
 def _text_to_numbers(values: Sequence[str], label: str) -> np.ndarray:
     out = np.empty(len(values))
     stamps = False
+    first = None
     for i, cell in enumerate(values):
-        cell = cell.strip()
+        if cell is None:
+            raise UserError(f"{label}: missing from record {i + 1}")
+        cell = str(cell).strip()
         try:
             out[i] = float(cell)
             if not stamps:
@@ -202,7 +227,12 @@ def _text_to_numbers(values: Sequence[str], label: str) -> np.ndarray:
         if i and not stamps:
             raise UserError(f"{label}, value {i + 1}: a time stamp among numbers ({cell[:20]!r})")
         stamps = True
-        out[i] = stamp.timestamp()
+        if first is None:
+            first = stamp
+        try:
+            out[i] = (stamp - first).total_seconds()  # exact to the microsecond, unlike epoch seconds in a float
+        except TypeError:
+            raise UserError(f"{label}, value {i + 1}: time stamps with and without a time zone") from None
     if not np.all(np.isfinite(out)):
         i = int(np.flatnonzero(~np.isfinite(out))[0])
         raise UserError(f"{label}, value {i + 1}: NaN or inf is not allowed")
@@ -227,18 +257,26 @@ def _read_csv(raw: bytes, label: str):
     if start >= len(lines):
         raise UserError(f"{label}: empty (no header line)")
     first = lines[start]
-    delimiter = "\t" if "\t" in first else (";" if ";" in first and "," not in first else ",")
-    rows = csv.reader(lines[start:], delimiter=delimiter)
+    delimiter = "\t" if "\t" in first else ";" if ";" in first else "," if "," in first else None
+    if delimiter is None:  # columns separated by spaces (.dat, .txt)
+        rows = (line.split() for line in lines[start:])
+    else:
+        rows = csv.reader(lines[start:], delimiter=delimiter)
     try:
         header = [name.strip() for name in next(rows)]
     except csv.Error as exc:
         raise UserError(f"{label}: cannot read the header line ({exc})") from None
+    headerless = all(_is_number(name, delimiter) for name in header)
+    if headerless:  # numbers only: the columns are col1, col2, ...
+        rows = (row for rows_ in ([header], rows) for row in rows_)
+        header = [f"col{j + 1}" for j in range(len(header))]
+        metadata["columns"] = "none in the file: named col1, col2, ..."
     if len(set(header)) != len(header):
         raise UserError(f"{label}: duplicated column names in the header")
     check_elements(float(len(lines) - start) * len(header), label)
     cells: list[list[str]] = [[] for _ in header]
     try:
-        for row_number, row in enumerate(rows, start=start + 2):
+        for row_number, row in enumerate(rows, start=start + (1 if headerless else 2)):
             if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
                 continue
             if len(row) != len(header):
@@ -252,10 +290,25 @@ def _read_csv(raw: bytes, label: str):
         try:
             array = np.array(values, dtype=float)
         except ValueError:
-            columns[name] = values  # text: converted (time stamps) or refused when used
-            continue
+            if delimiter in ("\t", ";"):  # decimal commas (1,25) beside another separator
+                try:
+                    array = np.array([v.replace(",", ".") for v in values], dtype=float)
+                except ValueError:
+                    columns[name] = values
+                    continue
+            else:
+                columns[name] = values  # text: converted (time stamps) or refused when used
+                continue
         columns[name] = array
     return columns, metadata
+
+
+def _is_number(text: str, delimiter: str | None) -> bool:
+    try:
+        float(text.replace(",", ".") if delimiter in ("\t", ";") else text)
+    except ValueError:
+        return False
+    return True
 
 
 # -- JSON ---------------------------------------------------------------------------------------
@@ -266,21 +319,32 @@ def _read_json(raw: bytes, label: str, records: str | None):
     except UnicodeDecodeError:
         raise UserError(f"{label}: not UTF-8 text") from None
     del raw
-    stripped = text.lstrip()
     try:
-        if stripped.startswith("[") or (stripped.startswith("{") and "\n{" not in stripped.rstrip()):
-            data = json.loads(text)
-        else:  # JSON lines
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        if not exc.msg.startswith("Extra data"):
+            raise UserError(f"{label}: not valid JSON ({_one_line(exc)})") from None
+        try:  # JSON lines: one record per line
             data = [json.loads(line) for line in text.splitlines() if line.strip()]
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise UserError(f"{label}: not valid JSON ({_one_line(exc)})") from None
+        except json.JSONDecodeError as exc2:
+            raise UserError(f"{label}: not valid JSON lines ({_one_line(exc2)})") from None
+    except RecursionError:
+        raise UserError(f"{label}: not valid JSON (nested too deeply)") from None
+    del text
+    metadata: dict[str, str] = {}
     if records:
         for key in records.split("."):
             if not isinstance(data, dict) or key not in data:
-                found = ", ".join(list(data)[:12]) if isinstance(data, dict) else type(data).__name__
+                found = ", ".join(map(str, list(data)[:12])) if isinstance(data, dict) else type(data).__name__
                 raise UserError(f"{label}: no key {key!r} holding the records (records = {records!r}); found {found}")
             data = data[key]
+    elif isinstance(data, dict) and not all(isinstance(v, list) for v in data.values()):
+        lists = [k for k, v in data.items() if isinstance(v, list) and v and isinstance(v[0], dict)]
+        if len(lists) == 1:  # the one list of records in the object
+            metadata["records"] = str(lists[0])
+            data = data[lists[0]]
     if isinstance(data, dict) and data and all(isinstance(v, list) for v in data.values()):
+        check_elements(float(sum(len(v) for v in data.values())), label)
         flat_columns = {str(k): v for k, v in data.items()}  # columns of values
     elif isinstance(data, list):
         if not data:
@@ -301,13 +365,11 @@ def _read_json(raw: bytes, label: str, records: str | None):
         raise UserError(f"{label}: expected a list of records{hint}")
     columns: dict[str, object] = {}
     for name, values in flat_columns.items():
-        if any(v is None for v in values):
-            continue  # not in every record: not a signal
         if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             columns[name] = np.asarray(values, dtype=float)
-        elif all(isinstance(v, str) for v in values):
-            columns[name] = list(values)
-    return columns, {}
+        elif all(v is None or (isinstance(v, (int, float, str)) and not isinstance(v, bool)) for v in values):
+            columns[name] = [v if v is None else str(v) for v in values]  # numbers as text, time stamps, gaps
+    return columns, metadata
 
 
 def _flatten(record: dict, prefix: str = "") -> dict:

@@ -177,6 +177,7 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
             "largest_step_deviation_percent": 100 * deviation}
         time = grid
     else:
+        dt = duration / (len(time) - 1)  # the mean step: exact where stamps are rounded (epoch times in float)
         reading["resampling"] = {"method": "none: steps uniform within 1 %", "rate_Hz": 1.0 / dt}
         time = time[0] + dt * np.arange(len(time))
     return Recording(time, voltage, arm_angle, current, dict(metadata or {}), source, reading)

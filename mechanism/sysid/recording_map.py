@@ -68,8 +68,8 @@ def _check_table(table, source: str) -> dict:
                         "lead, a pulley's circumference)")
     for key in ("time", "voltage", "shaft_angle", "current"):
         text = checked.get(key)
-        if text is not None and _OPERATOR.search(_QUOTED.sub("x", text)):
-            parse_expression(text, f"{where} {key}")  # a plain name may be a file's column: checked when read
+        if text is not None and _clearly_an_expression(text):
+            parse_expression(text, f"{where} {key}")  # anything else may be a file's column: checked when read
     return checked
 
 
@@ -103,7 +103,25 @@ def resolve_recording_map(description=None, map_path: str | Path | None = None) 
 # -- expressions --------------------------------------------------------------------------------
 
 _QUOTED = re.compile(r"`([^`]+)`")
-_OPERATOR = re.compile(r"[-+*/%@&|^<>=,!~\s]")
+_NOT_NAMES = (ast.BoolOp, ast.Compare, ast.Lambda, ast.IfExp, ast.NamedExpr, ast.Starred, ast.Dict, ast.Set, ast.List,
+              ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp, ast.JoinedStr, ast.Await, ast.Yield)
+
+
+def _clearly_an_expression(text: str) -> bool:
+    """True for text that cannot be a column name (``a + b``, ``x ** 2``, ``a if b else c``);
+    a name with brackets or dots (``data(:,1)``, ``sig.x_screw``) waits for the file."""
+    try:
+        tree = ast.parse(_QUOTED.sub("x", text).strip(), mode="eval")
+    except SyntaxError:
+        return False  # "pwm (%)", "data(:,1)": a column's name, or an error naming the columns when read
+    for node in ast.walk(tree):
+        if isinstance(node, _NOT_NAMES):
+            return True
+        if isinstance(node, ast.BinOp) and not isinstance(node.op, (ast.Mult, ast.Div)):
+            return True
+        if isinstance(node, ast.Constant) and not isinstance(node.value, (int, float)):
+            return True
+    return False
 
 
 def parse_expression(text: str, where: str) -> tuple[ast.Expression, dict[str, str]]:
@@ -175,6 +193,7 @@ def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.nda
 
 
 def _column(columns: Columns, name: str, where: str, prepared: dict[str, np.ndarray]) -> np.ndarray:
+    name = columns.find(name) or name
     if name not in prepared:
         prepared[name] = columns.numeric(name)
     return prepared[name]
@@ -220,7 +239,7 @@ def apply_map(columns: Columns, mapping: RecordingMap | None) -> Signals:
     for name, bits in table.get("signed_bits", {}).items():
         if name not in columns:
             raise UserError(f"{where} signed_bits: no column {name!r} in {label}; did you mean {close_matches(name, columns.names)}?")
-        prepared[name] = _signed(columns.numeric(name), bits, f"{label}: column {name} (signed_bits {bits})")
+        prepared[columns.find(name) or name] = _signed(columns.numeric(name), bits, f"{label}: column {name} (signed_bits {bits})")
     if table.get("signed_bits"):
         reading["signed_bits"] = dict(table["signed_bits"])
 
@@ -239,11 +258,11 @@ def apply_map(columns: Columns, mapping: RecordingMap | None) -> Signals:
 
     time, time_from = signal("time")
     time_unit = table.get("time_unit", "s")
-    time = time * TIME_TO_S[time_unit]
     reading["time_s"] = {"from": time_from, "unit": time_unit}
-    if len(time) and abs(time[0]) > 1e6:  # epoch time stamps: seconds from the first sample
-        reading["time_s"]["shifted_by_s"] = float(-time[0])
+    if len(time) and abs(time[0] * TIME_TO_S[time_unit]) > 1e6:  # epoch time stamps: seconds from the first sample
+        reading["time_s"]["shifted_by_s"] = float(-time[0] * TIME_TO_S[time_unit])
         time = time - time[0]
+    time = time * TIME_TO_S[time_unit]
     voltage, voltage_from = signal("voltage")
     reading["voltage_V"] = {"from": voltage_from, "unit": "V"}
     angle, angle_from = signal("shaft_angle")
