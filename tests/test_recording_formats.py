@@ -184,8 +184,10 @@ def test_a_servo_json_log_with_jitter_is_resampled_and_says_how(tmp_path, truth)
     assert rec.reading["time_s"]["shifted_by_s"] == pytest.approx(-(1.7e9 + t[0]), rel=1e-12)
     # on the grid: the angle is the log's interpolated linearly, the voltage the last logged value
     grid = rec.time_s
-    assert np.allclose(rec.arm_angle_rad, np.interp(grid, t - t[0], angle), atol=1e-6)
-    last = np.searchsorted(t - t[0], grid + 1e-9, side="right") - 1
+    stamps = np.array([e["timestamp"] for e in entries])
+    logged = (stamps - stamps[0]) / 1000  # the log's own times, as rounded in it
+    assert np.allclose(rec.arm_angle_rad, np.interp(grid, logged, angle), atol=1e-6)
+    last = np.searchsorted(logged, grid + 1e-6 * rec.dt, side="right") - 1
     assert np.allclose(rec.voltage_V, volts[last], atol=1e-9)
     mapping_lines = map_file(tmp_path, SERVO_MAP.replace('records = "entries"\n', ""))
     other = read_recording(tmp_path / "servo.jsonl", mapping_lines)
@@ -481,3 +483,23 @@ def test_matrix_columns_headerless_text_and_json_quirks(tmp_path, truth):
     (tmp_path / "r.json").write_text(json.dumps(entries))
     with pytest.raises(UserError, match="column v: missing from record 8"):
         read_recording(tmp_path / "r.json", map_file(tmp_path, 'time = "t"\nvoltage = "v"\nshaft_angle = "pos.rad"\n'))
+
+
+def test_a_mapped_log_reads_as_its_hand_conversion_whatever_the_time_stamps(tmp_path, truth):
+    """The same servo log as JSON (epoch ms) through the map, and hand-converted to CSV with
+    relative or epoch seconds: the same grid, voltage and angle (the grid's step must not
+    depend on how the stamps were rounded; the median step did, by half a sample a minute)."""
+    _, _, _, entries = servo_log(truth, seed=4)
+    (tmp_path / "servo.json").write_text(json.dumps({"entries": entries}))
+    rec = read_recording(tmp_path / "servo.json", map_file(tmp_path, SERVO_MAP))
+    stamps = np.array([e["timestamp"] for e in entries])
+    load = np.array([e["load"] for e in entries])
+    volts = np.where(load >= 32768, load - 65536, load) * 12.0 / 885
+    angle = np.array([e["position"] for e in entries]) * TWO_PI / COUNTS
+    for seconds in ((stamps - stamps[0]) / 1000, stamps / 1000):
+        rows = "\n".join(f"{float(a)!r},{float(b)!r},{float(c)!r}" for a, b, c in zip(seconds, volts, angle))
+        (tmp_path / "hand.csv").write_text("time,voltage,arm_angle\n" + rows + "\n")
+        hand = read_recording(tmp_path / "hand.csv")
+        assert len(hand) == len(rec) and hand.dt == pytest.approx(rec.dt, rel=1e-7)  # epoch seconds hold 2.4e-7 s
+        assert np.array_equal(hand.voltage_V, rec.voltage_V)
+        assert np.allclose(hand.arm_angle_rad, rec.arm_angle_rad, atol=1e-9)

@@ -14,7 +14,7 @@ are read into the same contract; ``shaft_angle`` is the generic name of ``arm_an
 Every problem a user can fix is a :class:`~mechanism.errors.UserError` (exit 2): a missing
 column, non-numeric/NaN/inf values, time that is not strictly increasing (duplicated or
 decreasing), fewer than :data:`MIN_DURATION_S` of data, a gap in the sampling. Slightly
-irregular sampling (logger jitter) is resampled onto a uniform grid at the median rate.
+irregular sampling (logger jitter) is resampled onto a uniform grid at the mean step.
 
 Velocity: the encoder angle is quantised to 2*pi/20000 rad; differencing it at 1 kHz gives
 0.31 rad/s steps. :func:`smoothed_velocity` is a Savitzky-Golay differentiator (a local
@@ -164,20 +164,24 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
         arm_angle = np.unwrap(arm_angle)
         reading.setdefault("shaft_angle_rad", {})["unwrapped"] = "yes: found wrapped (jumps of more than pi)"
     deviation = float(np.max(np.abs(steps - dt)) / dt)
+    # the grid's step: the mean step (duration / intervals), which float rounding of large time
+    # stamps (epoch seconds or ms) moves by 1e-16 of the duration, where it moves the median
+    # step by a whole rounding quantum (2.4e-7 s at 1.7e9 s): half a sample over a minute at 190 Hz
+    dt = duration / (len(time) - 1)
     if deviation > 0.01:
         grid = time[0] + dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
-        hold = np.clip(np.searchsorted(time, grid, side="right") - 1, 0, len(time) - 1)
+        # a grid point within a millionth of a step of a sample is at it (rounding decides nothing)
+        hold = np.clip(np.searchsorted(time, grid + 1e-6 * dt, side="right") - 1, 0, len(time) - 1)
         voltage = voltage[hold]  # the logged voltage is held between samples
         arm_angle = np.interp(grid, time, arm_angle)
         current = np.interp(grid, time, current) if current is not None else None
         reading["resampling"] = {
-            "method": "onto a uniform grid at the median step: voltage held from the last sample (zero-order hold), "
+            "method": "onto a uniform grid at the mean step: voltage held from the last sample (zero-order hold), "
                       "shaft angle and current interpolated linearly",
             "rate_Hz": 1.0 / dt, "samples_in": int(len(time)), "samples_out": int(len(grid)),
             "largest_step_deviation_percent": 100 * deviation}
         time = grid
     else:
-        dt = duration / (len(time) - 1)  # the mean step: exact where stamps are rounded (epoch times in float)
         reading["resampling"] = {"method": "none: steps uniform within 1 %", "rate_Hz": 1.0 / dt}
         time = time[0] + dt * np.arange(len(time))
     return Recording(time, voltage, arm_angle, current, dict(metadata or {}), source, reading)

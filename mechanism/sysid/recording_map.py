@@ -27,7 +27,7 @@ import numpy as np
 from mechanism.errors import UserError, close_matches
 from mechanism.files.formats import Columns
 
-TIME_TO_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+TIME_PER_S = {"s": 1.0, "ms": 1e3, "us": 1e6}  # divided by, as a hand conversion does (t_ms / 1000)
 ANGLE_TO_RAD = {"rad": 1.0, "deg": math.pi / 180.0, "rev": 2 * math.pi}  # counts, m, mm need a constant
 MAX_MAP_BYTES = 1 << 16
 
@@ -259,10 +259,10 @@ def apply_map(columns: Columns, mapping: RecordingMap | None) -> Signals:
     time, time_from = signal("time")
     time_unit = table.get("time_unit", "s")
     reading["time_s"] = {"from": time_from, "unit": time_unit}
-    if len(time) and abs(time[0] * TIME_TO_S[time_unit]) > 1e6:  # epoch time stamps: seconds from the first sample
-        reading["time_s"]["shifted_by_s"] = float(-time[0] * TIME_TO_S[time_unit])
+    if len(time) and abs(time[0] / TIME_PER_S[time_unit]) > 1e6:  # epoch time stamps: seconds from the first sample
+        reading["time_s"]["shifted_by_s"] = float(-time[0] / TIME_PER_S[time_unit])
         time = time - time[0]
-    time = time * TIME_TO_S[time_unit]
+    time = time / TIME_PER_S[time_unit]
     voltage, voltage_from = signal("voltage")
     reading["voltage_V"] = {"from": voltage_from, "unit": "V"}
     angle, angle_from = signal("shaft_angle")
