@@ -24,6 +24,7 @@ import bz2
 import csv
 import gzip
 import io
+import itertools
 import json
 import lzma
 import math
@@ -33,7 +34,7 @@ import zipfile
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import IO, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -130,10 +131,11 @@ def read_columns(path: str | os.PathLike, what: str = "recording", records: str 
     raw = read_bounded(path, what)
     if compression:
         raw = _decompress(raw, compression, label)
-    reader = {"csv": _read_csv, "mat": _read_mat, "parquet": _read_parquet, "feather": _read_feather,
-              "tdms": _read_tdms, "json": _read_json}[fmt]
+    readers: dict[str, Callable[[bytes, str], tuple[dict, dict]]] = {
+        "csv": _read_csv, "mat": _read_mat, "parquet": _read_parquet, "feather": _read_feather, "tdms": _read_tdms,
+        "json": lambda data, where: _read_json(data, where, records)}
     try:
-        columns, metadata = reader(raw, label, records) if fmt == "json" else reader(raw, label)
+        columns, metadata = readers[fmt](raw, label)
     except UserError:
         raise
     except MemoryError:
@@ -181,10 +183,10 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
         member = members[0]
         if member.file_size > limit:
             raise too_big
-        stream = archive.open(member)
+        stream: IO[bytes] = archive.open(member)
     else:
         source = io.BytesIO(raw)
-        stream = (gzip.GzipFile(fileobj=source) if compression == ".gz"
+        stream = (gzip.GzipFile(fileobj=source) if compression == ".gz"  # type: ignore[assignment]
                   else bz2.BZ2File(source) if compression == ".bz2" else lzma.LZMAFile(source))
     chunks, total = [], 0
     try:
@@ -258,6 +260,7 @@ def _read_csv(raw: bytes, label: str):
         raise UserError(f"{label}: empty (no header line)")
     first = lines[start]
     delimiter = "\t" if "\t" in first else ";" if ";" in first else "," if "," in first else None
+    rows: Iterator[list[str]]
     if delimiter is None:  # columns separated by spaces (.dat, .txt)
         rows = (line.split() for line in lines[start:])
     else:
@@ -266,41 +269,78 @@ def _read_csv(raw: bytes, label: str):
         header = [name.strip() for name in next(rows)]
     except csv.Error as exc:
         raise UserError(f"{label}: cannot read the header line ({exc})") from None
+    except StopIteration:
+        raise UserError(f"{label}: empty (no header line)") from None
     headerless = all(_is_number(name, delimiter) for name in header)
     if headerless:  # numbers only: the columns are col1, col2, ...
-        rows = (row for rows_ in ([header], rows) for row in rows_)
+        first_row = header
+        rows = itertools.chain([first_row], rows)
         header = [f"col{j + 1}" for j in range(len(header))]
         metadata["columns"] = "none in the file: named col1, col2, ..."
     if len(set(header)) != len(header):
         raise UserError(f"{label}: duplicated column names in the header")
     check_elements(float(len(lines) - start) * len(header), label)
-    cells: list[list[str]] = [[] for _ in header]
+    # cells are converted to floats every CHUNK_ROWS rows (text kept only for columns that are text)
+    columns = [_ColumnBuilder(delimiter in ("\t", ";")) for _ in header]
+    block: list[list[str]] = [[] for _ in header]
     try:
         for row_number, row in enumerate(rows, start=start + (1 if headerless else 2)):
             if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
                 continue
             if len(row) != len(header):
                 raise UserError(f"{label}: line {row_number} has {len(row)} fields, the header has {len(header)}")
-            for column, cell in zip(cells, row):
-                column.append(cell)
+            for cells, cell in zip(block, row):
+                cells.append(cell)
+            if len(block[0]) >= CHUNK_ROWS:
+                for builder, cells in zip(columns, block):
+                    builder.add(cells)
+                block = [[] for _ in header]
     except csv.Error as exc:
         raise UserError(f"{label}: malformed CSV ({exc})") from None
-    columns: dict[str, object] = {}
-    for name, values in zip(header, cells):
+    del lines
+    for builder, cells in zip(columns, block):
+        builder.add(cells)
+    return {name: builder.values() for name, builder in zip(header, columns)}, metadata
+
+
+CHUNK_ROWS = 65536
+
+
+class _ColumnBuilder:
+    """One CSV column: float chunks while every cell is a number (decimal commas too where
+    the separator is not a comma), else its cells as text."""
+
+    def __init__(self, decimal_comma: bool):
+        self.decimal_comma = decimal_comma
+        self.chunks: list[np.ndarray] = []
+        self.text: list[str] | None = None
+
+    def add(self, cells: list[str]) -> None:
+        if self.text is not None:
+            self.text.extend(cells)
+            return
         try:
-            array = np.array(values, dtype=float)
+            self.chunks.append(np.array(cells, dtype=float))
+            return
         except ValueError:
-            if delimiter in ("\t", ";"):  # decimal commas (1,25) beside another separator
-                try:
-                    array = np.array([v.replace(",", ".") for v in values], dtype=float)
-                except ValueError:
-                    columns[name] = values
-                    continue
-            else:
-                columns[name] = values  # text: converted (time stamps) or refused when used
-                continue
-        columns[name] = array
-    return columns, metadata
+            pass
+        if self.decimal_comma:
+            try:
+                self.chunks.append(np.array([c.replace(",", ".") for c in cells], dtype=float))
+                return
+            except ValueError:
+                pass
+        self.text = [repr_number(v) for chunk in self.chunks for v in chunk] + list(cells)
+        self.chunks = []
+
+    def values(self) -> object:
+        if self.text is not None:
+            return self.text
+        return np.concatenate(self.chunks) if self.chunks else np.empty(0)
+
+
+def repr_number(value: float) -> str:
+    return repr(float(value))
 
 
 def _is_number(text: str, delimiter: str | None) -> bool:
@@ -319,6 +359,8 @@ def _read_json(raw: bytes, label: str, records: str | None):
     except UnicodeDecodeError:
         raise UserError(f"{label}: not UTF-8 text") from None
     del raw
+    # every value is a Python object of about four float64s: bound them before parsing
+    check_elements(4.0 * (text.count(",") + text.count("\n") + 1), label)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -583,7 +625,7 @@ def write_columns(path: str | os.PathLike, columns: Mapping[str, np.ndarray], co
     if fmt == "mat":
         import scipy.io
 
-        data = {k: np.asarray(v, dtype=float).reshape(-1, 1) for k, v in columns.items()}
+        data: dict[str, object] = {k: np.asarray(v, dtype=float).reshape(-1, 1) for k, v in columns.items()}
         data.update({f"meta_{k}": str(v) for k, v in metadata.items()})
         with atomic_file(path, "wb") as handle:
             scipy.io.savemat(handle, data, do_compression=True)
