@@ -503,3 +503,22 @@ def test_a_mapped_log_reads_as_its_hand_conversion_whatever_the_time_stamps(tmp_
         assert len(hand) == len(rec) and hand.dt == pytest.approx(rec.dt, rel=1e-7)  # epoch seconds hold 2.4e-7 s
         assert np.array_equal(hand.voltage_V, rec.voltage_V)
         assert np.allclose(hand.arm_angle_rad, rec.arm_angle_rad, atol=1e-9)
+
+
+def test_split_cuts_at_the_gaps_into_pieces_a_fleet_reads(tmp_path, cli):
+    t = np.arange(12000) / FS
+    keep = (t < 3.0) | ((t >= 3.3) & (t < 3.4)) | ((t >= 4.0) & (t < 8.0)) | (t >= 9.0)  # 3 gaps; 0.1 s is too short
+    counts = np.floor(7.0 * t / (TWO_PI / COUNTS))
+    part = {"time": t[keep], "voltage": np.where(t < 6, 5.0, 9.0)[keep], "angle": (counts * TWO_PI / COUNTS)[keep],
+            "current": np.full(int(keep.sum()), 0.3)}
+    path = tmp_path / "gappy.csv"
+    path.write_text(csv_text(part))
+    result = cli("inspect-recording", path, "--split", tmp_path / "pieces", "--json", tmp_path / "i.json")
+    assert result.returncode == 0, result.stderr
+    assert len(json.loads((tmp_path / "i.json").read_text())["gaps"]) == 3
+    pieces = sorted((tmp_path / "pieces").glob("*.csv"))
+    assert [p.name for p in pieces] == ["gappy_part1.csv", "gappy_part3.csv", "gappy_part4.csv"]
+    first, middle, last = (read_recording(p) for p in pieces)
+    assert first.time_s[-1] == pytest.approx(2.999) and np.allclose(first.arm_angle_rad, part["angle"][part["time"] < 3])
+    assert middle.time_s[0] == pytest.approx(4.0) and len(middle) == 4000
+    assert last.time_s[0] == pytest.approx(9.0) and last.metadata["counts_per_rev"] == "4096"

@@ -25,7 +25,10 @@ def register(subparsers) -> None:
     parser.add_argument("--machine", metavar="FILE.toml", help="machine description whose [recording] table maps the columns")
     add_recording_map_argument(parser)
     parser.add_argument("--json", metavar="OUT.json", help="write the inspection as JSON (units in every key)")
-    parser.set_defaults(handler=run, inputs=("recording", "machine", "recording_map"), outputs=("json",))
+    parser.add_argument("--split", metavar="DIR",
+                        help="cut the recording at its gaps into gap-free pieces of 2 s or more, written as CSVs (the map "
+                             "applied) into DIR: a fleet for diagnose --out (gaps are never interpolated over)")
+    parser.set_defaults(handler=run, inputs=("recording", "machine", "recording_map"), outputs=("json",), output_dirs=("split",))
 
 
 def run(args) -> int:
@@ -42,6 +45,12 @@ def run(args) -> int:
             json.dump(data, handle, indent=2)
             handle.write("\n")
     print(format_inspection(data))
+    if args.split:
+        from mechanism.sysid.inspect_recording import split_at_gaps
+
+        pieces = split_at_gaps(args.recording, args.split, recording_map_from_args(args))
+        print(f"wrote {len(pieces)} gap-free piece(s) into {args.split}: {', '.join(p.name for p in pieces)}")
+        return 0
     if not data.get("usable", False):
         problem = (data.get("problems") or ["not usable"])[0]
         sys.stderr.write(f"error: {problem}\n")

@@ -168,3 +168,43 @@ def format_inspection(data: dict) -> str:
     for problem in data.get("problems", []):
         lines.append(f"problem: {problem}")
     return "\n".join(lines)
+
+
+def split_at_gaps(path: str | os.PathLike, out_dir: str | os.PathLike, recording_map=None) -> list[Path]:
+    """Cut a recording at its gaps into gap-free pieces of at least the shortest usable
+    length, written as contract CSVs (``time_s``, ``voltage_V``, ``shaft_angle_rad``,
+    ``current_A``: the map already applied) into ``out_dir`` as ``<name>_part<k>.csv``; a
+    folder ``diagnose --out`` takes as a fleet. Pieces too short to use are left out (and
+    said so in the returned list's absence). UserError when no piece is long enough."""
+    from mechanism.files.outputs import atomic_dir
+    from mechanism.files.tables import write_table
+    from mechanism.sysid.recording import MIN_DURATION_S, sampling_gaps
+    from mechanism.sysid.recording_map import apply_map
+
+    path = Path(path)
+    columns = read_columns(path, "recording", records=recording_map.get("records") if recording_map else None)
+    signals = apply_map(columns, recording_map)
+    time = signals.time_s
+    if len(time) < 2 or np.any(np.diff(time) <= 0):
+        raise UserError(f"recording {path}: time is not strictly increasing; nothing to split")
+    _, gaps = sampling_gaps(time)
+    cuts = [int(np.searchsorted(time, at)) + 1 for at, _ in gaps]
+    bounds = list(zip([0, *cuts], [*cuts, len(time)]))
+    stem = path.name.split(".")[0]
+    counts = signals.metadata.get("counts_per_rev")
+    written: list[Path] = []
+    with atomic_dir(out_dir, keep=True) as folder:
+        for k, (a, b) in enumerate(bounds, start=1):
+            if time[b - 1] - time[a] < MIN_DURATION_S:
+                continue
+            piece = {"time_s": time[a:b], "voltage_V": signals.voltage_V[a:b], "shaft_angle_rad": signals.shaft_angle_rad[a:b]}
+            if signals.current_A is not None:
+                piece["current_A"] = signals.current_A[a:b]
+            comments = [f"piece {k} of {len(bounds)} of {path.name} between gaps: {time[a]:.6g} s to {time[b - 1]:.6g} s",
+                        *([f"counts_per_rev: {counts}"] if counts else [])]
+            target = folder / f"{stem}_part{k}.csv"
+            write_table(target, piece, comments=comments, fmt="%.12g")
+            written.append(Path(out_dir) / target.name)
+        if not written:
+            raise UserError(f"recording {path}: no piece between its {len(gaps)} gap(s) lasts {MIN_DURATION_S:g} s")
+    return written

@@ -153,8 +153,8 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
     if gaps:
         at, length = max(gaps, key=lambda g: g[1])
         raise UserError(f"{label}: {len(gaps)} gap(s) in the sampling, the longest {length:.3g} s after t = {at:.6g} s "
-                        f"(sampling is every {dt:.3g} s); a gap is not interpolated over: cut the recording there into "
-                        "pieces without gaps (mechanism inspect-recording lists them)")
+                        f"(sampling is every {dt:.3g} s); a gap is not interpolated over: mechanism inspect-recording --split DIR "
+                        "cuts it into gap-free pieces (a fleet for diagnose --out)")
     if dt > 0.01:
         raise UserError(f"{label}: sampled every {dt:.3g} s; at least 100 Hz needed to see the machine's dynamics (nominally 1 kHz)")
     jumps = np.abs(np.diff(arm_angle))
