@@ -78,10 +78,13 @@ def recording_paths(arguments: Sequence[str | os.PathLike]) -> list[Path]:
 
 def _unique_names(paths: Sequence[Path]) -> list[str]:
     """The file stems, with ``_2``, ``_3``, ... for stems that repeat (files of several folders)."""
+    from mechanism.files.formats import COMPRESSIONS
+
     names, seen = [], {}
     for path in paths:
-        seen[path.stem] = seen.get(path.stem, 0) + 1
-        names.append(path.stem if seen[path.stem] == 1 else f"{path.stem}_{seen[path.stem]}")
+        stem = Path(path.name[: -len(path.suffix)] if path.suffix.lower() in COMPRESSIONS else path.name).stem  # rec.csv.gz: rec
+        seen[stem] = seen.get(stem, 0) + 1
+        names.append(stem if seen[stem] == 1 else f"{stem}_{seen[stem]}")
     return names
 
 
