@@ -522,3 +522,14 @@ def test_split_cuts_at_the_gaps_into_pieces_a_fleet_reads(tmp_path, cli):
     assert first.time_s[-1] == pytest.approx(2.999) and np.allclose(first.arm_angle_rad, part["angle"][part["time"] < 3])
     assert middle.time_s[0] == pytest.approx(4.0) and len(middle) == 4000
     assert last.time_s[0] == pytest.approx(9.0) and last.metadata["counts_per_rev"] == "4096"
+
+
+def test_a_tdms_waveform_gives_its_time_track(tmp_path, truth):
+    nptdms = pytest.importorskip("nptdms")
+    path = tmp_path / "wave.tdms"
+    dt = 1 / FS
+    with nptdms.TdmsWriter(path) as writer:
+        writer.write_segment([nptdms.ChannelObject("Bench", name, values, properties={"wf_increment": dt, "wf_start_offset": 0.0})
+                              for name, values in (("U", truth["voltage"]), ("theta_deg", np.degrees(truth["angle"])))])
+    mapping = map_file(tmp_path, 'time = "Bench/U.time"\nvoltage = "U"\nshaft_angle = "theta_deg"\nshaft_angle_unit = "deg"\n')
+    check_same(read_recording(path, mapping), truth, angle_tol=1e-9)

@@ -13,7 +13,8 @@ extra installs it.
 
 What comes back is a :class:`Columns`: names as the file writes them (struct fields and
 groups joined with ``.``, a MATLAB matrix's columns as ``name(:,j)``, a TDMS channel as
-``group/channel``), values as float arrays or, for text columns (ISO time stamps), lists of
+``group/channel`` or its name alone when unique, a TDMS waveform's time track as
+``group/channel.time``), values as float arrays or, for text columns (ISO time stamps), lists of
 strings that :meth:`Columns.numeric` converts when a column is used. Unused columns never
 fail a read. :func:`write_columns` writes the formats the test bench offers.
 """
