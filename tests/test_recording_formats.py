@@ -533,3 +533,42 @@ def test_a_tdms_waveform_gives_its_time_track(tmp_path, truth):
                               for name, values in (("U", truth["voltage"]), ("theta_deg", np.degrees(truth["angle"])))])
     mapping = map_file(tmp_path, 'time = "Bench/U.time"\nvoltage = "U"\nshaft_angle = "theta_deg"\nshaft_angle_unit = "deg"\n')
     check_same(read_recording(path, mapping), truth, angle_tol=1e-9)
+
+
+def test_the_public_api_reads_and_inspects_with_a_map(tmp_path, truth):
+    import mechanism
+
+    path = tmp_path / "r.csv"
+    path.write_text(csv_text(truth, names=("T", "V", "A", "I")))
+    mapping = map_file(tmp_path, 'time = "T"\nvoltage = "V"\nshaft_angle = "A"\ncurrent = "I"\n')
+    check_same(mechanism.read_recording(path, recording_map=mapping), truth)
+    data = mechanism.inspect_recording(path, recording_map=mapping)
+    assert data["chosen"]["voltage_V"]["from"] == "V" and data["usable"] and data["samples"] == len(truth["time"])
+    with pytest.raises(UserError, match="missing required column"):
+        mechanism.read_recording(path)
+
+
+def test_inspect_takes_the_descriptions_table_and_the_map_file_wins(tmp_path, cli, truth):
+    import re
+
+    from mechanism.machine.models import DEFAULT_DESCRIPTION
+
+    text = Path(DEFAULT_DESCRIPTION).read_text()
+    model_line = next(line for line in text.splitlines() if line.startswith("model"))
+    model = (Path(DEFAULT_DESCRIPTION).parent / re.search(r'"([^"]+)"', model_line)[1]).resolve()
+    text = text.replace(model_line, f'model = "{model}"')
+    description = tmp_path / "m.toml"
+    description.write_text(text + '\n[recording]\ntime = "T"\nvoltage = "V"\nshaft_angle = "A_deg"\nshaft_angle_unit = "deg"\n')
+    path = tmp_path / "r.csv"
+    degrees = {**truth, "angle": np.degrees(truth["angle"])}
+    path.write_text(csv_text(degrees, names=("T", "V", "A_deg", "I")))
+    result = cli("inspect-recording", path, "--machine", description, "--json", tmp_path / "a.json")
+    assert result.returncode == 0, result.stderr
+    by_description = json.loads((tmp_path / "a.json").read_text())
+    assert by_description["map"].startswith("machine description") and by_description["chosen"]["shaft_angle_rad"]["unit"] == "deg"
+    assert by_description["ranges"]["shaft_angle_rad"]["max"] == pytest.approx(truth["angle"].max())
+    wins = map_file(tmp_path, 'time = "T"\nvoltage = "V"\nshaft_angle = "A_deg"\n')  # says rad: wrong, but it wins
+    cli("inspect-recording", path, "--machine", description, "--recording-map", wins, "--json", tmp_path / "b.json")
+    by_file = json.loads((tmp_path / "b.json").read_text())
+    assert by_file["map"].startswith("recording map") and by_file["chosen"]["shaft_angle_rad"]["unit"] == "rad"
+    assert by_file["ranges"]["shaft_angle_rad"]["max"] == pytest.approx(np.degrees(truth["angle"]).max())
