@@ -572,3 +572,13 @@ def test_inspect_takes_the_descriptions_table_and_the_map_file_wins(tmp_path, cl
     by_file = json.loads((tmp_path / "b.json").read_text())
     assert by_file["map"].startswith("recording map") and by_file["chosen"]["shaft_angle_rad"]["unit"] == "rad"
     assert by_file["ranges"]["shaft_angle_rad"]["max"] == pytest.approx(np.degrees(truth["angle"]).max())
+
+
+def test_a_mat_file_whose_compressed_variable_inflates_past_the_limit_is_refused(tmp_path, cli):
+    import scipy.io
+
+    path = tmp_path / "bomb.mat"
+    scipy.io.savemat(path, {"s": {"time": np.zeros(400_000), "voltage": np.zeros(400_000)}}, do_compression=True)
+    assert path.stat().st_size < 100_000  # 6.4 MB of zeros inside a struct (whose size whosmat does not see)
+    line = cli("inspect-recording", path, env={"MECHANISM_MAX_INPUT_MB": "1"}).assert_bad_input()
+    assert "inflates past the input limit of 1 MiB" in line

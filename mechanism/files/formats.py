@@ -433,6 +433,7 @@ def _read_mat(raw: bytes, label: str):
         return _read_mat73(raw, label)
     import scipy.io
 
+    raw = _inflate_mat5(raw, label)
     try:
         found = scipy.io.whosmat(io.BytesIO(raw))
     except Exception as exc:  # noqa: BLE001
@@ -447,6 +448,45 @@ def _read_mat(raw: bytes, label: str):
         elif not name.startswith("__"):
             _mat_value(columns, name, value, label)
     return columns, metadata
+
+
+def _inflate_mat5(raw: bytes, label: str) -> bytes:
+    """The MAT v5 file with every compressed variable inflated, bounded by the input limit
+    (a compressed variable may claim any size; scipy would inflate it whole): the file
+    scipy then reads holds every byte it can allocate from."""
+    import struct
+    import zlib
+
+    if len(raw) < 128:
+        raise UserError(f"{label}: not a MATLAB file (shorter than its 128-byte header)")
+    order = {b"IM": "<", b"MI": ">"}.get(raw[126:128])
+    if order is None:
+        raise UserError(f"{label}: not a MATLAB v5 file (no byte-order mark in the header)")
+    limit = max_input_bytes()
+    parts, total, at = [raw[:128]], 128, 128
+    while at + 8 <= len(raw):
+        kind, size = struct.unpack(order + "II", raw[at:at + 8])
+        end = at + 8 + size
+        if end > len(raw):
+            raise UserError(f"{label}: truncated (a variable claims {size} bytes, {len(raw) - at - 8} remain)")
+        if kind == 15:  # miCOMPRESSED: inflate at most what the limit leaves
+            inflater = zlib.decompressobj()
+            try:
+                element = inflater.decompress(raw[at + 8:end], limit - total + 1)
+            except zlib.error as exc:
+                raise UserError(f"{label}: corrupt compressed variable ({_one_line(exc)})") from None
+            if len(element) > limit - total:
+                raise UserError(f"{label}: a compressed variable inflates past the input limit of {limit // 2**20} MiB "
+                                f"(raise it with MECHANISM_MAX_INPUT_MB)")
+            parts.append(element)
+            total += len(element)
+            at = end
+        else:
+            padded = end + (-size % 8)
+            parts.append(raw[at:min(padded, len(raw))])
+            total += min(padded, len(raw)) - at
+            at = padded
+    return b"".join(parts)
 
 
 def _mat_value(columns: dict, name: str, value, label: str, depth: int = 0) -> None:
