@@ -27,11 +27,13 @@ import gzip
 import io
 import itertools
 import json
+import logging
 import lzma
 import math
 import os
 import re
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -184,7 +186,10 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
         member = members[0]
         if member.file_size > limit:
             raise too_big
-        stream: IO[bytes] = archive.open(member)
+        try:
+            stream: IO[bytes] = archive.open(member)
+        except (zipfile.BadZipFile, OSError, ValueError, RuntimeError, NotImplementedError, zlib.error) as exc:
+            raise UserError(f"{label}: not a readable zip archive ({_one_line(exc)})") from None
     else:
         source = io.BytesIO(raw)
         stream = (gzip.GzipFile(fileobj=source) if compression == ".gz"  # type: ignore[assignment]
@@ -202,7 +207,8 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
                 chunks.append(chunk)
     except UserError:
         raise
-    except (OSError, EOFError, lzma.LZMAError, zipfile.BadZipFile, ValueError, RuntimeError) as exc:
+    except (OSError, EOFError, lzma.LZMAError, zipfile.BadZipFile, ValueError, RuntimeError, NotImplementedError,
+            zlib.error) as exc:
         raise UserError(f"{label}: corrupt or truncated {compression} data ({_one_line(exc)})") from None
     return b"".join(chunks)
 
@@ -455,7 +461,6 @@ def _inflate_mat5(raw: bytes, label: str) -> bytes:
     (a compressed variable may claim any size; scipy would inflate it whole): the file
     scipy then reads holds every byte it can allocate from."""
     import struct
-    import zlib
 
     if len(raw) < 128:
         raise UserError(f"{label}: not a MATLAB file (shorter than its 128-byte header)")
@@ -604,15 +609,48 @@ def _read_feather(raw: bytes, label: str):
 
 def _read_tdms(raw: bytes, label: str):
     nptdms = _needs("nptdms", ".tdms", "tdms", "npTDMS")
+    from nptdms.log import log_manager
+
+    level = log_manager.log_level
+    log_manager.set_level(logging.ERROR)  # its warnings about a damaged file would be third-party text on stderr
+    try:
+        return _read_tdms_quietly(nptdms, raw, label)
+    finally:
+        log_manager.set_level(level)
+
+
+def _check_tdms_segments(raw: bytes, label: str) -> None:
+    """Each segment's lead-in states its length: a file that ends inside one is truncated
+    (npTDMS would read what is there and only log a warning)."""
+    import struct
+
+    at = 0
+    while at < len(raw):
+        lead = raw[at:at + 28]
+        if len(lead) < 28 or lead[:4] not in (b"TDSm", b"TDSh"):
+            raise UserError(f"{label}: not a TDMS file, or truncated (no segment lead-in at byte {at})")
+        order = ">" if struct.unpack("<I", lead[4:8])[0] & (1 << 6) else "<"  # kTocBigEndian
+        length = struct.unpack(order + "Q", lead[12:20])[0]
+        if at + 28 + length > len(raw):
+            raise UserError(f"{label}: truncated (a segment at byte {at} states {length} bytes, {len(raw) - at - 28} remain)")
+        at += 28 + length
+
+
+def _read_tdms_quietly(nptdms, raw: bytes, label: str):
+    _check_tdms_segments(raw, label)
     meta = nptdms.TdmsFile.read_metadata(io.BytesIO(raw))
     channels = [c for g in meta.groups() for c in g.channels()]
     check_elements(float(sum(len(c) for c in channels)), label)
+    declared = {(g.name, c.name): len(c) for g in meta.groups() for c in g.channels()}
     data = nptdms.TdmsFile.read(io.BytesIO(raw))
     columns: dict[str, object] = {}
     names = [c.name for g in data.groups() for c in g.channels()]
     for group in data.groups():
         for channel in group.channels():
             values = channel[:]
+            if len(values) < declared.get((group.name, channel.name), 0):
+                raise UserError(f"{label}: truncated (channel {group.name}/{channel.name} holds {len(values)} of its "
+                                f"{declared[(group.name, channel.name)]} values)")
             if len(values) < 2:
                 continue
             if np.asarray(values).dtype.kind == "M":  # LabVIEW time stamps
@@ -624,7 +662,7 @@ def _read_tdms(raw: bytes, label: str):
             columns[f"{group.name}/{channel.name}"] = array
             if names.count(channel.name) == 1 and channel.name not in columns:
                 columns[channel.name] = array  # a unique channel name alone is enough
-            if "wf_increment" in channel.properties and f"{channel.name}.time" not in columns:
+            if "wf_increment" in channel.properties:
                 columns[f"{group.name}/{channel.name}.time"] = channel.time_track()
     return columns, {}
 
