@@ -206,7 +206,7 @@ def test_signed_bits_turn_registers_into_twos_complement(tmp_path):
         read_recording(path, map_file(tmp_path, 'time = "t"\nsigned_bits = { reg = 16 }\nvoltage = "reg"\nshaft_angle = "pos"\n'))
 
 
-@pytest.mark.parametrize("text", ["__import__('os').system('true')", "a + b", "a.real", "a ** 2", "a if b else c",
+@pytest.mark.parametrize("text", ["__import__('os').system('true')", "a + b", "a.real()", "a ** 2", "(a * 2).real", "a if b else c",
                                   "[a]", "lambda: a", "a[0]", "'a'", "True * a"])
 def test_expressions_other_than_products_and_quotients_are_refused(text):
     with pytest.raises(UserError, match="only products and quotients|neither a column"):
@@ -479,6 +479,8 @@ def test_matrix_columns_headerless_text_and_json_quirks(tmp_path, truth):
     (tmp_path / "r.json").write_text(json.dumps({"meta": {"rate": 1000}, "log": entries}))
     rec = read_recording(tmp_path / "r.json", map_file(tmp_path, 'time = "t"\nvoltage = "v"\nshaft_angle = "pos.rad"\n'))
     check_same(rec, truth, angle_tol=1e-9)
+    doubled = read_recording(tmp_path / "r.json", map_file(tmp_path, 'time = "t"\nvoltage = "v"\nshaft_angle = "pos.rad * 2 / 2"\n'))
+    assert np.array_equal(doubled.arm_angle_rad, rec.arm_angle_rad)  # a nested field inside an expression
     # a record without a field: named when the field is used
     del entries[7]["v"]
     (tmp_path / "r.json").write_text(json.dumps(entries))

@@ -5,8 +5,9 @@ docs/machine.md).
 
 Expressions are products and quotients of columns and numbers (``load * input_volts / 885``),
 parsed with :mod:`ast` and evaluated over a whitelist of nodes: names, numbers, ``*``, ``/``,
-unary ``-``/``+`` and parentheses; never ``eval``. A column name that is not a Python name
-(``Motor/Voltage``, ``rec.Y(2).Data``) is written alone or in backquotes inside an expression.
+unary ``-``/``+``, parentheses and dotted names (``data.position``: a nested field or a struct's);
+never ``eval``. A column name that is not a Python name (``Motor/Voltage``, ``rec.Y(2).Data``)
+is written alone or in backquotes inside an expression.
 
 Units are an explicit table (the set is closed: three time units, six angle units of which
 three need a stated constant, counts_per_rev or travel_per_rev_mm); what was applied is
@@ -149,9 +150,21 @@ def parse_expression(text: str, where: str) -> tuple[ast.Expression, dict[str, s
             continue
         if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
             continue
+        if isinstance(node, ast.Attribute) and _dotted(node) is not None:  # data.position: a nested field's column
+            continue
         raise UserError(f"{where}: {text!r}: only products and quotients of columns and numbers are allowed "
                         f"(found {type(node).__name__.lower()})")
     return tree, names
+
+
+def _dotted(node) -> str | None:
+    """``a.b.c`` for a chain of attribute names on a name, else None."""
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        base = _dotted(node.value)
+        return None if base is None else f"{base}.{node.attr}"
+    return None
 
 
 def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.ndarray]) -> tuple[np.ndarray, list[str]]:
@@ -166,8 +179,8 @@ def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.nda
             return value(node.body)
         if isinstance(node, ast.Constant):
             return float(node.value)
-        if isinstance(node, ast.Name):
-            name = quoted.get(node.id, node.id)
+        if isinstance(node, (ast.Name, ast.Attribute)):
+            name = quoted.get(node.id, node.id) if isinstance(node, ast.Name) else str(_dotted(node))
             if name not in columns:
                 raise UserError(f"{where}: no column {name!r} in {columns.label}; did you mean "
                                 f"{close_matches(name, columns.names)}? (columns: {', '.join(columns.names[:20])})")
