@@ -274,6 +274,9 @@ def test_inspect_recording_reports_units_rate_encoder_and_excitation(tmp_path, c
     assert data["excitation"]["coulomb_friction"]["excited"]  # it turns both ways
     assert data["excitation"]["turns_backward"] and data["excitation"]["turns_forward"]
     assert "4096 counts/rev" in result.stdout
+    top = np.percentile(np.abs(np.gradient(truth["angle"], 1 / FS)), 99) / TWO_PI  # turns per second
+    assert data["nyquist_Hz"] == pytest.approx(FS / 2)
+    assert data["orders_per_turn_visible_at_top_speed"] == pytest.approx(FS / 2 / top, rel=0.05)
     # one constant voltage: not identifiable, said per parameter
     flat = {**truth, "voltage": np.full_like(truth["voltage"], 6.0)}
     path.write_bytes(gzip.compress(csv_text(flat).encode()))

@@ -85,6 +85,10 @@ def inspect_recording(path: str | os.PathLike, recording_map=None) -> dict:
     out["resampling"] = rec.reading.get("resampling")
     speed = smoothed_velocity(rec.arm_angle_rad, rec.dt)
     out["ranges"]["shaft_speed_rad_s"] = _range(speed)
+    top_turns_s = float(np.percentile(np.abs(speed), 99)) / (2 * math.pi)
+    out["nyquist_Hz"] = 0.5 / rec.dt
+    # a ripple of k per shaft turn is at k * turns/s: above the Nyquist frequency it cannot be seen
+    out["orders_per_turn_visible_at_top_speed"] = out["nyquist_Hz"] / top_turns_s if top_turns_s > 0 else None
     out["excitation"] = _excitation(rec, speed)
     overall = check_excitation(rec)
     out["identifiable"] = overall.identifiable
@@ -158,6 +162,9 @@ def format_inspection(data: dict) -> str:
         detected = f"{enc['counts_per_rev_detected']} counts/rev (step {enc['step_rad_detected']:.3g} rad)" \
             if enc["counts_per_rev_detected"] else "no quantisation step found"
         lines.append(f"encoder: {detected}" + (f"; stated {enc['counts_per_rev_stated']} counts/rev" if enc["counts_per_rev_stated"] else ""))
+    if data.get("orders_per_turn_visible_at_top_speed"):
+        lines.append(f"Nyquist {data['nyquist_Hz']:.4g} Hz: at the top speed, effects up to "
+                     f"{data['orders_per_turn_visible_at_top_speed']:.3g} per shaft turn can be seen")
     if data.get("resampling"):
         lines.append(f"resampling: {data['resampling']['method']}")
     if "excitation" in data:
