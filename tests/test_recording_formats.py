@@ -588,3 +588,18 @@ def test_a_mat_file_whose_compressed_variable_inflates_past_the_limit_is_refused
     assert path.stat().st_size < 100_000  # 6.4 MB of zeros inside a struct (whose size whosmat does not see)
     line = cli("inspect-recording", path, env={"MECHANISM_MAX_INPUT_MB": "1"}).assert_bad_input()
     assert "inflates past the input limit of 1 MiB" in line
+
+
+def test_even_epoch_stamps_give_the_grid_of_relative_ones(tmp_path, truth):
+    """1 kHz stamps in epoch seconds are rounded to 2.4e-7 s: their median step is off by that
+    much (14 ms over a minute), their mean step is not."""
+    rows = {}
+    for name, t in (("relative", truth["time"]), ("epoch", 1.7e9 + truth["time"])):
+        text = "time,voltage,arm_angle\n" + "\n".join(f"{float(a)!r},{float(b)!r},{float(c)!r}" for a, b, c in
+                                                      zip(t, truth["voltage"], truth["angle"]))
+        (tmp_path / f"{name}.csv").write_text(text + "\n")
+        rows[name] = read_recording(tmp_path / f"{name}.csv")
+    steps = np.diff(1.7e9 + truth["time"])
+    assert abs(np.median(steps) - 1 / FS) > 1e-8  # the trap
+    assert rows["epoch"].dt == pytest.approx(rows["relative"].dt, rel=1e-7)  # a quantum over the duration
+    assert np.allclose(rows["epoch"].time_s - rows["epoch"].time_s[0], rows["relative"].time_s, atol=1e-6)

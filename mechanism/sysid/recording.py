@@ -164,10 +164,14 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
         arm_angle = np.unwrap(arm_angle)
         reading.setdefault("shaft_angle_rad", {})["unwrapped"] = "yes: found wrapped (jumps of more than pi)"
     deviation = float(np.max(np.abs(steps - dt)) / dt)
-    # the grid's step: the mean step (duration / intervals), which float rounding of large time
-    # stamps (epoch seconds or ms) moves by 1e-16 of the duration, where it moves the median
-    # step by a whole rounding quantum (2.4e-7 s at 1.7e9 s): half a sample over a minute at 190 Hz
-    dt = duration / (len(time) - 1)
+    # the grid's step: float rounding of large time stamps (epoch seconds or ms) moves the median
+    # step by a whole rounding quantum (2.4e-7 s at 1.7e9 s: half a sample over a minute at
+    # 190 Hz) and the mean step (duration / intervals) by 1e-16 of the duration. Uneven stamps
+    # use the mean; even ones keep the median unless the two differ by more than 1e-9 of a step
+    # (a recording written with exact stamps reads bit for bit as before).
+    mean = duration / (len(time) - 1)
+    if deviation > 0.01 or abs(mean - dt) > 1e-9 * dt:
+        dt = mean
     if deviation > 0.01:
         grid = time[0] + dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
         # a grid point within a millionth of a step of a sample is at it (rounding decides nothing)
