@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ast
 import math
+import os
 import re
 import tomllib
 from dataclasses import dataclass
@@ -74,7 +75,7 @@ def _check_table(table, source: str) -> dict:
     return checked
 
 
-def read_recording_map(path: str | Path) -> RecordingMap:
+def read_recording_map(path: str | os.PathLike) -> RecordingMap:
     """A ``--recording-map FILE.toml``: a ``[recording]`` table (bounded, every key checked)."""
     from mechanism.files.limits import read_bounded
 
@@ -91,7 +92,7 @@ def read_recording_map(path: str | Path) -> RecordingMap:
     return RecordingMap(_check_table(data["recording"], source), source)
 
 
-def resolve_recording_map(description=None, map_path: str | Path | None = None) -> RecordingMap | None:
+def resolve_recording_map(description=None, map_path: str | os.PathLike | None = None) -> RecordingMap | None:
     """The map file's table if given (it wins), else the description's ``[recording]``, else None."""
     if map_path is not None:
         return read_recording_map(map_path)
