@@ -132,24 +132,49 @@ def write_bench_recording(machine: Machine | None, effects: Sequence[str], seed:
     return write_recording(recording, Path(path))[1]
 
 
-def identify(machine: Machine | None, recording: str | os.PathLike, **options):
-    """Fit the machine's lumped baseline (inertia, friction) to a bench recording."""
+def read_recording(recording: str | os.PathLike, machine: Machine | None = None,
+                   recording_map: str | os.PathLike | None = None):
+    """A bench recording in any format the readers take (CSV/TSV plain or compressed, MATLAB,
+    Parquet/Feather, TDMS, JSON), its columns and units by ``recording_map`` (a TOML with a
+    ``[recording]`` table), else by the machine description's ``[recording]``, else by the
+    default names. ``Recording.reading`` says what was read and done."""
+    from mechanism.sysid.recording import read_recording as run
+    from mechanism.sysid.recording_map import resolve_recording_map
+
+    description = machine.description if machine is not None else None
+    return run(recording, resolve_recording_map(description, recording_map))
+
+
+def inspect_recording(recording: str | os.PathLike, machine: Machine | None = None,
+                      recording_map: str | os.PathLike | None = None) -> dict:
+    """What a recording holds before any fit: columns found and chosen, units, rate, duration,
+    each signal's range, the encoder step, gaps, and whether it excites the machine enough to
+    identify each parameter (``mechanism inspect-recording``)."""
+    from mechanism.sysid.inspect_recording import inspect_recording as run
+    from mechanism.sysid.recording_map import resolve_recording_map
+
+    description = machine.description if machine is not None else None
+    return run(recording, resolve_recording_map(description, recording_map))
+
+
+def identify(machine: Machine | None, recording: str | os.PathLike, recording_map: str | os.PathLike | None = None, **options):
+    """Fit the machine's lumped baseline (inertia, friction) to a bench recording (any
+    format :func:`read_recording` takes)."""
     from mechanism.sysid.identification import identify as run
-    from mechanism.sysid.recording import read_recording
 
-    return run(read_recording(recording), nominal=drive_nominal(machine), **options)
+    return run(read_recording(recording, machine, recording_map), nominal=drive_nominal(machine), **options)
 
 
-def diagnose(machine: Machine | None, recording: str | os.PathLike, *, recording_name: str | None = None, **options):
+def diagnose(machine: Machine | None, recording: str | os.PathLike, recording_map: str | os.PathLike | None = None, *,
+             recording_name: str | None = None, **options):
     """Find the physics the machine's model is missing from a bench recording, model it, show the fit improve.
     ``recording_name``: how the outputs name the recording (default: the path as given), e.g. its
     path relative to the folder the outputs go to."""
     import dataclasses
 
     from mechanism.sysid.diagnosis import diagnose as run
-    from mechanism.sysid.recording import read_recording
 
-    rec = read_recording(recording)
+    rec = read_recording(recording, machine, recording_map)
     if recording_name is not None:
         rec = dataclasses.replace(rec, source=recording_name)
     return run(rec, nominal=drive_nominal(machine), **options)
@@ -187,6 +212,6 @@ def diagnosis_report(result, folder: str | os.PathLike) -> Path:
 
 __all__ = [
     "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
-    "conversion_summary", "convert", "diagnose", "driven_inertia_kgm2", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
+    "conversion_summary", "convert", "diagnose", "inspect_recording", "read_recording", "driven_inertia_kgm2", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
     "plot_sweep", "shipped_export", "shipped_folder", "shipped_machines", "simulate", "sweep", "view", "write_needle_csv", "write_table",
 ]

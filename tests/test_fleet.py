@@ -96,3 +96,30 @@ def test_robust_z_and_outliers():
     assert [(o["recording"], o["parameter"]) for o in found] == [("r6", "coulomb_arm_Nm")]
     assert found[0]["robust_z"] == pytest.approx(0.6745 * 2.0 / 0.05) and found[0]["robust_z"] > OUTLIER_Z
     assert find_outliers(rows[-4:]) == []  # too few recordings to call anything an outlier
+
+
+@pytest.mark.slow  # two 60 s recordings, two candidates
+def test_a_fleet_of_mat_files_with_a_recording_map_finds_what_the_csvs_conceal(cli, tmp_path):
+    import scipy.io
+
+    from mechanism.sysid.recording import read_recording
+
+    folder = tmp_path / "mats"
+    folder.mkdir()
+    names = ("clean_seed1", "torque_ripple_seed3")
+    for name in names:
+        rec = read_recording(RECORDINGS / f"{name}.csv")
+        counts = -np.round(rec.arm_angle_rad / (2 * np.pi / 20000))  # the bench counts the other way
+        scipy.io.savemat(folder / f"{name}.mat", {"t": rec.time_s, "u": rec.voltage_V, "enc": counts, "i": rec.current_A})
+        shutil.copy(RECORDINGS / f"{name}.truth.json", folder)  # JSON beside the recordings is not taken for one
+    mapping = tmp_path / "map.toml"
+    mapping.write_text('[recording]\ntime = "t"\nvoltage = "u"\nshaft_angle = "enc"\nshaft_angle_unit = "counts"\n'
+                       'counts_per_rev = 20000\ndirection = -1\ncurrent = "i"\n')
+    out = tmp_path / "out"
+    result = cli("diagnose", folder, "--recording-map", mapping, "--effects", EFFECTS, "--out", out)
+    assert result.returncode == 0, result.stderr
+    assert "2 of 2 recordings diagnosed" in result.stdout
+    for name in names:
+        data = json.loads((out / f"{name}.json").read_text())
+        assert data["final"]["effects"] == json.loads((RECORDINGS / f"{name}.truth.json").read_text())["effects"]
+        assert data["reading"]["shaft_angle_rad"]["direction"] == -1 and data["reading"]["file_format"] == "mat"

@@ -218,3 +218,81 @@ def test_convert_holds_the_contract_on_any_damaged_export(tmp_path_factory, capf
     assert_contract(code, stderr, out, expect_on_success=["fourbar.xml"])
     assert snapshot(folder) == files
     shutil.rmtree(out, ignore_errors=True)
+
+
+# -- recording files in every format (issue 26) -----------------------------------------------
+
+def _valid_recording_files(folder: Path) -> dict[str, bytes]:
+    """One small valid recording per reader, written by the format's own library."""
+    import bz2
+    import gzip
+    import io
+    import json
+    import zipfile
+
+    import numpy as np
+    import scipy.io
+
+    t = np.arange(300) / 100.0
+    columns = {"time": t, "voltage": np.where(t < 1.5, 3.0, 9.0), "arm_angle": 2.0 * t}
+    text = "time,voltage,arm_angle\n" + "\n".join(",".join(f"{c[i]:.6g}" for c in columns.values()) for i in range(len(t))) + "\n"
+    files = {".csv.gz": gzip.compress(text.encode()), ".csv.bz2": bz2.compress(text.encode()),
+             ".json": json.dumps([dict(zip(columns, map(float, row))) for row in zip(*columns.values())]).encode()}
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("r.csv", text)
+    files[".zip"] = buffer.getvalue()
+    for compress in (False, True):
+        buffer = io.BytesIO()
+        scipy.io.savemat(buffer, {"rec": columns}, do_compression=compress)
+        files[".mat" if compress else "_plain.mat"] = buffer.getvalue()
+    try:
+        import pyarrow as pa
+        import pyarrow.feather as feather
+        import pyarrow.parquet as pq
+
+        buffer = io.BytesIO()
+        pq.write_table(pa.table(columns), buffer)
+        files[".parquet"] = buffer.getvalue()
+        buffer = io.BytesIO()
+        feather.write_feather(pa.table(columns), buffer)
+        files[".feather"] = buffer.getvalue()
+    except ImportError:
+        pass
+    try:
+        import nptdms
+
+        buffer = io.BytesIO()
+        with nptdms.TdmsWriter(buffer) as writer:
+            writer.write_segment([nptdms.ChannelObject("g", k, v) for k, v in columns.items()])
+        files[".tdms"] = buffer.getvalue()
+    except ImportError:
+        pass
+    return files
+
+
+_VALID: dict[str, bytes] = {}
+
+
+@settings(FUZZ, max_examples=80)
+@given(data=st.data())
+def test_every_reader_refuses_damaged_files_in_one_line(tmp_path_factory, data):
+    """A valid file of each format, truncated and with bytes overwritten: read, or one UserError."""
+    from mechanism.files.formats import read_columns
+
+    folder = tmp_path_factory.mktemp("damaged")
+    if not _VALID:
+        _VALID.update(_valid_recording_files(folder))
+    ending = data.draw(st.sampled_from(sorted(_VALID)))
+    raw = bytearray(_VALID[ending])
+    cut = data.draw(st.integers(0, len(raw)))
+    for _ in range(data.draw(st.integers(0, 6))):
+        at = data.draw(st.integers(0, max(0, len(raw) - 1)))
+        if raw:
+            raw[at] = data.draw(st.integers(0, 255))
+    path = folder / ("r" + ending.replace("_plain", ""))
+    path.write_bytes(bytes(raw[:cut] if data.draw(st.booleans()) else raw))
+    try:
+        read_columns(path)
+    except UserError as exc:
+        assert "\n" not in str(exc) and "Traceback" not in str(exc)

@@ -30,7 +30,7 @@ def register(subparsers) -> None:
     for action in parser._actions:  # several recordings, or folders of them: a fleet
         if action.dest == "recording":
             action.nargs, action.metavar = "+", "REC.csv|DIR"
-            action.help += "; several recordings or a folder of *.csv: a fleet, diagnosed in parallel into --out"
+            action.help += "; several recordings or a folder of recordings (*.csv, *.mat, ...): a fleet, diagnosed in parallel into --out"
     parser.add_argument("--effects", metavar="NAME[,NAME]",
                         help="restrict the candidates to these effects (default: the whole library)")
     parser.add_argument("--out", metavar="DIR",
@@ -38,7 +38,7 @@ def register(subparsers) -> None:
                              "(effects, rmse, fitted parameters, time per recording; errors of bad recordings) and "
                              "summary.html (each parameter's spread over the fleet, outliers by robust z-score > 3.5)")
     add_batch_arguments(parser, "a fleet of recordings")
-    parser.set_defaults(handler=run, inputs=("recording", "model", "machine"), outputs=("json",), output_dirs=("report", "out"))
+    parser.set_defaults(handler=run, inputs=("recording", "model", "machine", "recording_map"), outputs=("json",), output_dirs=("report", "out"))
 
 
 def run(args) -> int:
@@ -51,7 +51,7 @@ def run(args) -> int:
     from mechanism.sysid.diagnosis import diagnose, not_identifiable_json
     from mechanism.sysid.effects import effect
     from mechanism.sysid.identification import NotIdentifiable
-    from mechanism.sysid.recording import read_recording
+    from mechanism.cli._recording import read_recording_from_args
 
     candidates = None
     if args.effects:
@@ -60,14 +60,14 @@ def run(args) -> int:
     check_batch_arguments(args, fleet, "a fleet (several recordings, a folder, or --out)")
     if fleet:
         return run_fleet(args, candidates)
-    rec = read_recording(args.recording[0])
+    rec = read_recording_from_args(args, args.recording[0])
     try:
         bar, tick = progress_bar("diagnose")
         with bar:
             result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model, nominal=drive_nominal(args))
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
-        write_outputs(args, not_identifiable_json(rec.source, str(exc)))
+        write_outputs(args, not_identifiable_json(rec.source, str(exc), rec.reading))
         sys.stderr.write(f"error: recording {rec.source}: not identifiable: {exc}\n")
         return 2
     from mechanism.sysid.report import diagnosis_report
@@ -92,6 +92,7 @@ def run_fleet(args, candidates) -> int:
     from mechanism.errors import UserError
     from mechanism.sysid.fleet import SUMMARY_CSV, SUMMARY_HTML, diagnose_fleet
     from mechanism.cli._nominal import drive_nominal
+    from mechanism.cli._recording import recording_map_from_args
 
     if args.out is None:
         raise UserError("several recordings need --out DIR (one JSON per recording and a summary)")
@@ -99,7 +100,7 @@ def run_fleet(args, candidates) -> int:
         raise UserError("--json and --report are for one recording; a fleet writes them per recording into --out")
     result = diagnose_fleet(args.recording, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
                             progress=sys.stderr.isatty(), baseline=args.baseline, candidates=candidates, model_path=args.model,
-                            nominal=drive_nominal(args))
+                            nominal=drive_nominal(args), recording_map=recording_map_from_args(args))
     for row in result.rows:
         if row["status"] == "ok":
             print(f"{row['recording']}: effects {row['effects'] or 'none'}, rmse {row['baseline_rmse_rad_s']:.4g} -> "

@@ -7,9 +7,13 @@ ORDER = 60
 
 def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
     """Options shared by identify and diagnose."""
+    from mechanism.cli._recording import add_recording_map_argument
+
     parser.add_argument("recording", metavar="REC.csv", nargs="?" if optional else None,
-                        help="bench recording: CSV with columns time [s], voltage [V], arm_angle [rad, unwrapped, "
-                             "0 = needle top dead centre], optional current [A]; leading '#' lines are metadata")
+                        help="bench recording: CSV with columns time [s], voltage [V], shaft_angle (or arm_angle) [rad, "
+                             "unwrapped, 0 = the described zero], optional current [A]; leading '#' lines are metadata; "
+                             "also .csv.gz/.bz2/.xz/.zip, .tsv, .mat, .parquet, .feather, .tdms, .json/.jsonl, other "
+                             "columns and units through --recording-map")
     parser.add_argument("--baseline", choices=["lumped", "multibody"], default="lumped",
                         help="lumped: thesis eq. 15-16 (constant inertia, viscous + Coulomb friction, DC motor through "
                              "the belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
@@ -18,6 +22,7 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
                         help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
                              "scales from (default: the shipped Sapphire 870's thesis-identified numbers)")
     parser.add_argument("--model", metavar="MJCF", help="MJCF for --baseline multibody (default: the shipped sewing machine)")
+    add_recording_map_argument(parser)
     parser.add_argument("--json", metavar="OUT.json", help=f"write the {what} as JSON (rmse in rad/s of arm velocity)")
     parser.add_argument("--report", metavar="DIR", help="write an HTML report with plots to DIR (DIR/index.html)")
 
@@ -43,7 +48,8 @@ def register(subparsers) -> None:
                         help="fit Coulomb and viscous friction to the thesis's Table 2 steady-state speeds (no recording)")
     parser.add_argument("--free", metavar="Kt,Ke,R", default="",
                         help="motor constants to fit as well, comma-separated from R, Kt, Ke (default: none)")
-    parser.set_defaults(handler=run, inputs=("recording", "model", "machine"), outputs=("json",), output_dirs=("report",))
+    parser.set_defaults(handler=run, inputs=("recording", "model", "machine", "recording_map"), outputs=("json",),
+                        output_dirs=("report",))
 
 
 def write_outputs(args, data: dict, report=None) -> None:
@@ -78,15 +84,15 @@ def progress_bar(description: str):
 def run(args) -> int:
     from mechanism.cli._nominal import drive_nominal
     from mechanism.errors import UserError
+    from mechanism.cli._recording import read_recording_from_args
     from mechanism.sysid.identification import identify
-    from mechanism.sysid.recording import read_recording
 
     if args.table2:
         return run_table2(args)
     if not args.recording:
         raise UserError("identify needs a recording REC.csv (or --table2)")
     free = tuple(x.strip() for x in args.free.split(",") if x.strip())
-    rec = read_recording(args.recording)
+    rec = read_recording_from_args(args, args.recording)
     bar, tick = progress_bar("identify")
     with bar:
         result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model, nominal=drive_nominal(args))

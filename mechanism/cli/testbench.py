@@ -29,7 +29,11 @@ def register(subparsers) -> None:
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), default=60.0, metavar="S", help="recording length [s] (default 60)")
     parser.add_argument("--rate", type=number(100, 10000, "Hz"), default=1000.0, metavar="HZ", help="sample rate, 100-10000 Hz (default 1000)")
     parser.add_argument("--counts", type=number(500, 20000, integer=True), default=20000, metavar="N", help="encoder counts per shaft turn (default 20000)")
-    parser.add_argument("-o", "--output", metavar="REC.csv", help="recording to write; the truth goes to REC.truth.json")
+    parser.add_argument("-o", "--output", metavar="REC.csv",
+                        help="recording to write (REC.csv, REC.csv.gz, REC.parquet or REC.mat); the truth goes to REC.truth.json")
+    parser.add_argument("--format", choices=["csv", "csv.gz", "parquet", "mat"],
+                        help="recording format (default: from the -o file name, which must agree); parquet needs "
+                             "pip install 'mechanism[parquet]'")
     parser.add_argument("--list", action="store_true", help="print the effect vocabulary with one line of physics each and exit")
     parser.set_defaults(handler=run, outputs=("output", _truth_output))
 
@@ -38,7 +42,12 @@ def _truth_output(args):
     """REC.truth.json next to -o REC.csv (checked with the CSV before the run)."""
     from mechanism.testbench import truth_path_for
 
-    return truth_path_for(args.output) if args.output and str(args.output).lower().endswith(".csv") else None
+    from mechanism.errors import UserError
+
+    try:
+        return truth_path_for(args.output) if args.output else None
+    except UserError:
+        return None  # the run refuses the name itself
 
 
 def run(args) -> int:
@@ -54,11 +63,20 @@ def run(args) -> int:
     if not args.effect or not args.output:
         raise UserError("testbench needs --effect NAME[,NAME] (or none) and -o REC.csv (or --list)")
     truth_path_for(args.output)  # a bad file name fails before the simulation runs
+    if args.format:
+        from mechanism.testbench.recording import recording_format
+
+        if recording_format(args.output)[0] != args.format:
+            raise UserError(f"--format {args.format} but the file name {args.output} ends as a {recording_format(args.output)[0]} file")
+        if args.format == "parquet":
+            from mechanism.files.formats import require_pyarrow
+
+            require_pyarrow(".parquet")
     from mechanism.cli._nominal import drive_nominal
 
     recording = make_recording(args.effect, seed=args.seed, duration_s=args.duration, nominal=drive_nominal(args),
                                sample_rate_hz=args.rate, encoder_counts_per_rev=args.counts)
-    csv_path, truth_path = write_recording(recording, args.output)
+    csv_path, truth_path = write_recording(recording, args.output, args.format)
     what = ", ".join(recording.effects) or "no effect (clean)"
     print(f"wrote {csv_path} ({len(recording.time)} samples, {what}) and {truth_path}")
     return 0

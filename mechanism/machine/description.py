@@ -160,6 +160,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "coulomb_shaft_Nm": _non_negative("the whole machine's kinetic Coulomb friction at the shaft [N m]", 1e4),
         "viscous_motor_side_Nm_s_per_rad": _non_negative("the whole machine's viscous coefficient at the motor [N m s/rad]", 1e4),
     },
+    "recording": {
+        "records": _name("JSON recordings: the key holding the list of records (dotted for nested objects; default: the top level)"),
+        "time": _name("time column, or a product/quotient of columns and numbers (default: time, time_s, t)"),
+        "time_unit": Key(str, "unit of time after the expression (default s)", choices=("s", "ms", "us")),
+        "signed_bits": Key(dict, "registers logged unsigned that hold two's-complement values, column = bits (65535 -> -1 at 16)",
+                           item=int),
+        "voltage": _name("motor voltage [V] after the expression (default: voltage, voltage_V)"),
+        "shaft_angle": _name("the described shaft's angle, a column or expression (default: shaft_angle, arm_angle, ..._rad)"),
+        "shaft_angle_unit": Key(str, "unit of shaft_angle (default rad)", choices=("rad", "deg", "rev", "counts", "m", "mm")),
+        "counts_per_rev": Key(int, "encoder counts per shaft turn: the unit of counts, and the encoder resolution", low=4, high=1e9),
+        "travel_per_rev_mm": _positive("with m or mm: travel per shaft turn [mm] (a screw's lead, a pulley's circumference)", high=1e6),
+        "direction": Key(int, "+1, or -1 to flip the sign: shaft_angle = direction * angle + offset_rad", low=-1, high=1),
+        "offset_rad": Key(float, "added after the direction [rad]", low=-1e6, high=1e6),
+        "unwrap": Key(bool, "unwrap jumps of more than half a turn (default: only when the angle is found wrapped, with a warning)"),
+        "current": _name("motor current [A], a column or expression (default: current, current_A)"),
+    },
     "inspect": {
         "probes": Key(list, "probes of the demo, 'point_or_joint:quantity'", item=str),
         "clearance_pairs": Key(list, "part pairs the demo checks, 'A:B'", item=str),
@@ -220,6 +236,15 @@ def check_value(source: str, section: str, name: str, key: Key, value: Any) -> A
 
     if key.kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
+    if key.kind is dict:
+        if not isinstance(value, dict):
+            raise bad(f"expected a table such as {{ name = 16 }}, got {type(value).__name__}")
+        item = Key(key.item or str, key.doc, low=2 if key.item is int else None, high=64 if key.item is int else None)
+        return {k: check_value(source, section, f"{name}.{k}", item, v) for k, v in value.items()}
+    if key.kind is bool:
+        if not isinstance(value, bool):
+            raise bad(f"expected true or false, got {value!r}")
+        return value
     if key.kind is list:
         if not isinstance(value, list):
             raise bad(f"expected a list, got {type(value).__name__}")
@@ -340,6 +365,10 @@ def _kind_name(key: Key) -> str:
         return " \\| ".join(f'`"{c}"`' for c in key.choices)
     if key.kind is list:
         return f"list of {'numbers' if key.item is float else 'text'}"
+    if key.kind is dict:
+        return "table of whole numbers"
+    if key.kind is bool:
+        return "true \\| false"
     names: dict[object, str] = {float: "number", int: "whole number", str: "text"}
     return names.get(key.kind, str(key.kind))
 

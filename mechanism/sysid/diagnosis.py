@@ -284,13 +284,14 @@ class Diagnosis:
                          f"falls by at least {MIN_RELATIVE_GAIN:.0%}; continue while a candidate passes"),
                 "rounds": self.rounds,
             },
+            "reading": self.recording.reading,
             "rmse_definition": "RMS of measured minus simulated arm velocity [rad/s] on the validation segments (interleaved 1 s segments, half of the recording); both by the same Savitzky-Golay differentiator (21 ms, degree 4) of an angle; each segment restarts from the measured velocity after a 0.25 s burn-in",
         }
 
 
-def not_identifiable_json(rec_source: str, reason: str) -> dict:
+def not_identifiable_json(rec_source: str, reason: str, reading: dict | None = None) -> dict:
     return {"recording": rec_source, "identifiable": False, "reason": f"not identifiable: {reason}",
-            "baseline": None, "effects": [], "final": None}
+            "baseline": None, "effects": [], "final": None, **({"reading": reading} if reading else {})}
 
 
 def _by_speed(loc: Localisation, order: int) -> str:

@@ -50,14 +50,24 @@ class FleetResult:
 
 
 def recording_paths(arguments: Sequence[str | os.PathLike]) -> list[Path]:
-    """Files as given, and every ``*.csv`` of a folder (sorted by name)."""
+    """Files as given, and every recording of a folder (sorted by name): each file a reader
+    takes by its name (``*.csv``, ``*.csv.gz``, ``*.mat``, ``*.parquet``, ...) except JSON,
+    which a folder also holds as outputs and truth files (name JSON recordings one by one)."""
+    from mechanism.files.formats import detect_format
+
+    def is_recording(p: Path) -> bool:
+        try:
+            return p.is_file() and detect_format(p)[0] != "json"
+        except UserError:
+            return False
+
     paths: list[Path] = []
     for argument in arguments:
         path = Path(argument)
         if path.is_dir():
-            found = sorted(p for p in path.glob("*.csv") if p.is_file())
+            found = sorted(p for p in path.iterdir() if is_recording(p))
             if not found:
-                raise UserError(f"folder {path}: no *.csv recordings in it")
+                raise UserError(f"folder {path}: no recordings in it (*.csv, *.csv.gz, *.mat, *.parquet, *.tdms, ...)")
             paths.extend(found)
         elif path.is_file():
             paths.append(path)
@@ -68,10 +78,13 @@ def recording_paths(arguments: Sequence[str | os.PathLike]) -> list[Path]:
 
 def _unique_names(paths: Sequence[Path]) -> list[str]:
     """The file stems, with ``_2``, ``_3``, ... for stems that repeat (files of several folders)."""
+    from mechanism.files.formats import COMPRESSIONS
+
     names, seen = [], {}
     for path in paths:
-        seen[path.stem] = seen.get(path.stem, 0) + 1
-        names.append(path.stem if seen[path.stem] == 1 else f"{path.stem}_{seen[path.stem]}")
+        stem = Path(path.name[: -len(path.suffix)] if path.suffix.lower() in COMPRESSIONS else path.name).stem  # rec.csv.gz: rec
+        seen[stem] = seen.get(stem, 0) + 1
+        names.append(stem if seen[stem] == 1 else f"{stem}_{seen[stem]}")
     return names
 
 
@@ -85,12 +98,14 @@ def _diagnose_one(options: dict, path: str) -> dict:
 
     start = time.perf_counter()
     outcome: dict = {"json": None, "error": None}
+    options = dict(options)
+    recording_map = options.pop("recording_map", None)
     try:
-        rec = read_recording(path)
+        rec = read_recording(path, recording_map)
         try:
             outcome["json"] = diagnose(rec, **options).to_json()
         except NotIdentifiable as exc:
-            outcome["json"] = not_identifiable_json(rec.source, str(exc))
+            outcome["json"] = not_identifiable_json(rec.source, str(exc), rec.reading)
             outcome["error"] = f"not identifiable: {exc}"
     except UserError as exc:
         outcome["error"] = str(exc)
@@ -127,7 +142,7 @@ def diagnose_fleet(
 ) -> FleetResult:
     """Diagnose every recording (files, or folders of ``*.csv``) into ``out_dir``; see the
     module docstring. ``diagnose_options`` go to ``diagnose`` (``baseline``, ``candidates``,
-    ``model_path``). Each recording's JSON is written (into the folder being built) when it is done;
+    ``model_path``; ``recording_map``: a RecordingMap for every file). Each recording's JSON is written (into the folder being built) when it is done;
     ``on_recording(name, summary_row)`` sees each one then."""
     from mechanism.batch import check_options, run_batch
     from mechanism.files.outputs import atomic_dir

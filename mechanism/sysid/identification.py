@@ -459,6 +459,7 @@ class IdentificationResult:
             "rmse_fit": self.fit.rmse_fit,
             "rmse_definition": "RMS of measured minus simulated arm velocity [rad/s] on the validation segments; both by the same Savitzky-Golay differentiator (21 ms, degree 4) of an angle; each 1 s segment restarts from the measured velocity after a 0.25 s burn-in",
             "split": {"segments_fit": int(self.problem.parts["fit"].starts.size), "segments_validation": int(self.problem.parts["val"].starts.size)},
+            "reading": self.recording.reading,
         }
 
 

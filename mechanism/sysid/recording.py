@@ -7,10 +7,14 @@ increasing, nominally 1 kHz], ``voltage`` [V, motor terminal voltage as logged] 
 optional ``current`` [A]. Columns named with units (``time_s``, ``voltage_V``,
 ``arm_angle_rad``, ``current_A``) are accepted as aliases; unknown columns are ignored.
 
+Other formats (compressed CSV, MATLAB, Parquet, TDMS, JSON; :mod:`mechanism.files.formats`)
+and other column names and units (a ``[recording]`` map; :mod:`mechanism.sysid.recording_map`)
+are read into the same contract; ``shaft_angle`` is the generic name of ``arm_angle``.
+
 Every problem a user can fix is a :class:`~mechanism.errors.UserError` (exit 2): a missing
 column, non-numeric/NaN/inf values, time that is not strictly increasing (duplicated or
 decreasing), fewer than :data:`MIN_DURATION_S` of data, a gap in the sampling. Slightly
-irregular sampling (logger jitter) is resampled onto a uniform grid at the median rate.
+irregular sampling (logger jitter) is resampled onto a uniform grid at the mean step.
 
 Velocity: the encoder angle is quantised to 2*pi/20000 rad; differencing it at 1 kHz gives
 0.31 rad/s steps. :func:`smoothed_velocity` is a Savitzky-Golay differentiator (a local
@@ -31,7 +35,7 @@ import numpy as np
 from scipy.signal import savgol_coeffs
 
 from mechanism.errors import UserError
-from mechanism.files.tables import check_increasing, read_table
+from mechanism.files.tables import check_increasing
 
 MIN_DURATION_S = 2.0
 VELOCITY_WINDOW_S = 0.021
@@ -39,12 +43,6 @@ VELOCITY_POLYORDER = 4
 MAX_GAP_S = 0.05
 ENCODER_STEP_RAD = 2 * np.pi / 20000
 
-COLUMN_ALIASES = {
-    "time": ["time_s", "t", "t_s"],
-    "voltage": ["voltage_V", "voltage_v", "U_V", "u_V"],
-    "arm_angle": ["arm_angle_rad", "angle_rad", "arm_position_rad"],
-    "current": ["current_A", "current_a", "I_A"],
-}
 
 
 @dataclass
@@ -57,6 +55,7 @@ class Recording:
     current_A: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
     source: str = "<recording>"
+    reading: dict = field(default_factory=dict)  # what was read and done (format, columns, units, resampling)
 
     @property
     def dt(self) -> float:
@@ -97,32 +96,44 @@ def smoothed_velocity(angle: np.ndarray, dt: float, axis: int = -1) -> np.ndarra
     return savgol_filter(angle, window, VELOCITY_POLYORDER, deriv=1, delta=dt, axis=axis, mode="interp")
 
 
-def read_recording(path: str | os.PathLike) -> Recording:
-    """Read and validate a recording CSV (see the module docstring for the contract)."""
+def read_recording(path: str | os.PathLike, recording_map=None) -> Recording:
+    """Read and validate a recording (see the module docstring for the contract) in any
+    format :mod:`mechanism.files.formats` reads, its columns taken by ``recording_map`` (a
+    :class:`~mechanism.sysid.recording_map.RecordingMap`, a path to a ``--recording-map``
+    TOML, or None for the default column names). What was read and done is
+    ``Recording.reading`` (written into the identify and diagnose JSON)."""
+    from mechanism.files.formats import read_columns
+    from mechanism.sysid.recording_map import RecordingMap, apply_map, read_recording_map
+
     path = Path(path)
-    label = f"recording {path}"
-    table = read_table(
-        path,
-        required=["time", "voltage", "arm_angle"],
-        optional=["current"],
-        aliases=COLUMN_ALIASES,
-        min_rows=2,
-        what="recording",
-    )
-    return make_recording(
-        table["time"], table["voltage"], table["arm_angle"],
-        table["current"] if "current" in table else None,
-        metadata=table.metadata, source=str(path), label=label,
-    )
+    if recording_map is not None and not isinstance(recording_map, RecordingMap):
+        recording_map = read_recording_map(recording_map)
+    columns = read_columns(path, "recording", records=recording_map.get("records") if recording_map else None)
+    signals = apply_map(columns, recording_map)
+    return make_recording(signals.time_s, signals.voltage_V, signals.shaft_angle_rad, signals.current_A,
+                          metadata=signals.metadata, source=str(path), label=f"recording {path}", unwrap=signals.unwrap,
+                          reading=signals.reading)
 
 
-def make_recording(time, voltage, arm_angle, current=None, metadata=None, source="<recording>", label=None) -> Recording:
-    """Validate arrays as a recording (the same checks as for a file)."""
+def sampling_gaps(time: np.ndarray) -> tuple[float, list[tuple[float, float]]]:
+    """The median step [s] and the gaps: (time before the gap [s], gap length [s]) for every
+    step longer than max(:data:`MAX_GAP_S`, 3 steps)."""
+    steps = np.diff(time)
+    dt = float(np.median(steps)) if len(steps) else 0.0
+    big = np.flatnonzero(steps > max(MAX_GAP_S, 3 * dt))
+    return dt, [(float(time[i]), float(steps[i])) for i in big]
+
+
+def make_recording(time, voltage, arm_angle, current=None, metadata=None, source="<recording>", label=None,
+                   unwrap: bool | None = None, reading: dict | None = None) -> Recording:
+    """Validate arrays as a recording (the same checks as for a file). ``unwrap``: True
+    unwraps, False never does, None unwraps only an angle found wrapped (with a warning)."""
     label = label or f"recording {source}"
+    reading = dict(reading or {})
     time = np.asarray(time, dtype=float)
     voltage = np.asarray(voltage, dtype=float)
     arm_angle = np.asarray(arm_angle, dtype=float)
-    columns = {"time": time, "voltage": voltage, "arm_angle": arm_angle}
+    columns = {"time": time, "voltage": voltage, "shaft_angle": arm_angle}
     if current is not None:
         current = np.asarray(current, dtype=float)
         columns["current"] = current
@@ -130,7 +141,7 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
         if values.ndim != 1 or len(values) != len(time):
             raise UserError(f"{label}: column {name} has {values.size} values, time has {len(time)}")
         if not np.all(np.isfinite(values)):
-            raise UserError(f"{label}: column {name} contains NaN or inf at data row {int(np.flatnonzero(~np.isfinite(values))[0]) + 1}")
+            raise UserError(f"{label}: column {name}: NaN/inf not allowed, found at data row {int(np.flatnonzero(~np.isfinite(values))[0]) + 1}")
     if len(time) < 2:
         raise UserError(f"{label}: {len(time)} data row(s); at least {MIN_DURATION_S:g} s of data needed")
     check_increasing(time, label)
@@ -138,27 +149,46 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
     if duration < MIN_DURATION_S:
         raise UserError(f"{label}: only {duration:.3g} s of data; at least {MIN_DURATION_S:g} s needed")
     steps = np.diff(time)
-    dt = float(np.median(steps))
-    if steps.max() > max(MAX_GAP_S, 3 * dt):
-        i = int(np.argmax(steps))
-        raise UserError(f"{label}: gap of {steps[i]:.3g} s in the sampling after t = {time[i]:.6g} s (sampling is every {dt:.3g} s)")
+    dt, gaps = sampling_gaps(time)
+    if gaps:
+        at, length = max(gaps, key=lambda g: g[1])
+        raise UserError(f"{label}: {len(gaps)} gap(s) in the sampling, the longest {length:.3g} s after t = {at:.6g} s "
+                        f"(sampling is every {dt:.3g} s); a gap is not interpolated over: mechanism inspect-recording --split DIR "
+                        "cuts it into gap-free pieces (a fleet for diagnose --out)")
     if dt > 0.01:
         raise UserError(f"{label}: sampled every {dt:.3g} s; at least 100 Hz needed to see the machine's dynamics (nominally 1 kHz)")
     jumps = np.abs(np.diff(arm_angle))
-    if jumps.max() > np.pi:
+    if unwrap is None and jumps.max() > np.pi:
         # A wrapped angle (0..2pi) instead of the unwrapped one of the contract: unwrap it.
-        warnings.warn(f"{label}: arm_angle jumps by more than pi between samples; treating it as wrapped and unwrapping it")
+        warnings.warn(f"{label}: shaft_angle jumps by more than pi between samples; treating it as wrapped and unwrapping it")
         arm_angle = np.unwrap(arm_angle)
-    if np.max(np.abs(steps - dt)) > 0.01 * dt:
+        reading.setdefault("shaft_angle_rad", {})["unwrapped"] = "yes: found wrapped (jumps of more than pi)"
+    deviation = float(np.max(np.abs(steps - dt)) / dt)
+    # the grid's step: float rounding of large time stamps (epoch seconds or ms) moves the median
+    # step by a whole rounding quantum (2.4e-7 s at 1.7e9 s: half a sample over a minute at
+    # 190 Hz) and the mean step (duration / intervals) by 1e-16 of the duration. Uneven stamps
+    # use the mean; even ones keep the median unless the two differ by more than 1e-9 of a step
+    # (a recording written with exact stamps reads bit for bit as before).
+    mean = duration / (len(time) - 1)
+    if deviation > 0.01 or abs(mean - dt) > 1e-9 * dt:
+        dt = mean
+    if deviation > 0.01:
         grid = time[0] + dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
-        hold = np.clip(np.searchsorted(time, grid, side="right") - 1, 0, len(time) - 1)
+        # a grid point within a millionth of a step of a sample is at it (rounding decides nothing)
+        hold = np.clip(np.searchsorted(time, grid + 1e-6 * dt, side="right") - 1, 0, len(time) - 1)
         voltage = voltage[hold]  # the logged voltage is held between samples
         arm_angle = np.interp(grid, time, arm_angle)
         current = np.interp(grid, time, current) if current is not None else None
+        reading["resampling"] = {
+            "method": "onto a uniform grid at the mean step: voltage held from the last sample (zero-order hold), "
+                      "shaft angle and current interpolated linearly",
+            "rate_Hz": 1.0 / dt, "samples_in": int(len(time)), "samples_out": int(len(grid)),
+            "largest_step_deviation_percent": 100 * deviation}
         time = grid
     else:
+        reading["resampling"] = {"method": "none: steps uniform within 1 %", "rate_Hz": 1.0 / dt}
         time = time[0] + dt * np.arange(len(time))
-    return Recording(time, voltage, arm_angle, current, dict(metadata or {}), source)
+    return Recording(time, voltage, arm_angle, current, dict(metadata or {}), source, reading)
 
 
 FIT_RATE_HZ = 1000.0
@@ -176,7 +206,7 @@ def at_fitting_rate(rec: Recording) -> Recording:
     n = len(rec) // m * m
     current = rec.current_A[:n:m] if rec.current_A is not None else None
     return Recording(rec.time_s[:n:m].copy(), rec.voltage_V[:n].reshape(-1, m).mean(axis=1), rec.arm_angle_rad[:n:m].copy(),
-                     current, dict(rec.metadata), rec.source)
+                     current, dict(rec.metadata), rec.source, dict(rec.reading))
 
 
 @dataclass

@@ -62,7 +62,13 @@ def encoder_counts(rec: Recording) -> int | None:
         if counts < 16:
             raise UserError(f"recording {rec.source}: counts_per_rev {counts} is below 16")
         return counts
-    steps = np.abs(np.diff(rec.arm_angle_rad))
+    return counts_from_steps(rec.arm_angle_rad)
+
+
+def counts_from_steps(angle: np.ndarray) -> int | None:
+    """Counts per turn from an angle's quantisation step [rad] when every step is a whole
+    number of it; None for an unquantised angle (or fewer than 100 moving samples)."""
+    steps = np.abs(np.diff(angle))
     steps = steps[steps > 1e-6]
     if len(steps) < 100:
         return None

@@ -12,7 +12,6 @@ import numpy as np
 from mechanism import __version__
 from mechanism.errors import UserError, close_matches
 from mechanism.files.outputs import atomic_file, transaction
-from mechanism.files.tables import write_table
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
     ENCODER_COUNTS_PER_REV,
@@ -315,18 +314,36 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     return Recording(time, logged_voltage, arm_angle, current, truth, traces)
 
 
+RECORDING_ENDINGS = {".csv": "csv", ".csv.gz": "csv.gz", ".parquet": "parquet", ".mat": "mat"}
+
+
+def recording_format(path: str | Path) -> tuple[str, str]:
+    """(format, ending) of a recording file name the bench writes; UserError for another."""
+    name = Path(path).name.lower()
+    for ending in sorted(RECORDING_ENDINGS, key=len, reverse=True):
+        if name.endswith(ending) and len(name) > len(ending):
+            return RECORDING_ENDINGS[ending], ending
+    raise UserError(f"recording file name must end in {', '.join(RECORDING_ENDINGS)}: {path}")
+
+
 def truth_path_for(csv_path: str | Path) -> Path:
-    """``REC.csv`` -> ``REC.truth.json`` (next to it); UserError for a name not ending in .csv."""
+    """``REC.csv`` (or ``.csv.gz``, ``.parquet``, ``.mat``) -> ``REC.truth.json`` next to it;
+    UserError for another ending."""
     csv_path = Path(csv_path)
-    if csv_path.suffix.lower() != ".csv":
-        raise UserError(f"recording file name must end in .csv: {csv_path}")
-    return csv_path.with_name(csv_path.stem + ".truth.json")
+    _, ending = recording_format(csv_path)
+    return csv_path.with_name(csv_path.name[: -len(ending)] + ".truth.json")
 
 
-def write_recording(recording: Recording, csv_path: str | Path) -> tuple[Path, Path]:
-    """Write the CSV (contract columns only) and its truth JSON next to it, atomically."""
+def write_recording(recording: Recording, csv_path: str | Path, fmt: str | None = None) -> tuple[Path, Path]:
+    """Write the recording (contract columns only) in the format its name ends in (``fmt``,
+    when given, must agree) and its truth JSON next to it, atomically."""
+    from mechanism.files.formats import write_columns
+
     csv_path = Path(csv_path)
     truth_path = truth_path_for(csv_path)
+    named = recording_format(csv_path)[0]
+    if fmt is not None and fmt != named:
+        raise UserError(f"--format {fmt} but the file name {csv_path.name} ends as a {named} file")
     truth = dict(recording.truth, recording=csv_path.name)
     counts = recording.truth["sensors"]["encoder_counts_per_rev"]
     comments = [
@@ -336,7 +353,7 @@ def write_recording(recording: Recording, csv_path: str | Path) -> tuple[Path, P
         f"counts_per_rev: {counts}",
     ]
     with transaction():  # both files or neither; a failure never touches the previous pair
-        write_table(csv_path, recording.columns(), comments=comments, fmt="%.10g")
+        write_columns(csv_path, recording.columns(), comments=comments, fmt=named, metadata={"counts_per_rev": str(counts)})
         with atomic_file(truth_path) as handle:
             json.dump(_jsonable(truth), handle, indent=2)
             handle.write("\n")
