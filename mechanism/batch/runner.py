@@ -120,6 +120,9 @@ _LOCAL_STATE: Any = None
 
 def _init_local_worker(setup, shared) -> None:
     global _LOCAL_STATE
+    from mechanism.files.interrupts import ignore_in_worker
+
+    ignore_in_worker()  # a Ctrl-C reaches the whole terminal group: the parent stops the workers
     _LOCAL_STATE = _build_state(setup, shared)
 
 
@@ -135,6 +138,7 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
     method = start_method or ("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
     pool = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=multiprocessing.get_context(method),
                                initializer=_init_local_worker, initargs=(setup, shared))
+    finished_all = False
     try:
         # the items of a chunk travel with it; the payload went once, through the initializer
         pending = {pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]) for chunk in chunks}
@@ -146,8 +150,28 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
                 except BrokenProcessPool:
                     raise UserError("a worker process died mid-batch (out of memory, or killed); "
                                     "run again, or use --backend ray, which reruns the lost items") from None
+        finished_all = True
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        from mechanism.files.interrupts import deferred
+
+        with deferred():
+            if not finished_all:  # an error or an interrupt: stop the workers now, not after their chunks
+                _terminate_workers(pool)
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate_workers(pool) -> None:
+    """Stop a process pool's workers at once (SIGTERM, then SIGKILL for any still there)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.join(1.0)
+            if process.is_alive():
+                process.kill()
+                process.join(1.0)
 
 
 # -- Ray --------------------------------------------------------------------------------------
@@ -251,10 +275,14 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
                 chunk = pending.pop(ref)
                 yield _ray_result(ray, ref, chunk)
     finally:
-        for ref in pending:
-            ray.cancel(ref, force=True)
-        if started:
-            ray.shutdown()
+        from mechanism.files.interrupts import deferred
+
+        with deferred():  # a second Ctrl-C must not leave the instance running
+            for ref in pending:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref, force=True)
+            if started:
+                ray.shutdown()
 
 
 def _ray_result(ray, ref, chunk):

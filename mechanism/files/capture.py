@@ -15,6 +15,8 @@ import os
 import sys
 import tempfile
 
+from mechanism.files.interrupts import deferred
+
 UNSTABLE_MARKERS = ("simulation is unstable", "Nan, Inf or huge value")
 
 
@@ -75,6 +77,11 @@ def captured_stderr():
         yield []  # no descriptor 2 to capture (embedded interpreter)
         return
     result: list[str] = []
+    try:
+        sink = tempfile.TemporaryFile()
+    except OSError:  # no temporary folder can be written (full disk, ulimit -f 0): run uncaptured
+        yield result
+        return
     sys.stderr.flush()
     saved = os.dup(2)
     real = open(saved, "w", encoding="utf-8", errors="replace", buffering=1, closefd=False)
@@ -84,20 +91,26 @@ def captured_stderr():
         previous.stream = real
     else:
         sys.stderr = real
-    with tempfile.TemporaryFile() as sink:
+    with sink:
         os.dup2(sink.fileno(), 2)
         try:
             yield result
         finally:
-            with contextlib.suppress(Exception):
-                sys.stdout.flush()
-            os.dup2(saved, 2)
-            real.flush()
-            if inner is not None:
-                previous.stream = inner
-            else:
-                sys.stderr = previous
-            real.close()
-            os.close(saved)
-            sink.seek(0)
-            result.append(sink.read(1 << 20).decode("utf-8", errors="replace"))
+            with deferred():  # a Ctrl-C here must not leave descriptor 2 in the sink
+                _restore(saved, real, previous, inner, sink, result)
+
+
+def _restore(saved, real, previous, inner, sink, result) -> None:
+    """Descriptor 2 and ``sys.stderr`` back as they were; the captured text into ``result``."""
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    os.dup2(saved, 2)
+    real.flush()
+    if inner is not None:
+        previous.stream = inner
+    else:
+        sys.stderr = previous
+    real.close()
+    os.close(saved)
+    sink.seek(0)
+    result.append(sink.read(1 << 20).decode("utf-8", errors="replace"))
