@@ -307,3 +307,19 @@ def test_two_runs_writing_the_same_outputs_at_once_leave_one_whole_result(tmp_pa
         texts = {(out / f"{n}.txt").read_text() for n in "abcde"} | {(out / "folder" / "x").read_text()}
         assert len(texts) == 1, texts  # never a mix of the two runs
         assert hidden(out) == []
+
+
+@pytest.mark.slow
+def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path, cli):
+    first, out, _ = start_sweep(tmp_path)
+    try:
+        second = cli("sweep", "--variants", str(tmp_path / "v.csv"), "--duration", "2", "--csv", str(out / "run.csv"),
+                     env={"MECHANISM_CACHE": str(tmp_path / "cache")})
+        line = second.assert_bad_input()
+        assert "another sweep" in line and f"pid {first.pid}" in line, line
+        assert first.poll() is None  # the first sweep goes on, its journal untouched
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.communicate(timeout=60)
+    assert first.returncode == 130
+    assert hidden(out) == []

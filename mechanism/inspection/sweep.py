@@ -42,7 +42,7 @@ from mechanism.machine.description import FRICTION_KEYS, SCHEMA, MachineDescript
 from mechanism.machine.machine import (Machine, MachineConfig, duty_map_from, fabric_from_description,
                                        motor_from_description, supply_limit)
 from mechanism.physics.friction import FrictionSet
-from mechanism.inspection.sweep_journal import open_journal, read_journal, sweep_fingerprint
+from mechanism.inspection.sweep_journal import journal_write_error, open_journal, read_journal, sweep_fingerprint
 from mechanism.inspection.sweep_metrics import METRICS, bearing_loads, variant_metrics
 from mechanism.inspection.variants import (OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter,
                                            linear_coupling)
@@ -503,16 +503,26 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     variants = with_defaults(variants, options)
     check_parameters(base, variants)
     fingerprint = sweep_fingerprint(machine, variants, options)
-    done = read_journal(journal, fingerprint) if journal is not None and resume else {}
-    todo = [i for i in range(len(variants)) if i not in done]
     start = time.perf_counter()
     with contextlib.ExitStack() as stack:
+        if journal is not None:  # one sweep at a time writes a journal: a second one would mix rows in
+            from mechanism.files.outputs import output_lock
+
+            Path(journal).parent.mkdir(parents=True, exist_ok=True)  # as the journal's own first write does
+            stack.enter_context(output_lock([journal], wait_s=0, busy=(
+                "sweep journal {path}: another sweep{holder} is writing it (the same --csv); wait for it to "
+                "finish or choose another --csv")))
+        done = read_journal(journal, fingerprint) if journal is not None and resume else {}
+        todo = [i for i in range(len(variants)) if i not in done]
         log = stack.enter_context(open_journal(journal, fingerprint, fresh=not done)) if journal is not None else None
 
         def keep(position: int, row: dict[str, Any]) -> None:
             if log is not None:
-                log.write(json.dumps({"index": todo[position], "row": row}) + "\n")
-                log.flush()
+                try:
+                    log.write(json.dumps({"index": todo[position], "row": row}) + "\n")
+                    log.flush()
+                except OSError as exc:
+                    raise journal_write_error(journal, exc) from None
             if on_row is not None:
                 on_row(todo[position], row)
 
