@@ -323,3 +323,30 @@ def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path
         first.communicate(timeout=60)
     assert first.returncode == 130
     assert hidden(out) == []
+
+
+# ---------------------------------------------------------------- 6. memory
+
+@pytest.mark.parametrize("args, needs", [
+    (["simulate", "--voltage", "12", "--duration", "600", "--rate", "10000"], "--duration x --rate"),
+    (["convert", str(REPO / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml")], "converting sewing_machine.xml"),
+])
+def test_a_request_larger_than_the_memory_available_is_refused_before_it_allocates(tmp_path, cli, args, needs):
+    """The machine is told it has 100 MiB (MECHANISM_MEMORY_MB): the run is refused with what it
+    would need, before any allocation (under RLIMIT_AS it would otherwise die allocating)."""
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    target = ["--csv", str(out / "run.csv")] if args[0] == "simulate" else ["-o", str(out / "model")]
+    result = cli(*args, *target, env={"MECHANISM_MEMORY_MB": "100", "MECHANISM_CACHE": str(tmp_path / "cache")})
+    line = result.assert_bad_input()
+    assert needs in line and "would need about" in line and "100 MiB" in line, line
+    assert visible(out) == before and hidden(out) == [] and not (out / "model").exists()
+
+
+def test_the_memory_available_is_known_on_this_machine(monkeypatch):
+    from mechanism.files.limits import available_memory_bytes
+
+    monkeypatch.delenv("MECHANISM_MEMORY_MB", raising=False)
+    assert available_memory_bytes() > 2**20
+    monkeypatch.setenv("MECHANISM_MEMORY_MB", "64")
+    assert available_memory_bytes() == 64 * 2**20
