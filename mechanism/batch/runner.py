@@ -38,6 +38,28 @@ RAY_TASK_RETRIES = 3  # reruns of a chunk whose worker process or node died
 RAY_INSTALL_HINT = "pip install 'mechanism[ray]'"
 
 
+class BatchLost(UserError):
+    """The cluster itself was lost mid-batch (its head died, the connection broke): which items
+    did not finish, so a caller can name them (and a sweep resume them)."""
+
+    def __init__(self, message: str, unfinished: list[int], cause: str):
+        super().__init__(message)
+        self.unfinished, self.cause = unfinished, cause
+
+
+def item_ranges(indices) -> str:
+    """``[0, 1, 2, 5, 7, 8]`` as ``'0-2, 5, 7-8'``."""
+    indices = sorted(set(indices))
+    parts, start = [], None
+    for position, index in enumerate(indices):
+        if start is None:
+            start = index
+        if position + 1 == len(indices) or indices[position + 1] != index + 1:
+            parts.append(str(start) if start == index else f"{start}-{index}")
+            start = None
+    return ", ".join(parts)
+
+
 def check_options(backend: str, workers: int) -> None:
     """Raise UserError for an unknown backend or a worker count out of range."""
     if backend not in BACKENDS:
@@ -270,10 +292,21 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
                 # unpickle it for every chunk: the worker does that once (_ray_state)
                 ref = task.remote(function, setup, [shared_ref], [(i, items[i]) for i in chunk])
                 pending[ref] = chunk
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            for ref in ready:
-                chunk = pending.pop(ref)
-                yield _ray_result(ray, ref, chunk)
+            try:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                results = [(ref, _ray_result(ray, ref, pending[ref])) for ref in ready[:1]]
+            except (UserError, ray.exceptions.RayTaskError):
+                raise
+            except (ray.exceptions.RayError, ConnectionError) as exc:  # the cluster itself is gone
+                unfinished = sorted(i for chunk in [*pending.values(), *queue] for i in chunk)
+                text = str(exc).strip()
+                cause = type(exc).__name__ + (f": {text.splitlines()[0]}" if text else "")
+                raise BatchLost(f"the Ray cluster was lost mid-batch ({cause}): {len(unfinished)} of {len(items)} items "
+                                f"did not finish (items {item_ranges(unfinished)}); the others did", unfinished,
+                                cause) from None
+            for ref, result in results:
+                pending.pop(ref)
+                yield result
     finally:
         from mechanism.files.interrupts import deferred
 

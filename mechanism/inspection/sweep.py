@@ -491,7 +491,8 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     left there and runs only the others. ``on_row(index, row)`` sees each new row."""
     import time
 
-    from mechanism.batch import check_options, run_batch
+    from mechanism.batch import BatchLost, check_options, run_batch
+    from mechanism.batch.runner import item_ranges
 
     check_options(backend, workers)
     from mechanism.kinematics.pose import degrees_of_freedom
@@ -526,12 +527,18 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
             if on_row is not None:
                 on_row(todo[position], row)
 
-        if options.full:
-            rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress, mobility == 1)
-        else:
-            rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
-                             workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
-                             progress=progress, desc="variants", unit="variant")
+        try:
+            if options.full:
+                rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress, mobility == 1)
+            else:
+                rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
+                                 workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
+                                 progress=progress, desc="variants", unit="variant")
+        except BatchLost as exc:  # name the variants (rows of the table), and say how to go on
+            lost = [todo[i] for i in exc.unfinished if i < len(todo)]
+            kept = f"; the finished rows are kept in {journal}: run it again with --resume to continue" if journal else ""
+            raise UserError(f"the Ray cluster was lost mid-sweep ({exc.cause}): {len(lost)} of {len(variants)} variants "
+                            f"did not run (variants {item_ranges(lost)}, numbered from 0 as in the file){kept}") from None
     done.update(zip(todo, rows))
     return SweepResult(variants, [done[i] for i in range(len(variants))], options, time.perf_counter() - start,
                        resumed=len(variants) - len(todo), degrees_of_freedom=mobility)
@@ -551,7 +558,7 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
               workers: int, backend: str, ray_address: str | None, progress: bool, one_dof: bool) -> list[dict[str, Any]]:
     """Groups of variants through ``mujoco.rollout``: locally one process whose rollout pool
     has ``workers`` threads; on Ray one thread per task, the cluster's tasks in parallel."""
-    from mechanism.batch import run_batch
+    from mechanism.batch import BatchLost, run_batch
 
     local = backend == "local"
     size = FULL_GROUP * (workers if local else 1)
@@ -563,9 +570,13 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
             keep(int(starts[position]) + offset, row)
 
     shared = _FullShared(base, workers if local else 1, one_dof)
-    results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
-                        setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
-                        on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
+    try:
+        results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
+                            setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
+                            on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
+    except BatchLost as exc:  # groups lost: the positions (in todo) of their variants
+        positions = [int(starts[g]) + k for g in exc.unfinished for k in range(len(groups[g]))]
+        raise BatchLost(str(exc), positions, exc.cause) from None
     return [row for rows in results for row in rows]
 
 
