@@ -73,10 +73,11 @@ def simulate_args(folder: Path) -> list[str]:
 # ---------------------------------------------------------------- 1. full disk and quotas
 
 @pytest.mark.slow
-@pytest.mark.parametrize("limit_bytes", [0, 3000, 30000])
+@pytest.mark.parametrize("limit_bytes", [0, 30000])
 def test_a_file_size_limit_ends_the_run_with_one_line_and_keeps_the_old_outputs(tmp_path, limit_bytes):
     """``ulimit -f`` for real (RLIMIT_FSIZE, SIGXFSZ ignored): the write fails with EFBIG at
-    the first byte, inside the CSV, or inside the plot (the CSV is ~26 kB, the plot ~60 kB)."""
+    the first byte (and the temporary folder's probe) or inside the plot (the CSV is ~26 kB, the
+    plot ~60 kB)."""
     out = tmp_path / "out"
     before = old_outputs(out)
 
@@ -101,15 +102,16 @@ def event_count(tmp_path: Path, args: list[str], root: Path) -> int:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("fault", ["ENOSPC", "EDQUOT", "EFBIG"])
-def test_a_full_disk_at_any_write_keeps_the_old_outputs(tmp_path, capfd, fault):
-    """The fault at write events spread over a run of a run (first byte, mid-CSV, mid-plot, the
-    renames of publishing): one line naming the output and the cause, nothing lost."""
+@pytest.mark.parametrize("fault, spread", [("ENOSPC", 3), ("EDQUOT", 1), ("EFBIG", 1)])  # points tried
+def test_a_full_disk_at_any_write_keeps_the_old_outputs(tmp_path, capfd, fault, spread):
+    """The fault at the first write of the run, in its middle and at the last rename of
+    publishing (the fault suite, test_fault_fuzz.py, draws other points at random): one line
+    naming the output and the cause, nothing lost."""
     out = tmp_path / "out"
     old_outputs(out)
     total = event_count(tmp_path, simulate_args(out), out)
     cause = {"ENOSPC": "disk is full", "EDQUOT": "quota", "EFBIG": "file size limit"}[fault]
-    points = sorted({0, total - 2, total - 1, *range(0, total, max(1, total // 4))})
+    points = sorted({total // 2} if spread == 1 else {0, total // 2, total - 1})
     for fail_at in points:
         before = old_outputs(out)
         capfd.readouterr()
@@ -235,7 +237,7 @@ def test_a_signal_at_any_write_of_a_run_keeps_the_old_outputs(tmp_path, capfd, f
     old_outputs(out)
     total = event_count(tmp_path, simulate_args(out), out)
     new = visible(out)
-    for fail_at in sorted({0, total // 2, total - 3, total - 2, total - 1}):
+    for fail_at in sorted({total // 2, total - 1}):
         before = old_outputs(out)
         capfd.readouterr()
         with injected(out, fail_at, fault):
@@ -254,9 +256,9 @@ def test_a_lock_a_killed_run_left_does_not_block_the_next_run(tmp_path, cli):
     old_outputs(out)
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
-    for name in ("run.csv", "run.png"):
-        (out / f".{name}.lock").write_text(f"{dead.pid}\n")
-    result = cli(*simulate_args(out), env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "2"})
+    (out / ".run.csv.lock").write_text(f"{dead.pid}\n")
+    result = cli(*SIMULATE, "--csv", str(out / "run.csv"),
+                 env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "2"})
     assert result.returncode == 0, result.stderr
     assert (out / "run.csv").read_text() != "old table\n"
     assert hidden(out) == []
@@ -270,8 +272,8 @@ def test_an_output_another_live_run_holds_is_refused_with_one_line(tmp_path, cli
         handle.write(f"{os.getpid()}\n")
         handle.flush()
         fcntl.flock(handle, fcntl.LOCK_EX)
-        result = cli(*simulate_args(out), env={"MECHANISM_CACHE": str(tmp_path / "cache"),
-                                               "MECHANISM_LOCK_WAIT_S": "0.5"})
+        result = cli(*SIMULATE, "--csv", str(out / "run.csv"),
+                     env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "0.5"})
     line = result.assert_bad_input()
     assert f"pid {os.getpid()}" in line and "run.csv" in line, line
     assert {k: v for k, v in visible(out).items()} == before
@@ -311,7 +313,7 @@ def test_two_runs_writing_the_same_outputs_at_once_leave_one_whole_result(tmp_pa
 
 @pytest.mark.slow
 def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path, cli):
-    first, out, _ = start_sweep(tmp_path)
+    first, out, _ = start_sweep(tmp_path, workers=1)
     try:
         second = cli("sweep", "--variants", str(tmp_path / "v.csv"), "--duration", "2", "--csv", str(out / "run.csv"),
                      env={"MECHANISM_CACHE": str(tmp_path / "cache")})
@@ -350,3 +352,34 @@ def test_the_memory_available_is_known_on_this_machine(monkeypatch):
     assert available_memory_bytes() > 2**20
     monkeypatch.setenv("MECHANISM_MEMORY_MB", "64")
     assert available_memory_bytes() == 64 * 2**20
+
+
+@pytest.mark.slow
+def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path):
+    """``--backend ray`` without an address starts a private Ray instance (raylet, GCS, workers):
+    SIGTERM (which ``ray.init`` would otherwise answer with a bare exit 15) stops all of it."""
+    pytest.importorskip("ray")
+    variants = tmp_path / "v.csv"
+    variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    args = [sys.executable, "-m", "mechanism", "sweep", "--variants", str(variants), "--duration", "2", "--backend", "ray",
+            "--workers", "1", "--csv", str(out / "run.csv")]
+    proc = subprocess.Popen(args, env=environment(tmp_path, RAY_USAGE_STATS_ENABLED="0"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    journal = out / "run.csv.partial"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and proc.poll() is None and not (journal.exists() and journal.read_text().count("\n") > 3):
+        time.sleep(0.1)
+    started = children(proc.pid)
+    assert proc.poll() is None and len(started) > 2, proc.communicate()  # the instance's processes
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 143, stderr
+    assert "error: interrupted" in stderr.splitlines(), stderr
+    assert time.monotonic() - sent < INTERRUPT_MARGIN_S
+    time.sleep(0.5)
+    assert [pid for pid in started if not gone(pid)] == []
+    assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before  # the journal: for --resume
+    assert hidden(out) == []

@@ -233,6 +233,9 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
         ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
+    from mechanism.files.interrupts import reclaim
+
+    reclaim()  # ray.init sets its own SIGTERM handler (sys.exit(15)): a kill must still clean up
     return True
 
 

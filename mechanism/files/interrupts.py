@@ -61,6 +61,14 @@ def install() -> None:
     _state.update(installed=previous, interrupted=None, depth=0, pending=None)
 
 
+def reclaim() -> None:
+    """Our handlers back after a library replaced them (``ray.init`` sets its own SIGTERM
+    handler, which exits without cleaning up)."""
+    if _state["installed"] and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _handler)
+        signal.signal(signal.SIGTERM, _handler)
+
+
 def ignore_from_now() -> None:
     """The process is about to exit: later signals are ignored by the system itself (Python
     drops its own handlers while it shuts down, when a late Ctrl-C would kill it with 130's
