@@ -232,11 +232,49 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
             raise UserError(f"cannot connect to the Ray cluster at {address}: {first}{hint}") from None
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
-        ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
+        try:
+            ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
+        except BaseException:  # Ctrl-C while it starts: stop what it started (Ray may not know it yet)
+            from mechanism.files.interrupts import deferred
+
+            with deferred():
+                _kill(_descendants(os.getpid()))  # at once: Ray's own shutdown of a half-started instance takes seconds
+                with contextlib.suppress(Exception):
+                    ray.shutdown()
+            raise
     from mechanism.files.interrupts import reclaim
 
     reclaim()  # ray.init sets its own SIGTERM handler (sys.exit(15)): a kill must still clean up
     return True
+
+
+def _descendants(pid: int) -> list[int]:
+    """The processes ``pid`` started and theirs (Linux /proc; elsewhere none)."""
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{parent}/task")
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                with open(f"/proc/{parent}/task/{task}/children") as handle:
+                    kids = [int(k) for k in handle.read().split()]
+            except (OSError, ValueError):
+                continue
+            new = [k for k in kids if k not in found]
+            found.extend(new)
+            todo.extend(new)
+    return found
+
+
+def _kill(pids: list[int]) -> None:
+    import signal
+
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
 
 
 # Ray puts Unix sockets under its temporary folder (session_<date>_<pid>/sockets/plasma_store: about

@@ -115,8 +115,9 @@ def _try_lock(lock: Path) -> int | None:
         except FileNotFoundError:
             same = False
         if same:  # not a file its last holder removed after we opened it
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
+            with contextlib.suppress(OSError):  # the pid only names the holder: a full disk may refuse it
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
             return fd
         os.close(fd)
 
