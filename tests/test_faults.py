@@ -164,6 +164,13 @@ def children(pid: int) -> set[int]:
     return found
 
 
+def command(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()[:80].decode(errors="replace")
+    except OSError:
+        return "(gone)"
+
+
 def gone(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -383,7 +390,7 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path):
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline and not all(gone(pid) for pid in started):
         time.sleep(0.2)
-    alive = {pid: Path(f"/proc/{pid}/cmdline").read_bytes()[:80] for pid in started if not gone(pid)}
+    alive = {pid: command(pid) for pid in started if not gone(pid)}
     assert alive == {}, alive
     assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before  # the journal: for --resume
     assert hidden(out) == []
