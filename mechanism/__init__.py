@@ -25,6 +25,7 @@ _lazy_names, __getattr__, _lazy_dir = lazy_exports(__name__, {
             "read_recording", "read_table", "shipped_export", "shipped_folder", "shipped_machines", "simulate", "sweep", "view", "write_bench_recording",
             "write_needle_csv", "write_table"),
     "machine.description": ("read_description",),
+    "files.cache": ("cache_info", "clear_cache"),
 })
 __all__ = ["UserError", "__version__", *_lazy_names]
 

@@ -15,8 +15,8 @@ MAPPED = {"mechanism.converters": REPO / "converters"}
 # room -> layer; a room may import rooms of lower layers and itself only.
 LAYERS = {
     "errors": 0, "tolerances": 0, "lazy": 0,
-    "files": 1, "native": 1, "data": 1,
-    "batch": 2, "converters": 2,
+    "files": 1, "data": 1,
+    "native": 2, "batch": 2, "converters": 2,  # native keeps its kernels in the files room's cache
     "kinematics": 3, "physics": 3,
     "machine": 4,
     "dynamics": 5,

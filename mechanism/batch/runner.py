@@ -38,6 +38,28 @@ RAY_TASK_RETRIES = 3  # reruns of a chunk whose worker process or node died
 RAY_INSTALL_HINT = "pip install 'mechanism[ray]'"
 
 
+class BatchLost(UserError):
+    """The cluster itself was lost mid-batch (its head died, the connection broke): which items
+    did not finish, so a caller can name them (and a sweep resume them)."""
+
+    def __init__(self, message: str, unfinished: list[int], cause: str):
+        super().__init__(message)
+        self.unfinished, self.cause = unfinished, cause
+
+
+def item_ranges(indices) -> str:
+    """``[0, 1, 2, 5, 7, 8]`` as ``'0-2, 5, 7-8'``."""
+    indices = sorted(set(indices))
+    parts, start = [], None
+    for position, index in enumerate(indices):
+        if start is None:
+            start = index
+        if position + 1 == len(indices) or indices[position + 1] != index + 1:
+            parts.append(str(start) if start == index else f"{start}-{index}")
+            start = None
+    return ", ".join(parts)
+
+
 def check_options(backend: str, workers: int) -> None:
     """Raise UserError for an unknown backend or a worker count out of range."""
     if backend not in BACKENDS:
@@ -120,6 +142,9 @@ _LOCAL_STATE: Any = None
 
 def _init_local_worker(setup, shared) -> None:
     global _LOCAL_STATE
+    from mechanism.files.interrupts import ignore_in_worker
+
+    ignore_in_worker()  # a Ctrl-C reaches the whole terminal group: the parent stops the workers
     _LOCAL_STATE = _build_state(setup, shared)
 
 
@@ -135,6 +160,7 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
     method = start_method or ("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
     pool = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=multiprocessing.get_context(method),
                                initializer=_init_local_worker, initargs=(setup, shared))
+    finished_all = False
     try:
         # the items of a chunk travel with it; the payload went once, through the initializer
         pending = {pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]) for chunk in chunks}
@@ -146,8 +172,28 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
                 except BrokenProcessPool:
                     raise UserError("a worker process died mid-batch (out of memory, or killed); "
                                     "run again, or use --backend ray, which reruns the lost items") from None
+        finished_all = True
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        from mechanism.files.interrupts import deferred
+
+        with deferred():
+            if not finished_all:  # an error or an interrupt: stop the workers now, not after their chunks
+                _terminate_workers(pool)
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate_workers(pool) -> None:
+    """Stop a process pool's workers at once (SIGTERM, then SIGKILL for any still there)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.join(1.0)
+            if process.is_alive():
+                process.kill()
+                process.join(1.0)
 
 
 # -- Ray --------------------------------------------------------------------------------------
@@ -186,8 +232,49 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
             raise UserError(f"cannot connect to the Ray cluster at {address}: {first}{hint}") from None
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
-        ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
+        try:
+            ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
+        except BaseException:  # Ctrl-C while it starts: stop what it started (Ray may not know it yet)
+            from mechanism.files.interrupts import deferred
+
+            with deferred():
+                _kill(_descendants(os.getpid()))  # at once: Ray's own shutdown of a half-started instance takes seconds
+                with contextlib.suppress(Exception):
+                    ray.shutdown()
+            raise
+    from mechanism.files.interrupts import reclaim
+
+    reclaim()  # ray.init sets its own SIGTERM handler (sys.exit(15)): a kill must still clean up
     return True
+
+
+def _descendants(pid: int) -> list[int]:
+    """The processes ``pid`` started and theirs (Linux /proc; elsewhere none)."""
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{parent}/task")
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                with open(f"/proc/{parent}/task/{task}/children") as handle:
+                    kids = [int(k) for k in handle.read().split()]
+            except (OSError, ValueError):
+                continue
+            new = [k for k in kids if k not in found]
+            found.extend(new)
+            todo.extend(new)
+    return found
+
+
+def _kill(pids: list[int]) -> None:
+    import signal
+
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
 
 
 # Ray puts Unix sockets under its temporary folder (session_<date>_<pid>/sockets/plasma_store: about
@@ -246,15 +333,30 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
                 # unpickle it for every chunk: the worker does that once (_ray_state)
                 ref = task.remote(function, setup, [shared_ref], [(i, items[i]) for i in chunk])
                 pending[ref] = chunk
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            for ref in ready:
-                chunk = pending.pop(ref)
-                yield _ray_result(ray, ref, chunk)
+            try:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                results = [(ref, _ray_result(ray, ref, pending[ref])) for ref in ready[:1]]
+            except (UserError, ray.exceptions.RayTaskError):
+                raise
+            except (ray.exceptions.RayError, ConnectionError) as exc:  # the cluster itself is gone
+                unfinished = sorted(i for chunk in [*pending.values(), *queue] for i in chunk)
+                text = str(exc).strip()
+                cause = type(exc).__name__ + (f": {text.splitlines()[0]}" if text else "")
+                raise BatchLost(f"the Ray cluster was lost mid-batch ({cause}): {len(unfinished)} of {len(items)} items "
+                                f"did not finish (items {item_ranges(unfinished)}); the others did", unfinished,
+                                cause) from None
+            for ref, result in results:
+                pending.pop(ref)
+                yield result
     finally:
-        for ref in pending:
-            ray.cancel(ref, force=True)
-        if started:
-            ray.shutdown()
+        from mechanism.files.interrupts import deferred
+
+        with deferred():  # a second Ctrl-C must not leave the instance running
+            for ref in pending:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref, force=True)
+            if started:
+                ray.shutdown()
 
 
 def _ray_result(ray, ref, chunk):

@@ -78,6 +78,23 @@ def debug_enabled() -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from mechanism.files import interrupts
+
+    interrupts.install()  # Ctrl-C and kill end the run in order; a full ulimit -f is an error line
+    try:
+        return _main(argv)
+    except KeyboardInterrupt as exc:  # before the verb started
+        sys.stderr.write("\nerror: interrupted\n")
+        return getattr(exc, "exit_status", 130)
+    finally:
+        interrupts.finish()  # a late second Ctrl-C is ignored until the process exits
+        if argv is not None:  # called in-process (tests, scripts): their handlers back
+            interrupts.restore()
+        else:
+            interrupts.ignore_from_now()
+
+
+def _main(argv: list[str] | None) -> int:
     warnings.formatwarning = _format_warning
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -92,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """The verb, every failure as one ``error:`` line that starts a line of its own."""
+    from mechanism.files import interrupts
     from mechanism.files.capture import LineTracker
 
     stderr = LineTracker(sys.stderr)
@@ -99,13 +117,15 @@ def _run(args: argparse.Namespace) -> int:
     try:
         check_paths(args)
         return run_verb(args)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (files.interrupts): cleaned up on the way here
+        interrupts.finish()
         stderr.end_line()
         sys.stderr.write("error: interrupted\n")
-        return 130
+        return getattr(exc, "exit_status", 130)
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 - the one place every failure becomes one line
+        interrupts.finish()
         if debug_enabled():
             raise
         stderr.end_line()
@@ -179,12 +199,18 @@ def describe(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or exc.__class__.__name__
     if isinstance(exc, (UserError, ExportError)):
         return text
-    if isinstance(exc, FileNotFoundError):
+    if isinstance(exc, FileNotFoundError) and exc.filename:
         return f"no such file: {exc.filename}"
     if isinstance(exc, MemoryError):
         return "out of memory: the request is too large for this machine (reduce the counts or sizes asked for)"
     if isinstance(exc, RuntimeWarning) and "overflow" in text:
         return f"numeric overflow ({text}): an input value is out of any physical range"
+    from mechanism.files.outputs import disk_problem
+
+    problem = disk_problem(exc)
+    if problem is not None:
+        where = getattr(exc, "filename", None)
+        return f"cannot write {where}: {problem}" if where else f"cannot write: {problem}"
     if isinstance(exc, OSError):
         return f"{exc.strerror or text}: {exc.filename}" if exc.filename else text
     return f"{exc.__class__.__name__}: {text} (set MECHANISM_DEBUG=1 for the traceback)"

@@ -1,4 +1,5 @@
-"""Files: atomic outputs, CSV tables with units, plots, bounded untrusted input, captured stderr."""
+"""Files: atomic outputs, CSV tables with units, plots, bounded untrusted input, captured stderr,
+the checked cache, interrupts."""
 
 from mechanism.lazy import lazy_exports
 
@@ -8,4 +9,6 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "limits": ("number", "check_number", "read_bounded", "check_elements"),
     "capture": ("captured_stderr", "captured_stdout", "LineTracker"),
     "plotting": ("plt", "save_figure"),
+    "cache": ("cache_info", "clear_cache", "cache_root"),
+    "interrupts": ("Interrupted",),
 })

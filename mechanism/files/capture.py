@@ -17,6 +17,8 @@ import re
 import sys
 import tempfile
 
+from mechanism.files.interrupts import deferred
+
 UNSTABLE_MARKERS = ("simulation is unstable", "Nan, Inf or huge value")
 
 
@@ -88,6 +90,11 @@ def _captured(fd: int, name: str):
         yield []  # no such descriptor to capture (embedded interpreter)
         return
     result: list[str] = []
+    try:
+        sink = tempfile.TemporaryFile()
+    except OSError:  # no temporary folder can be written (full disk, ulimit -f 0): run uncaptured
+        yield result
+        return
     previous = getattr(sys, name)
     with contextlib.suppress(Exception):
         previous.flush()
@@ -98,21 +105,27 @@ def _captured(fd: int, name: str):
         previous.stream = real
     else:
         setattr(sys, name, real)
-    with tempfile.TemporaryFile() as sink:
+    with sink:
         os.dup2(sink.fileno(), fd)
         try:
             yield result
         finally:
-            for stream in (sys.stdout, sys.stderr):
-                with contextlib.suppress(Exception):
-                    stream.flush()
-            os.dup2(saved, fd)
-            real.flush()
-            if inner is not None:
-                previous.stream = inner
-            else:
-                setattr(sys, name, previous)
-            real.close()
-            os.close(saved)
-            sink.seek(0)
-            result.append(sink.read(1 << 20).decode("utf-8", errors="replace"))
+            with deferred():  # a Ctrl-C here must not leave the descriptor in the sink
+                _restore(fd, name, saved, real, previous, inner, sink, result)
+
+
+def _restore(fd: int, name: str, saved, real, previous, inner, sink, result) -> None:
+    """The descriptor and ``sys.<name>`` back as they were; the captured text into ``result``."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os.dup2(saved, fd)
+    real.flush()
+    if inner is not None:
+        previous.stream = inner
+    else:
+        setattr(sys, name, previous)
+    real.close()
+    os.close(saved)
+    sink.seek(0)
+    result.append(sink.read(1 << 20).decode("utf-8", errors="replace"))

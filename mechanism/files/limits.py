@@ -3,7 +3,9 @@
 Every number a verb takes is finite and in its physical range; every input is read by
 counting the bytes actually read (a pipe or ``/dev/zero`` reports size 0); every count
 that sizes an allocation is checked from the request. The byte and element limits can be
-raised with environment variables (``MECHANISM_MAX_INPUT_MB``, ``MECHANISM_MAX_ELEMENTS``).
+raised with environment variables (``MECHANISM_MAX_INPUT_MB``, ``MECHANISM_MAX_ELEMENTS``), and
+a request larger than the memory the machine has available is refused before it allocates
+(:func:`check_memory`; ``MECHANISM_MEMORY_MB`` sets that memory instead).
 """
 
 from __future__ import annotations
@@ -74,11 +76,59 @@ def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -
 
 
 def check_elements(count: float, what: str) -> None:
-    """UserError before allocating ``count`` numbers when that exceeds the limit."""
+    """UserError before allocating ``count`` numbers when that exceeds the limit or the
+    memory this machine has available."""
     limit = max_elements()
     if not count <= limit:
         raise UserError(f"{what}: {count:.3g} values would need {count * 8 / 2**30:.3g} GiB, more than the limit of "
                         f"{limit:.3g} values ({limit * 8 / 2**30:.3g} GiB; raise it with MECHANISM_MAX_ELEMENTS)")
+    check_memory(count * 8, what)
+
+
+def _meminfo_available() -> int | None:
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _cgroup_available() -> int | None:
+    """What a container's memory limit (cgroup v2) leaves, where one is set."""
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = int(Path("/sys/fs/cgroup/memory.current").read_text().strip())
+    except (OSError, ValueError):
+        return None
+    return None if limit == "max" else max(0, int(limit) - used)
+
+
+def available_memory_bytes() -> int | None:
+    """The memory a run may still take: ``$MECHANISM_MEMORY_MB`` if set, else the system's
+    available memory (``MemAvailable``, and a container's limit where lower); None if unknown."""
+    if os.environ.get("MECHANISM_MEMORY_MB", "").strip():
+        return int(_env_limit("MECHANISM_MEMORY_MB", 0) * 2**20)
+    known = [value for value in (_meminfo_available(), _cgroup_available()) if value is not None]
+    return min(known) if known else None
+
+
+def _size(count: float) -> str:
+    return f"{count / 2**30:.3g} GiB" if count >= 2**30 else f"{count / 2**20:.3g} MiB"
+
+
+def check_memory(needed_bytes: float, what: str) -> None:
+    """UserError before allocating when ``needed_bytes`` exceeds the memory available now."""
+    available = available_memory_bytes()
+    if available is not None and not needed_bytes <= available:
+        raise UserError(f"{what}: would need about {_size(needed_bytes)} of memory, more than the {_size(available)} "
+                        "this machine has available; ask for less (a shorter run, a lower rate, a smaller export) "
+                        "or run it on a larger machine")
 
 
 def check_number(value, what: str, low: float | None = None, high: float | None = None, unit: str = "",

@@ -15,14 +15,17 @@ import contextlib
 import contextvars
 import ctypes
 import ctypes.util
+import errno
 import os
 import re
 import shutil
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mechanism.errors import UserError
+from mechanism.files.interrupts import deferred
 
 _active: contextvars.ContextVar["Transaction | None"] = contextvars.ContextVar("mechanism_transaction", default=None)
 
@@ -33,6 +36,144 @@ def _umask_mode(mode: int = 0o666) -> int:
     current = os.umask(0)
     os.umask(current)
     return mode & ~current
+
+
+# ---------------------------------------------------------------- a full disk
+
+DISK_FULL = {
+    errno.ENOSPC: "the disk is full",
+    errno.EFBIG: "the file size limit is reached (ulimit -f)",
+    errno.EDQUOT: "the disk quota is exceeded",
+}
+
+
+def disk_problem(exc: BaseException) -> str | None:
+    """What a failed write says about the disk (full, quota, file size limit), or None when
+    it is some other failure. ``shutil.copytree`` gathers its errors as text: read that too."""
+    if isinstance(exc, shutil.Error):
+        text = str(exc)
+        for number, cause in DISK_FULL.items():
+            if os.strerror(number) in text:
+                return f"{cause} ({os.strerror(number)})"
+        return None
+    if isinstance(exc, OSError) and exc.errno in DISK_FULL:
+        return f"{DISK_FULL[exc.errno]} ({os.strerror(exc.errno)})"
+    return None
+
+
+def _disk_error(path: Path, exc: BaseException) -> UserError | None:
+    problem = disk_problem(exc)
+    if problem is None:
+        return None
+    return UserError(f"output {path}: cannot write it, {problem}; nothing was published and the previous "
+                     "output is kept")
+
+
+# ---------------------------------------------------------------- locks
+
+def lock_wait_s() -> float:
+    """How long publishing waits for another run publishing the same output
+    (``$MECHANISM_LOCK_WAIT_S``, default 60 s; publishing itself takes milliseconds)."""
+    text = os.environ.get("MECHANISM_LOCK_WAIT_S", "").strip()
+    try:
+        return max(0.0, float(text)) if text else 60.0
+    except ValueError:
+        raise UserError(f"$MECHANISM_LOCK_WAIT_S must be a number of seconds, got {text!r}") from None
+
+
+def lock_path(path: str | os.PathLike) -> Path:
+    """The lock file of an output: ``.NAME.lock`` beside it, holding the pid of its holder."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.lock")
+
+
+def _lock_holder(lock: Path) -> str:
+    with contextlib.suppress(OSError, ValueError):
+        text = lock.read_text().strip()
+        if text:
+            return f" (pid {int(text)})"
+    return ""
+
+
+def _try_lock(lock: Path) -> int | None:
+    """A descriptor holding ``lock`` (flock), or None while another process holds it. The
+    kernel drops a lock when its holder dies: a lock file that a killed run left is taken over."""
+    import fcntl
+
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, _umask_mode())
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return None
+        except BaseException:
+            os.close(fd)
+            raise
+        try:
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:  # not a file its last holder removed after we opened it
+            with contextlib.suppress(OSError):  # the pid only names the holder: a full disk may refuse it
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
+            return fd
+        os.close(fd)
+
+
+def _unlock(lock: Path, fd: int) -> None:
+    with contextlib.suppress(OSError):
+        os.unlink(lock)  # while still held: a waiter that opened it sees another inode and retries
+    os.close(fd)
+
+
+@contextlib.contextmanager
+def output_lock(paths, wait_s: float | None = None, busy: str | None = None):
+    """Hold the locks of ``paths`` (taken in one order, so two runs never wait on each other).
+
+    Another live run holding one: wait up to ``wait_s`` (default :func:`lock_wait_s`), then
+    UserError (``busy`` formatted with ``path`` and ``holder`` says what, if given)."""
+    wait_s = lock_wait_s() if wait_s is None else wait_s
+    held: list[tuple[Path, int]] = []
+    try:
+        for path in sorted({Path(p).absolute() for p in paths}):
+            lock = lock_path(path)
+            deadline = time.monotonic() + wait_s
+            while True:
+                try:
+                    fd = _try_lock(lock)
+                except FileNotFoundError:  # the folder is not there (yet): nothing to guard
+                    break
+                except OSError as exc:
+                    raise _disk_error(path, exc) or UserError(
+                        f"output {path}: cannot create its lock {lock.name} ({exc.strerror})") from None
+                if fd is not None:
+                    held.append((lock, fd))
+                    break
+                if time.monotonic() >= deadline:
+                    holder = _lock_holder(lock)
+                    if busy:
+                        raise UserError(busy.format(path=path, holder=holder))
+                    raise UserError(f"output {path}: another run{holder} is writing it and did not finish in "
+                                    f"{wait_s:g} s; wait for it (or raise MECHANISM_LOCK_WAIT_S)")
+                time.sleep(0.05)
+        yield
+    finally:
+        with deferred():
+            for lock, fd in reversed(held):
+                _unlock(lock, fd)
+
+
+def _clean_stale_lock(path: Path) -> None:
+    """Remove the lock file a killed run left (nobody holds it)."""
+    lock = lock_path(path)
+    if not os.path.lexists(lock):
+        return
+    with contextlib.suppress(OSError):
+        fd = _try_lock(lock)
+        if fd is not None:
+            _unlock(lock, fd)
 
 
 # ---------------------------------------------------------------- temporaries and leftovers
@@ -61,6 +202,7 @@ def clean_leftovers(path: str | os.PathLike) -> None:
     moving an old folder away and moving the new one in, put the old one back."""
     path = Path(path)
     parent = path.parent
+    _clean_stale_lock(path)
     try:
         entries = list(os.scandir(parent))
     except OSError:
@@ -169,10 +311,27 @@ class Transaction:
         self.staged.append((temporary, destination, folder))
 
     def publish(self) -> None:
-        """Files by rename (with a backup link so a failure rolls back), folders by swap."""
+        """Files by rename (with a backup link so a failure rolls back), folders by swap;
+        under the outputs' locks, so two runs publishing the same outputs at once leave the
+        whole of one; a signal waits until it is done."""
+        try:
+            lock = output_lock([destination for _, destination, _ in self.staged])
+            lock.__enter__()
+        except BaseException:
+            self.abort()  # another run holds an output: nothing published, no temporary left
+            raise
+        try:
+            with deferred():
+                self._publish()
+        finally:
+            lock.__exit__(None, None, None)
+
+    def _publish(self) -> None:
         done: list[tuple[Path, Path | None]] = []
+        current = None
         try:
             for temporary, destination, folder in self.staged:
+                current = destination
                 if folder:
                     swap_in_folder(temporary, destination)
                     done.append((destination, None))
@@ -180,16 +339,29 @@ class Transaction:
                 backup = None
                 if destination.is_file():
                     backup = destination.with_name(f"{_temp_prefix(destination)}bak.old")
-                    with contextlib.suppress(OSError):
+                    try:
                         os.link(destination, backup)
-                os.replace(temporary, destination)
+                    except OSError as exc:
+                        if disk_problem(exc):  # no room even for a link: stop before replacing anything
+                            raise
+                        backup = None  # a file system without hard links: published without a way back
+                try:
+                    os.replace(temporary, destination)
+                except BaseException:
+                    if backup is not None:
+                        with contextlib.suppress(OSError):
+                            os.unlink(backup)
+                    raise
                 done.append((destination, backup))
-        except BaseException:
+        except BaseException as exc:
             for destination, backup in reversed(done):
                 if backup is not None:
                     with contextlib.suppress(OSError):
                         os.replace(backup, destination)
             self.abort()
+            problem = _disk_error(current, exc) if current is not None else None
+            if problem is not None:
+                raise problem from None
             raise
         for _, backup in done:
             if backup is not None:
@@ -198,6 +370,10 @@ class Transaction:
         self.staged.clear()
 
     def abort(self) -> None:
+        with deferred():
+            self._abort()
+
+    def _abort(self) -> None:
         for temporary, _, _ in self.staged:
             _remove(temporary)
         self.staged.clear()
@@ -255,8 +431,12 @@ def _staged(current: Transaction, path: Path, temporary: Path, folder: bool):
     """Yield; then stage ``temporary`` to become ``path`` when the transaction publishes."""
     try:
         yield
-    except BaseException:
-        _remove(temporary)
+    except BaseException as exc:
+        with deferred():
+            _remove(temporary)
+        problem = _disk_error(path, exc)
+        if problem is not None:
+            raise problem from None
         raise
     current.stage(temporary, path, folder)
 
@@ -266,7 +446,8 @@ def _temporary_file(path: Path, suffix: str) -> Path:
     try:
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=suffix, dir=path.parent)
     except OSError as exc:
-        raise UserError(f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
+        raise _disk_error(path, exc) or UserError(
+            f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
     os.close(fd)
     os.chmod(tmp, _umask_mode())
     return Path(tmp)
@@ -325,7 +506,8 @@ def atomic_dir(path: str | os.PathLike, keep: bool = False):
         try:
             tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
         except OSError as exc:
-            raise UserError(f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
+            raise _disk_error(path, exc) or UserError(
+                f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
         with _staged(current, path, tmp, folder=True):
             if keep and path.is_dir():
                 _clone(path, tmp)

@@ -42,7 +42,7 @@ from mechanism.machine.description import FRICTION_KEYS, SCHEMA, MachineDescript
 from mechanism.machine.machine import (Machine, MachineConfig, duty_map_from, fabric_from_description,
                                        motor_from_description, supply_limit)
 from mechanism.physics.friction import FrictionSet
-from mechanism.inspection.sweep_journal import open_journal, read_journal, sweep_fingerprint
+from mechanism.inspection.sweep_journal import journal_write_error, open_journal, read_journal, sweep_fingerprint
 from mechanism.inspection.sweep_metrics import METRICS, bearing_loads, variant_metrics
 from mechanism.inspection.variants import (OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter,
                                            linear_coupling)
@@ -493,7 +493,8 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     left there and runs only the others. ``on_row(index, row)`` sees each new row."""
     import time
 
-    from mechanism.batch import check_options, run_batch
+    from mechanism.batch import BatchLost, check_options, run_batch
+    from mechanism.batch.runner import item_ranges
 
     check_options(backend, workers)
     from mechanism.kinematics.pose import degrees_of_freedom
@@ -505,25 +506,41 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     variants = with_defaults(variants, options)
     check_parameters(base, variants)
     fingerprint = sweep_fingerprint(machine, variants, options)
-    done = read_journal(journal, fingerprint) if journal is not None and resume else {}
-    todo = [i for i in range(len(variants)) if i not in done]
     start = time.perf_counter()
     with contextlib.ExitStack() as stack:
+        if journal is not None:  # one sweep at a time writes a journal: a second one would mix rows in
+            from mechanism.files.outputs import output_lock
+
+            Path(journal).parent.mkdir(parents=True, exist_ok=True)  # as the journal's own first write does
+            stack.enter_context(output_lock([journal], wait_s=0, busy=(
+                "sweep journal {path}: another sweep{holder} is writing it (the same --csv); wait for it to "
+                "finish or choose another --csv")))
+        done = read_journal(journal, fingerprint) if journal is not None and resume else {}
+        todo = [i for i in range(len(variants)) if i not in done]
         log = stack.enter_context(open_journal(journal, fingerprint, fresh=not done)) if journal is not None else None
 
         def keep(position: int, row: dict[str, Any]) -> None:
             if log is not None:
-                log.write(json.dumps({"index": todo[position], "row": row}) + "\n")
-                log.flush()
+                try:
+                    log.write(json.dumps({"index": todo[position], "row": row}) + "\n")
+                    log.flush()
+                except OSError as exc:
+                    raise journal_write_error(journal, exc) from None
             if on_row is not None:
                 on_row(todo[position], row)
 
-        if options.full:
-            rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress, mobility == 1)
-        else:
-            rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
-                             workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
-                             progress=progress, desc="variants", unit="variant")
+        try:
+            if options.full:
+                rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress, mobility == 1)
+            else:
+                rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
+                                 workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
+                                 progress=progress, desc="variants", unit="variant")
+        except BatchLost as exc:  # name the variants (rows of the table), and say how to go on
+            lost = [todo[i] for i in exc.unfinished if i < len(todo)]
+            kept = f"; the finished rows are kept in {journal}: run it again with --resume to continue" if journal else ""
+            raise UserError(f"the Ray cluster was lost mid-sweep ({exc.cause}): {len(lost)} of {len(variants)} variants "
+                            f"did not run (variants {item_ranges(lost)}, numbered from 0 as in the file){kept}") from None
     done.update(zip(todo, rows))
     return SweepResult(variants, [done[i] for i in range(len(variants))], options, time.perf_counter() - start,
                        resumed=len(variants) - len(todo), degrees_of_freedom=mobility)
@@ -543,7 +560,7 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
               workers: int, backend: str, ray_address: str | None, progress: bool, one_dof: bool) -> list[dict[str, Any]]:
     """Groups of variants through ``mujoco.rollout``: locally one process whose rollout pool
     has ``workers`` threads; on Ray one thread per task, the cluster's tasks in parallel."""
-    from mechanism.batch import run_batch
+    from mechanism.batch import BatchLost, run_batch
 
     local = backend == "local"
     size = FULL_GROUP * (workers if local else 1)
@@ -555,9 +572,13 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
             keep(int(starts[position]) + offset, row)
 
     shared = _FullShared(base, workers if local else 1, one_dof)
-    results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
-                        setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
-                        on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
+    try:
+        results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
+                            setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
+                            on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
+    except BatchLost as exc:  # groups lost: the positions (in todo) of their variants
+        positions = [int(starts[g]) + k for g in exc.unfinished for k in range(len(groups[g]))]
+        raise BatchLost(str(exc), positions, exc.cause) from None
     return [row for rows in results for row in rows]
 
 

@@ -65,9 +65,33 @@ def read_journal(path: str | os.PathLike, fingerprint: str) -> dict[int, dict[st
     return done
 
 
+def journal_write_error(path: str | os.PathLike, exc: OSError) -> UserError:
+    """A failed journal write (a full disk) as one line: the rows written so far are kept."""
+    from mechanism.files.outputs import disk_problem
+
+    cause = disk_problem(exc) or exc.strerror or str(exc)
+    return UserError(f"sweep journal {path}: cannot write it, {cause}; the rows done so far are kept there, "
+                     "and --resume continues the sweep once the cause is fixed")
+
+
 @contextlib.contextmanager
 def open_journal(path: str | os.PathLike, fingerprint: str, fresh: bool):
+    """The journal open for appending rows (a fresh one starts with its header)."""
     path = Path(path)
+    try:
+        handle = _open(path, fingerprint, fresh)
+    except OSError as exc:
+        raise journal_write_error(path, exc) from None
+    try:
+        yield handle
+    finally:
+        try:
+            handle.close()
+        except OSError as exc:
+            raise journal_write_error(path, exc) from None
+
+
+def _open(path: Path, fingerprint: str, fresh: bool):
     if fresh:
         path.parent.mkdir(parents=True, exist_ok=True)  # as the CSV's own folder will be
         with open(path, "w", encoding="utf-8") as handle:
@@ -76,5 +100,4 @@ def open_journal(path: str | os.PathLike, fingerprint: str, fresh: bool):
         text = path.read_bytes()
         if not text.endswith(b"\n"):  # drop the torn line before appending
             path.write_bytes(text[: text.rfind(b"\n") + 1])
-    with open(path, "a", encoding="utf-8") as handle:
-        yield handle
+    return open(path, "a", encoding="utf-8")

@@ -86,19 +86,23 @@ def export_digest(export: Path) -> str:
 
 
 def converted_model(export: Path, drivers: tuple[str, ...] = ()) -> Path:
-    """The MJCF of a CAD export (``drivers`` kept as tree joints), converted once per content and cached."""
+    """The MJCF of a CAD export (``drivers`` kept as tree joints), converted once per content and
+    cached (mechanism.files.cache: checked against its manifest at each use, rebuilt when damaged)."""
     from mechanism.converters import ExportError, convert
+    from mechanism.files.cache import cached_folder
     from mechanism.native import cache_root
 
     key = hashlib.sha256("\0".join([export_digest(export), *drivers]).encode()).hexdigest()[:20]
     folder = cache_root() / "models" / f"{export.stem}-{key}"
-    target = folder / f"{export.stem}.xml"
-    if not target.is_file():
+
+    def build(tmp: Path) -> None:
         try:
-            convert(export, folder, name=export.stem, drivers=drivers)
+            convert(export, tmp, name=export.stem, drivers=drivers)
         except ExportError as exc:
             raise UserError(str(exc)) from None
-    return target
+
+    cached_folder(folder, key, build, f"CAD export {export}")
+    return folder / f"{export.stem}.xml"
 
 
 def resolve_model(description) -> Path:

@@ -13,6 +13,7 @@ untouched (check a marker in the model before doing anything).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import hashlib
@@ -24,13 +25,9 @@ import tempfile
 import warnings
 from pathlib import Path
 
+from mechanism.files.cache import cache_root  # noqa: F401 - where it always was
+
 _HERE = Path(__file__).resolve().parent
-
-
-def cache_root() -> Path:
-    """Where mechanism keeps what it builds once (compiled kernels, converted CAD exports)."""
-    root = os.environ.get("MECHANISM_CACHE") or os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(root) / "mechanism"
 
 
 def cache_dir() -> Path:
@@ -59,20 +56,34 @@ def load(name: str) -> ctypes.CDLL | None:
     recipe = " ".join([mujoco.__version__, str(include), sys.platform, *link]).encode()
     key = hashlib.sha256(text + recipe).hexdigest()[:16]
     target = cache_dir() / f"lib{name}-{key}.so"
+    from mechanism.files.cache import file_problem, install_file
+
+    if target.exists() and (problem := file_problem(target)) is not None:
+        warnings.warn(f"cache entry {target}: {problem}; rebuilding it")
+        target.unlink(missing_ok=True)
     if not target.exists():
         compiler = _compiler()
         if compiler is None:
             warnings.warn(f"no C compiler found: using the slower Python version of '{name}'")
             return None
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
-        os.close(fd)
-        cmd = [compiler, "-O2", "-shared", "-fPIC", f"-I{include}", str(source), "-o", tmp, *link, "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            os.unlink(tmp)
-            first = (proc.stderr.strip().splitlines() or ["unknown error"])[0]
-            warnings.warn(f"compiling native '{name}' failed ({first}): using the slower Python version")
+        tmp = None
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp.so", dir=target.parent)
+            os.close(fd)
+            cmd = [compiler, "-O2", "-shared", "-fPIC", f"-I{include}", str(source), "-o", tmp, *link, "-lm"]
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode != 0:
+                first = (proc.stderr.strip().splitlines() or ["unknown error"])[0]
+                warnings.warn(f"compiling native '{name}' failed ({first}): using the slower Python version")
+                return None
+            install_file(Path(tmp), target)
+        except OSError as exc:  # a full disk or a read-only cache: the run goes on, slower
+            warnings.warn(f"cannot keep the compiled '{name}' in the cache {target.parent} "
+                          f"({exc.strerror or exc}): using the slower Python version")
             return None
-        os.replace(tmp, target)
+        finally:
+            if tmp is not None:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(tmp)
     return ctypes.CDLL(str(target))

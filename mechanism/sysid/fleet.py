@@ -144,7 +144,7 @@ def diagnose_fleet(
     module docstring. ``diagnose_options`` go to ``diagnose`` (``baseline``, ``candidates``,
     ``model_path``; ``recording_map``: a RecordingMap for every file). Each recording's JSON is written (into the folder being built) when it is done;
     ``on_recording(name, summary_row)`` sees each one then."""
-    from mechanism.batch import check_options, run_batch
+    from mechanism.batch import BatchLost, check_options, run_batch
     from mechanism.files.outputs import atomic_dir
 
     check_options(backend, workers)
@@ -161,8 +161,14 @@ def diagnose_fleet(
                 on_recording(names[index], _summary_row(names[index], outcome))
 
         start = time.perf_counter()
-        outcomes = run_batch(_diagnose_one, [str(p) for p in files], shared=options, workers=workers, backend=backend,
-                             ray_address=ray_address, on_result=done, progress=progress, desc="recordings", unit="recording")
+        try:
+            outcomes = run_batch(_diagnose_one, [str(p) for p in files], shared=options, workers=workers,
+                                 backend=backend, ray_address=ray_address, on_result=done, progress=progress,
+                                 desc="recordings", unit="recording")
+        except BatchLost as exc:  # per recording: which were not diagnosed (nothing is published)
+            lost = ", ".join(names[i] for i in exc.unfinished)
+            raise UserError(f"{exc}; recordings not diagnosed: {lost}; nothing was written, run the fleet "
+                            "again") from None
         rows = [_summary_row(name, outcome) for name, outcome in zip(names, outcomes)]
         result = FleetResult(Path(out_dir), rows, find_outliers(rows), time.perf_counter() - start)
         write_summary_csv(folder / SUMMARY_CSV, rows)

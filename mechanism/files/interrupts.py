@@ -1,0 +1,122 @@
+"""Ctrl-C (SIGINT) and ``kill`` (SIGTERM) as an orderly end of a run.
+
+:func:`install` (the CLI calls it first) turns both signals into :class:`Interrupted`, an
+exception that unwinds the run like any failure: the output transaction removes its
+temporaries and publishes nothing, worker pools and a Ray instance the run started are
+stopped, and the CLI prints one ``error: interrupted`` line and exits 130 (SIGINT) or 143
+(SIGTERM). Only the first signal interrupts: a second Ctrl-C while the run cleans up is
+noted and ignored, so the cleanup itself is never cut short. Code that must not be cut in
+two (publishing, removing temporaries) runs inside :func:`deferred`: a signal arriving
+there takes effect when the block ends.
+
+``SIGXFSZ`` (a file grew past ``ulimit -f``) is ignored, so that the write fails with
+``EFBIG`` and becomes an ``error:`` line instead of killing the process with a core dump.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run was interrupted by ``signum`` (a KeyboardInterrupt, so code that lets Ctrl-C
+    through lets this through too)."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+    @property
+    def exit_status(self) -> int:
+        return EXIT_STATUS.get(self.signum, 130)
+
+
+_state = {"installed": False, "interrupted": None, "depth": 0, "pending": None}
+
+
+def _handler(signum, frame):  # noqa: ARG001 - signal API
+    if _state["interrupted"] is not None:
+        return  # the run is already ending: a second signal must not cut its cleanup short
+    if _state["depth"] > 0:
+        _state["pending"] = signum  # inside a deferred block: interrupt when it ends
+        return
+    _state["interrupted"] = signum
+    raise Interrupted(signum)
+
+
+def install() -> None:
+    """SIGINT and SIGTERM raise :class:`Interrupted` (once); SIGXFSZ is ignored."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    numbers = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGXFSZ] if hasattr(signal, "SIGXFSZ") else [])
+    previous = {number: signal.getsignal(number) for number in numbers}
+    signal.signal(signal.SIGINT, _handler)
+    signal.signal(signal.SIGTERM, _handler)
+    if hasattr(signal, "SIGXFSZ"):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    _state.update(installed=previous, interrupted=None, depth=0, pending=None)
+
+
+def reclaim() -> None:
+    """Our handlers back after a library replaced them (``ray.init`` sets its own SIGTERM
+    handler, which exits without cleaning up)."""
+    if _state["installed"] and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _handler)
+        signal.signal(signal.SIGTERM, _handler)
+
+
+def ignore_from_now() -> None:
+    """The process is about to exit: later signals are ignored by the system itself (Python
+    drops its own handlers while it shuts down, when a late Ctrl-C would kill it with 130's
+    twin, a death by SIGINT)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
+def restore() -> None:
+    """The handlers from before :func:`install` (``main`` called in-process, by tests)."""
+    previous = _state["installed"]
+    if previous and threading.current_thread() is threading.main_thread():
+        for number, handler in previous.items():
+            if handler is not None:
+                signal.signal(number, handler)
+    _state["installed"] = False
+
+
+def finish() -> None:
+    """The run has ended (its one line written or about to be): later signals are ignored."""
+    if _state["interrupted"] is None:
+        _state["interrupted"] = 0
+
+
+def interrupted() -> bool:
+    """True once a run was interrupted."""
+    return bool(_state["interrupted"])
+
+
+@contextlib.contextmanager
+def deferred():
+    """A block that a signal does not cut in two: the signal takes effect when it ends."""
+    _state["depth"] += 1
+    try:
+        yield
+    finally:
+        _state["depth"] -= 1
+        pending = _state["pending"]
+        if _state["depth"] == 0 and pending is not None:
+            _state["pending"] = None
+            if _state["interrupted"] is None:
+                _state["interrupted"] = pending
+                raise Interrupted(pending)
+
+
+def ignore_in_worker() -> None:
+    """In a worker process: leave SIGINT and SIGTERM to the parent, which stops the workers
+    itself (a Ctrl-C reaches every process of the terminal's group)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -1,0 +1,396 @@
+"""What a user's machine does to a run: a full disk, a quota, ``ulimit -f``, Ctrl-C and
+``kill``, two runs on one output, a stale lock. The README's contract must hold under each:
+one ``error:`` line, exit 2 (130/143 for SIGINT/SIGTERM), the previous outputs intact and
+no temporary left (mechanism.files.outputs, mechanism.files.interrupts)."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mechanism.cli import main
+from support.faults import injected
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture(autouse=True)
+def own_cache(monkeypatch, cache):
+    """In-process runs use a cache of their own, outside the folders faults are injected in."""
+    monkeypatch.setenv("MECHANISM_CACHE", str(cache))
+
+
+def environment(tmp_path: Path, **extra) -> dict[str, str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")]), "MPLBACKEND": "Agg",
+           "MECHANISM_CACHE": str(tmp_path / "cache"), "PYTHONDONTWRITEBYTECODE": "1", **extra}
+    env.pop("MECHANISM_DEBUG", None)
+    return env
+
+
+def error_lines(stderr: str) -> list[str]:
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert "Traceback" not in stderr, stderr
+    assert all(line.startswith(("error:", "warning:")) or "%|" in line for line in lines), stderr
+    return [line for line in lines if line.startswith("error:")]
+
+
+def visible(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and not p.name.startswith(".")}
+
+
+def hidden(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def old_outputs(folder: Path) -> dict[str, bytes]:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "run.csv").write_text("old table\n")
+    (folder / "run.png").write_bytes(b"old plot")
+    return visible(folder)
+
+
+SIMULATE = ["simulate", "--voltage", "12", "--duration", "0.3"]
+
+
+def simulate_args(folder: Path) -> list[str]:
+    return [*SIMULATE, "--csv", str(folder / "run.csv"), "--plot", str(folder / "run.png")]
+
+
+# ---------------------------------------------------------------- 1. full disk and quotas
+
+@pytest.mark.slow
+@pytest.mark.parametrize("limit_bytes", [0, 30000])
+def test_a_file_size_limit_ends_the_run_with_one_line_and_keeps_the_old_outputs(tmp_path, limit_bytes):
+    """``ulimit -f`` for real (RLIMIT_FSIZE, SIGXFSZ ignored): the write fails with EFBIG at
+    the first byte (and the temporary folder's probe) or inside the plot (the CSV is ~26 kB, the
+    plot ~60 kB)."""
+    out = tmp_path / "out"
+    before = old_outputs(out)
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, resource.RLIM_INFINITY))
+
+    proc = subprocess.run([sys.executable, "-m", "mechanism", *simulate_args(out)], capture_output=True, text=True,
+                          env=environment(tmp_path), preexec_fn=limit, timeout=300)
+    errors = error_lines(proc.stderr)
+    assert proc.returncode == 2, proc.stderr
+    assert len(errors) == 1, proc.stderr
+    assert "file size limit" in errors[0] and str(out) in errors[0], errors[0]
+    assert visible(out) == before
+    assert hidden(out) == []
+
+
+def event_count(tmp_path: Path, args: list[str], root: Path) -> int:
+    with injected(root, 10**9, "ENOSPC") as counter:
+        assert main(args) == 0
+    return counter.events
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault, spread", [("ENOSPC", 3), ("EDQUOT", 1), ("EFBIG", 1)])  # points tried
+def test_a_full_disk_at_any_write_keeps_the_old_outputs(tmp_path, capfd, fault, spread):
+    """The fault at the first write of the run, in its middle and at the last rename of
+    publishing (the fault suite, test_fault_fuzz.py, draws other points at random): one line
+    naming the output and the cause, nothing lost."""
+    out = tmp_path / "out"
+    old_outputs(out)
+    total = event_count(tmp_path, simulate_args(out), out)
+    cause = {"ENOSPC": "disk is full", "EDQUOT": "quota", "EFBIG": "file size limit"}[fault]
+    points = sorted({total // 2} if spread == 1 else {0, total // 2, total - 1})
+    for fail_at in points:
+        before = old_outputs(out)
+        capfd.readouterr()
+        with injected(out, fail_at, fault) as injector:
+            code = main(simulate_args(out))
+        err = capfd.readouterr().err
+        assert injector.fired, (fail_at, total)
+        assert code == 2, (fail_at, err)
+        errors = error_lines(err)
+        assert len(errors) == 1 and cause in errors[0] and str(out) in errors[0], (fail_at, err)
+        assert visible(out) == before, fail_at
+        assert hidden(out) == [], (fail_at, hidden(out))
+
+
+@pytest.mark.slow
+def test_a_full_disk_in_a_folder_output_keeps_the_old_folder(tmp_path, capfd):
+    """convert writes a folder (MJCF, meshes): a full disk anywhere leaves the old folder whole."""
+    export = sorted((REPO / "assets" / "cad" / "sapphire870" / "export").glob("*.xml"))[0]
+    out = tmp_path / "model"
+    out.mkdir()
+    (out / "old.xml").write_text("<old/>")
+    total = event_count(tmp_path, ["convert", str(export), "-o", str(out)], tmp_path)
+    for fail_at in sorted({0, total // 3, total // 2, total - 1}):
+        shutil.rmtree(out)
+        out.mkdir()
+        (out / "old.xml").write_text("<old/>")
+        capfd.readouterr()
+        with injected(tmp_path, fail_at, "ENOSPC") as injector:
+            code = main(["convert", str(export), "-o", str(out)])
+        err = capfd.readouterr().err
+        assert injector.fired, (fail_at, total)
+        assert code == 2, (fail_at, err)
+        assert len(error_lines(err)) == 1 and "disk is full" in err, err
+        assert sorted(p.name for p in out.rglob("*")) == ["old.xml"], fail_at
+        assert hidden(tmp_path) == [], hidden(tmp_path)
+
+
+# ---------------------------------------------------------------- 2. interrupts
+
+def children(pid: int) -> set[int]:
+    """The processes ``pid`` started (and theirs)."""
+    found, todo = set(), [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            with open(task / "children") as handle:
+                kids = {int(k) for k in handle.read().split()}
+            todo.extend(kids - found)
+            found |= kids
+    return found
+
+
+def command(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()[:80].decode(errors="replace")
+    except OSError:
+        return "(gone)"
+
+
+def gone(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, IndexError):
+        return True
+    return state == "Z"
+
+
+def start_sweep(tmp_path: Path, workers: int = 2):
+    variants = tmp_path / "v.csv"
+    variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    args = [sys.executable, "-m", "mechanism", "sweep", "--variants", str(variants), "--duration", "2",
+            "--workers", str(workers), "--csv", str(out / "run.csv"), "--plot", str(out / "run.png")]
+    proc = subprocess.Popen(args, env=environment(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    journal = out / "run.csv.partial"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and proc.poll() is None:
+        if journal.exists() and journal.read_text().count("\n") > 3:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.communicate()
+    return proc, out, before
+
+
+# The issue's bound is 2 s from the signal to the exit; the tests allow 5 s, a margin for a
+# machine shared with other work (the bound is what is measured, not what is asserted).
+INTERRUPT_MARGIN_S = 5.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_interrupt_stops_a_run_and_its_workers_and_keeps_the_old_outputs(tmp_path, signum, status):
+    proc, out, before = start_sweep(tmp_path)
+    workers = children(proc.pid)
+    assert workers, "the sweep runs on worker processes"
+    sent = time.monotonic()
+    proc.send_signal(signum)
+    _, stderr = proc.communicate(timeout=60)
+    took = time.monotonic() - sent
+    assert proc.returncode == status, stderr
+    assert error_lines(stderr) == ["error: interrupted"], stderr
+    assert took < INTERRUPT_MARGIN_S, took
+    assert all(gone(pid) for pid in workers), [pid for pid in workers if not gone(pid)]
+    assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before
+    assert hidden(out) == []
+
+
+@pytest.mark.slow
+def test_a_second_ctrl_c_leaves_nothing_more_behind(tmp_path):
+    proc, out, before = start_sweep(tmp_path)
+    workers = children(proc.pid)
+    for _ in range(3):
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.02)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert error_lines(stderr) == ["error: interrupted"], stderr
+    assert all(gone(pid) for pid in workers)
+    assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before
+    assert hidden(out) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["SIGINT", "SIGTERM"])
+def test_a_signal_at_any_write_of_a_run_keeps_the_old_outputs(tmp_path, capfd, fault):
+    """The signal delivered at write events through the run and its publishing (a signal
+    inside publishing waits until the outputs are all old or all new)."""
+    out = tmp_path / "out"
+    old_outputs(out)
+    total = event_count(tmp_path, simulate_args(out), out)
+    new = visible(out)
+    for fail_at in sorted({total // 2, total - 1}):
+        before = old_outputs(out)
+        capfd.readouterr()
+        with injected(out, fail_at, fault):
+            code = main(simulate_args(out))
+        err = capfd.readouterr().err
+        assert code == (130 if fault == "SIGINT" else 143), (fail_at, err)
+        assert error_lines(err) == ["error: interrupted"], err
+        assert visible(out) in (before, new), fail_at
+        assert hidden(out) == [], (fail_at, hidden(out))
+
+
+# ---------------------------------------------------------------- 3. concurrent runs on one output
+
+def test_a_lock_a_killed_run_left_does_not_block_the_next_run(tmp_path, cli):
+    out = tmp_path / "out"
+    old_outputs(out)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (out / ".run.csv.lock").write_text(f"{dead.pid}\n")
+    result = cli(*SIMULATE, "--csv", str(out / "run.csv"),
+                 env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "2"})
+    assert result.returncode == 0, result.stderr
+    assert (out / "run.csv").read_text() != "old table\n"
+    assert hidden(out) == []
+
+
+def test_an_output_another_live_run_holds_is_refused_with_one_line(tmp_path, cli):
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    lock = out / ".run.csv.lock"
+    with open(lock, "w") as handle:
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        result = cli(*SIMULATE, "--csv", str(out / "run.csv"),
+                     env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "0.5"})
+    line = result.assert_bad_input()
+    assert f"pid {os.getpid()}" in line and "run.csv" in line, line
+    assert {k: v for k, v in visible(out).items()} == before
+    assert hidden(out) == [".run.csv.lock"]  # ours
+
+
+WRITER = """
+import os, random, sys, time
+from pathlib import Path
+from mechanism.files.outputs import atomic_dir, atomic_file, transaction
+tag, out = sys.argv[1], Path(sys.argv[2])
+replace = os.replace
+def slow_replace(*args):  # a slow disk: publishing lasts long enough for the two runs to overlap
+    time.sleep(random.uniform(0, 0.1))
+    return replace(*args)
+os.replace = slow_replace
+with transaction():
+    for name in ("a", "b", "c", "d", "e"):
+        with atomic_file(out / f"{name}.txt") as handle:
+            handle.write(tag)
+    with atomic_dir(out / "folder") as folder:
+        (folder / "x").write_text(tag)
+"""
+
+
+def test_two_runs_writing_the_same_outputs_at_once_leave_one_whole_result(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    for attempt in range(4):
+        procs = [subprocess.Popen([sys.executable, "-c", WRITER, f"{tag}{attempt}", str(out)], env=environment(tmp_path))
+                 for tag in ("one", "two")]
+        assert [p.wait(timeout=120) for p in procs] == [0, 0]
+        texts = {(out / f"{n}.txt").read_text() for n in "abcde"} | {(out / "folder" / "x").read_text()}
+        assert len(texts) == 1, texts  # never a mix of the two runs
+        assert hidden(out) == []
+
+
+@pytest.mark.slow
+def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path, cli):
+    first, out, _ = start_sweep(tmp_path, workers=1)
+    try:
+        second = cli("sweep", "--variants", str(tmp_path / "v.csv"), "--duration", "2", "--csv", str(out / "run.csv"),
+                     env={"MECHANISM_CACHE": str(tmp_path / "cache")})
+        line = second.assert_bad_input()
+        assert "another sweep" in line and f"pid {first.pid}" in line, line
+        assert first.poll() is None  # the first sweep goes on, its journal untouched
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.communicate(timeout=60)
+    assert first.returncode == 130
+    assert hidden(out) == []
+
+
+# ---------------------------------------------------------------- 6. memory
+
+@pytest.mark.parametrize("args, needs", [
+    (["simulate", "--voltage", "12", "--duration", "600", "--rate", "10000"], "--duration x --rate"),
+    (["convert", str(REPO / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml")], "converting sewing_machine.xml"),
+])
+def test_a_request_larger_than_the_memory_available_is_refused_before_it_allocates(tmp_path, cli, args, needs):
+    """The machine is told it has 100 MiB (MECHANISM_MEMORY_MB): the run is refused with what it
+    would need, before any allocation (under RLIMIT_AS it would otherwise die allocating)."""
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    target = ["--csv", str(out / "run.csv")] if args[0] == "simulate" else ["-o", str(out / "model")]
+    result = cli(*args, *target, env={"MECHANISM_MEMORY_MB": "100", "MECHANISM_CACHE": str(tmp_path / "cache")})
+    line = result.assert_bad_input()
+    assert needs in line and "would need about" in line and "100 MiB" in line, line
+    assert visible(out) == before and hidden(out) == [] and not (out / "model").exists()
+
+
+def test_the_memory_available_is_known_on_this_machine(monkeypatch):
+    from mechanism.files.limits import available_memory_bytes
+
+    monkeypatch.delenv("MECHANISM_MEMORY_MB", raising=False)
+    assert available_memory_bytes() > 2**20
+    monkeypatch.setenv("MECHANISM_MEMORY_MB", "64")
+    assert available_memory_bytes() == 64 * 2**20
+
+
+@pytest.mark.slow
+def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path):
+    """``--backend ray`` without an address starts a private Ray instance (raylet, GCS, workers):
+    SIGTERM (which ``ray.init`` would otherwise answer with a bare exit 15) stops all of it."""
+    pytest.importorskip("ray")
+    variants = tmp_path / "v.csv"
+    variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    args = [sys.executable, "-m", "mechanism", "sweep", "--variants", str(variants), "--duration", "2", "--backend", "ray",
+            "--workers", "1", "--csv", str(out / "run.csv")]
+    proc = subprocess.Popen(args, env=environment(tmp_path, RAY_USAGE_STATS_ENABLED="0"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    journal = out / "run.csv.partial"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and proc.poll() is None and not (journal.exists() and journal.read_text().count("\n") > 3):
+        time.sleep(0.1)
+    started = children(proc.pid)
+    assert proc.poll() is None and len(started) > 2, proc.communicate()  # the instance's processes
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 143, stderr
+    assert "error: interrupted" in stderr.splitlines(), stderr
+    assert time.monotonic() - sent < INTERRUPT_MARGIN_S
+    # Ray's workers end when their raylet has gone: allow them a few seconds after the driver
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and not all(gone(pid) for pid in started):
+        time.sleep(0.2)
+    alive = {pid: command(pid) for pid in started if not gone(pid)}
+    assert alive == {}, alive
+    assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before  # the journal: for --resume
+    assert hidden(out) == []
