@@ -24,7 +24,7 @@ MAX_DURATION_S = 3600.0
 CHUNK_STEPS = 4000  # rollout calls of ~2 s simulated: a progress bar without per-step Python
 
 
-def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool):
+def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool, guard=None):
     """``mujoco.rollout`` over the whole control sequence, continued chunk by chunk from
     the last state so that a progress bar can follow long runs."""
     from tqdm import tqdm
@@ -46,6 +46,8 @@ def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool):
             states[start:stop], sensors[start:stop] = chunk_state[0], chunk_sensors[0]
             check_stable(model, data, states[start:stop], sensors[start:stop], start * model.opt.timestep,
                          control[start:stop])
+            if guard is not None:
+                guard(states[start:stop], start * model.opt.timestep)
             state = states[stop - 1]
             warmstart = data.qacc_warmstart.copy()
             bar.update((stop - start) * model.opt.timestep)
@@ -79,6 +81,66 @@ def check_stable(model, data, states: np.ndarray, sensors: np.ndarray, start_s: 
             raise unstable(when, f"MuJoCo: {mujoco.mju_warningText(warning, data.warning[warning].lastinfo)}")
     if first is not None:
         raise unstable(when, "non-finite or reset state")
+
+
+RUNAWAY_EXTENT = 10.0  # a body this many times the model's size from its centre has left the machine
+RUNAWAY_SPEED = 1.5  # a motor this many times faster than its no-load speed is driven by numbers, not physics
+RUNAWAY_BODY_STRIDE = 20  # body positions are checked every 20 steps (and at each chunk's end)
+
+
+def _ancestor_joint(model: mujoco.MjModel, body: int) -> str:
+    """The nearest joint at or above ``body`` (what lets it move)."""
+    while body > 0:
+        if model.body_jntnum[body]:
+            return model.joint(int(model.body_jntadr[body])).name or f"joint {int(model.body_jntadr[body])}"
+        body = int(model.body_parentid[body])
+    return "none"
+
+
+def runaway_guard(machine: Machine, voltages_V: np.ndarray):
+    """A check of each rollout chunk that ends the run with one UserError naming the joint and
+    the simulated time where a body has left ten times the model's extent or the motor turns
+    faster than 1.5 times its no-load speed (at the run's largest voltage, at least the supply's)."""
+    from mechanism.machine.machine import STALL_VOLTAGE_V
+
+    model = machine.model
+    nq = model.nq
+    extent = float(model.stat.extent)
+    centre = np.array(model.stat.center)
+    supply = machine.description.section("supply").get("voltage_V", 0.0)
+    largest = max(float(np.max(np.abs(voltages_V))) if np.size(voltages_V) else 0.0, supply) or STALL_VOLTAGE_V
+    no_load = largest / machine.motor.back_emf_V_s_rad
+    data = mujoco.MjData(model)
+    dt = model.opt.timestep
+
+    def check(states: np.ndarray, start_s: float) -> None:
+        speed = np.abs(states[:, 1 + nq + machine.motor_dof])
+        fast = np.flatnonzero(~(speed <= RUNAWAY_SPEED * no_load))
+        first_fast = int(fast[0]) if fast.size else None
+        picks = list(range(0, len(states), RUNAWAY_BODY_STRIDE)) + [len(states) - 1]
+        for i in picks:
+            if first_fast is not None and i > first_fast:
+                break
+            data.qpos[:] = states[i, 1 : 1 + nq]
+            mujoco.mj_kinematics(model, data)
+            distance = np.linalg.norm(data.xpos[1:] - centre, axis=1)
+            far = np.flatnonzero(~(distance <= RUNAWAY_EXTENT * extent))
+            if far.size:
+                body = int(far[np.argmax(distance[far])]) + 1
+                joint = _ancestor_joint(model, body)
+                raise UserError(f"the run left the machine at t = {start_s + (i + 1) * dt:.4f} s: body "
+                                f"{model.body(body).name or body} (joint {joint}) is {distance[body - 1] * 1e3:.4g} mm "
+                                f"from the model's centre, more than {RUNAWAY_EXTENT:g} times its size "
+                                f"({extent * 1e3:.4g} mm): a joint without a limit or damping ran away (give "
+                                f'[limits."{joint}"] or [friction."{joint}"] viscous_Nm_s_per_rad)')
+        if first_fast is not None:
+            rpm = float(speed[first_fast]) * 60 / (2 * np.pi)
+            raise UserError(f"the motor joint {machine.motor_joint} turned at {rpm:.4g} rpm at t = "
+                            f"{start_s + (first_fast + 1) * dt:.4f} s, more than {RUNAWAY_SPEED:g} times its no-load "
+                            f"speed ({no_load * 60 / (2 * np.pi):.4g} rpm at {largest:g} V): the numbers are not "
+                            f"physical; {LIKELY_CAUSE}")
+
+    return check
 
 
 @dataclass
@@ -136,7 +198,8 @@ def simulate(
     ``start_angle_rad`` for ``duration_s`` seconds."""
     machine = machine or Machine(None, config)
     run = _Run(machine, voltage, duration_s, start_angle_rad, sample_rate_hz)
-    state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress)
+    guard = runaway_guard(machine, run.control[:, machine.actuator])
+    state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress, guard)
     return run.result(state, sensordata)
 
 
@@ -161,6 +224,7 @@ def simulate_batch(machines: list[Machine], voltages: list[VoltageProfile | floa
     for run, state, sensor in zip(runs, states, sensors):
         try:
             check_stable(run.machine.model, None, state, sensor, 0.0, run.control)
+            runaway_guard(run.machine, run.control[:, run.machine.actuator])(state, 0.0)
             results.append(run.result(state, sensor))
         except UserError as exc:
             results.append(exc)

@@ -83,6 +83,13 @@ FRICTION_KEYS = {
     "position_joint": _name("joint whose angle sets the position dependence (default: its own)"),
 }
 
+LIMIT_KEYS = {
+    "lower_deg": Key(float, "a hinge's lower hard stop [deg], its own coordinate (0 at the export's pose)", low=-3600.0, high=3600.0),
+    "upper_deg": Key(float, "a hinge's upper hard stop [deg]", low=-3600.0, high=3600.0),
+    "lower_mm": Key(float, "a slide's lower hard stop [mm], its own coordinate (0 at the export's pose)", low=-1e5, high=1e5),
+    "upper_mm": Key(float, "a slide's upper hard stop [mm]", low=-1e5, high=1e5),
+}
+
 SCHEMA: dict[str, dict[str, Key]] = {
     "machine": {
         "name": _name("a name for reports", required=True),
@@ -92,7 +99,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "drive": {
         "motor_joint": _name("the joint the motor turns", required=True),
         "shaft_joint": _name("the main shaft: recordings' angle and the cycle's driver", required=True),
-        "zero_site": _name("the shaft angle is 0 where this site is highest against gravity", required=True),
+        "zero_site": _name("the shaft angle is 0 where this site is highest against gravity (or zero_angle_deg)"),
+        "zero_angle_deg": Key(float, "the shaft angle's 0 as the shaft joint's own coordinate [deg], where no site "
+                                     "rises and falls (a vertical shaft)", low=-3600.0, high=3600.0),
+        "range_deg": Key(list, "[lower, upper] shaft joint coordinates [deg] inspected for a drive that rocks "
+                               "(default: its limits)", item=float),
     },
     "motor": {
         "type": Key(str, "motor kind", required=True, choices=("dc",)),
@@ -169,7 +180,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
 }
 # Sections keyed by joint name; their keys are FRICTION_KEYS.
-JOINT_TABLES = {"friction": FRICTION_KEYS, "warm_friction": FRICTION_KEYS}
+JOINT_TABLES = {"friction": FRICTION_KEYS, "warm_friction": FRICTION_KEYS, "limits": LIMIT_KEYS}
 # Named variant-parameter targets (mechanism-variants/1 syntax) the machine offers.
 PRESET_TABLE = "variant_presets"
 
@@ -182,9 +193,11 @@ class MachineDescription:
     model: Path
     motor_joint: str
     shaft_joint: str
-    zero_site: str
+    zero_site: str | None
     motor: dict[str, Any]
     friction: dict[str, dict[str, Any]] = field(default_factory=dict)
+    limits: dict[str, tuple[float, float]] = field(default_factory=dict)  # joint -> (lower, upper) [rad or m]
+    limit_units: dict[str, str] = field(default_factory=dict)  # joint -> "deg" (a hinge's) or "mm" (a slide's)
     warm_friction: dict[str, dict[str, Any]] = field(default_factory=dict)
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)  # the optional sections as written
     variant_presets: dict[str, str] = field(default_factory=dict)
@@ -196,6 +209,16 @@ class MachineDescription:
     @property
     def tool_site(self) -> str | None:
         return self.section("tool").get("site")
+
+    @property
+    def zero_angle_rad(self) -> float | None:
+        value = self.section("drive").get("zero_angle_deg")
+        return None if value is None else math.radians(value)
+
+    @property
+    def range_rad(self) -> tuple[float, float] | None:
+        value = self.section("drive").get("range_deg")
+        return None if value is None else (math.radians(value[0]), math.radians(value[1]))
 
     @property
     def timestep_s(self) -> float | None:
@@ -263,6 +286,30 @@ def _check_friction(source: str, section: str, laws: dict[str, Any]) -> dict[str
     return out
 
 
+def _check_limits(source: str, tables: Any) -> tuple[dict[str, tuple[float, float]], dict[str, str]]:
+    """[limits."JOINT"]: lower and upper, both in degrees (a hinge) or both in mm (a slide), in SI."""
+    if not isinstance(tables, dict):
+        raise _fail(source, "limits", None, 'expected [limits."JOINT"] tables')
+    out, units = {}, {}
+    for joint, table in tables.items():
+        section = f'limits."{joint}"'
+        values = _check_table(source, section, table, LIMIT_KEYS)
+        for unit, scale in (("deg", math.pi / 180.0), ("mm", 1e-3)):
+            pair = [values.get(f"lower_{unit}"), values.get(f"upper_{unit}")]
+            if pair == [None, None]:
+                continue
+            if None in pair or len(values) != 2:
+                raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm "
+                                                   "(a slide), one pair")
+            if not pair[1] > pair[0]:
+                raise _fail(source, section, f"upper_{unit}", f"must be above lower_{unit} ({pair[0]:g})")
+            out[joint] = (pair[0] * scale, pair[1] * scale)
+            units[joint] = unit
+        if joint not in out:
+            raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm (a slide)")
+    return out, units
+
+
 def parse_description(data: dict[str, Any], source: str = "<description>", base: Path | None = None) -> MachineDescription:
     """Validate a parsed TOML document. Relative model paths resolve against ``base``."""
     known = [*SCHEMA, *JOINT_TABLES, PRESET_TABLE]
@@ -293,15 +340,25 @@ def parse_description(data: dict[str, Any], source: str = "<description>", base:
     if not model.is_absolute():
         model = Path(os.path.normpath((base or Path.cwd()) / model))  # "../mjcf/x.xml" reads as the folder it is in
     drive = sections["drive"]
+    limits, limit_units = _check_limits(source, data.get("limits", {}))
+    if "zero_site" not in drive and "zero_angle_deg" not in drive:
+        raise _fail(source, "drive", "zero_site", "missing: name the site whose highest point is the shaft angle's 0, "
+                                                  "or give zero_angle_deg (the shaft joint's coordinate of that 0)")
+    if "zero_site" in drive and "zero_angle_deg" in drive:
+        raise _fail(source, "drive", "zero_angle_deg", "give zero_site or zero_angle_deg, not both")
+    if "range_deg" in drive and (len(drive["range_deg"]) != 2 or not drive["range_deg"][1] > drive["range_deg"][0]):
+        raise _fail(source, "drive", "range_deg", "expected [lower, upper] in degrees, lower below upper")
     return MachineDescription(
         name=sections["machine"]["name"],
         model=model,
         motor_joint=drive["motor_joint"],
         shaft_joint=drive["shaft_joint"],
-        zero_site=drive["zero_site"],
+        zero_site=drive.get("zero_site"),
         motor=sections["motor"],
         friction=_check_friction(source, "friction", data.get("friction", {})),
         warm_friction=_check_friction(source, "warm_friction", data.get("warm_friction", {})),
+        limits=limits,
+        limit_units=limit_units,
         sections=sections,
         variant_presets=dict(presets),
     )
@@ -354,7 +411,8 @@ def _range(key: Key) -> str:
 def schema_markdown() -> str:
     """Every key of the description as Markdown tables (docs/machine.md is this, checked by a test)."""
     lines = []
-    tables = {**SCHEMA, 'friction."JOINT"': FRICTION_KEYS, 'warm_friction."JOINT"': FRICTION_KEYS}
+    tables = {**SCHEMA, 'friction."JOINT"': FRICTION_KEYS, 'warm_friction."JOINT"': FRICTION_KEYS,
+              'limits."JOINT"': LIMIT_KEYS}
     for section, keys in tables.items():
         lines += [f"### `[{section}]`", "", "| key | type | range | required | meaning |", "| --- | --- | --- | --- | --- |"]
         lines += [f"| `{name}` | {_kind_name(key)} | {_range(key)} | {'yes' if key.required else ''} | {key.doc} |"

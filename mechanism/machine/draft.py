@@ -7,6 +7,7 @@ draft is valid: every verb runs on it at once, and gets better as the TODOs are 
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -14,6 +15,7 @@ import mujoco
 import numpy as np
 
 from mechanism.kinematics.linkage import compute_tables
+from mechanism.kinematics.pose import is_slide
 from mechanism.machine import parts
 from mechanism.machine.roles import guess_roles
 
@@ -55,22 +57,36 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     guess = guess_roles(model)
     joints = parts.joint_names(model)
     shaft, motor, zero = guess.shaft_joint, guess.motor_joint, guess.zero_site
+    unknown = list(guess.unknown)
     travel = None
-    if zero:
-        tables = compute_tables(model, shaft, zero, n=72)
+    if zero and shaft:
+        tables = compute_tables(model, shaft, zero, n=72, span=guess.travel)
         assert tables.tool_z_m is not None
         travel = float(np.ptp(tables.tool_z_m)) * 1e3
+    elif shaft:
+        unknown.append("the zero site: no site rises and falls with the shaft (zero_angle_deg = 0 written: the export's pose)")
+    slide = shaft is not None and is_slide(model, shaft)
     plate = _plate_guess(model, zero)
+    if zero and not plate:
+        unknown.append("the plate: no fixed part under the tool")
     ratio = guess.ratios.get(motor, 1.0)
+    if guess.travel is not None and shaft:
+        low, high = guess.travel
+        travel_text = (f"{low * 1e3:.4g} to {high * 1e3:.4g} mm" if slide else
+                       f"{math.degrees(low):.4g} to {math.degrees(high):.4g} deg")
+        motion = f"travel of the shaft (GUESS): {travel_text} (where the mechanism assembles, 1 % short of its dead points)"
+    else:
+        motion = ("joints turning whole revolutions, turns per shaft turn: "
+                  + ", ".join(f"{j} {guess.ratios[j]:+.4g}" for j in guess.revolving))
     summary = [
         f"model: {model.nbody - 1} bodies, {len(joints)} joints, {model.neq} equality constraints (loops, couplings)",
-        "joints turning whole revolutions, turns per shaft turn: "
-        + ", ".join(f"{j} {guess.ratios[j]:+.4g}" for j in guess.revolving),
-        f"shaft (GUESS): {shaft}",
-        f"motor (GUESS): {motor} ({abs(ratio):.4g}:1 to the shaft)",
+        motion,
+        f"shaft (GUESS): {shaft or 'none found'}",
+        f"motor (GUESS): {motor or 'none found'}" + (f" ({abs(ratio):.4g}:1 to the shaft)" if motor else ""),
         f"zero site (GUESS): {zero or 'none found'}" + (f" (rises and falls {travel:.3f} mm)" if travel else ""),
         f"plate (GUESS): {plate or 'none found'}",
         *guess.notes,
+        *[f"could not guess {item}" for item in unknown],
     ]
     lines = [
         f"# Draft machine description written by `mechanism init` from {Path(model_path).name}.",
@@ -83,23 +99,46 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
         f"model = {_toml_string(model_reference)}",
         "",
         "[drive]",
-        f"motor_joint = {_toml_string(motor)}   # GUESS: the joint turning fastest ({abs(ratio):.4g} turns per shaft turn)",
-        f"shaft_joint = {_toml_string(shaft)}   # GUESS: the slowest shaft turning whole revolutions on the frame",
     ]
+    if guess.travel is None and shaft:
+        lines += [
+            f"motor_joint = {_toml_string(motor)}   # GUESS: the joint turning fastest ({abs(ratio):.4g} turns per shaft turn)",
+            f"shaft_joint = {_toml_string(shaft)}   # GUESS: the slowest shaft turning whole revolutions on the frame",
+        ]
+    elif shaft:
+        lines += [
+            f"motor_joint = {_toml_string(motor)}   # GUESS: no joint turns whole revolutions; the motor on the shaft",
+            f"shaft_joint = {_toml_string(shaft)}   # GUESS: the joint on the frame with the widest travel (it rocks)",
+        ]
+    else:
+        lines += [f"motor_joint = {_toml_string('TODO')}   # TODO: could not guess: {unknown[0]}",
+                  f"shaft_joint = {_toml_string('TODO')}   # TODO"]
     if zero:
         lines.append(f"zero_site = {_toml_string(zero)}   # GUESS: the site that rises and falls most; shaft angle 0 where it is highest")
     else:
-        lines.append(f"zero_site = {_toml_string('TODO')}   # TODO: no site rises and falls with the shaft; name one")
+        lines.append("zero_angle_deg = 0.0   # GUESS: no site rises and falls with the shaft; 0 at the export's pose")
     lines += [
         "",
         "[motor]   # TODO: the motor's datasheet (placeholders of a small DC motor)",
         'type = "dc"',
         *[f"{key} = {value}   # TODO" for key, value in PLACEHOLDER_MOTOR.items()],
-        "",
-        f"[friction.{_toml_string(shaft)}]   # TODO: measure (break-away torque, a speed-voltage curve)",
-        "coulomb_Nm = 0.0",
-        "viscous_Nm_s_per_rad = 0.0",
     ]
+    if shaft:
+        lines += [
+            "",
+            f"[friction.{_toml_string(shaft)}]   # TODO: measure (break-away torque, a speed-voltage curve)",
+            "coulomb_Nm = 0.0",
+            "viscous_Nm_s_per_rad = 0.0",
+        ]
+    if guess.travel is not None and shaft:
+        low, high = guess.travel
+        unit, scale = ("mm", 1e3) if slide else ("deg", 180.0 / math.pi)
+        lines += [
+            "",
+            f"[limits.{_toml_string(shaft)}]   # GUESS: where the mechanism assembles; set the real hard stops",
+            f"lower_{unit} = {low * scale:.6g}",
+            f"upper_{unit} = {high * scale:.6g}",
+        ]
     if zero:
         lines += ["", "[tool]", f"site = {_toml_string(zero)}   # GUESS"]
         if plate:
