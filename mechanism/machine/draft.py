@@ -48,9 +48,25 @@ def _plate_guess(model: mujoco.MjModel, tool_site: str | None) -> str | None:
     return best
 
 
-def draft_description(model_path: str | os.PathLike, model_reference: str, name: str) -> tuple[str, list[str]]:
+def _ground_guess(model: mujoco.MjModel) -> str | None:
+    """The heaviest part fixed to the world (the export's ground, else the part the converter fixed)."""
+    best, mass = None, -1.0
+    for part in parts.part_names(model):
+        geoms = parts.part_geoms(model, part)
+        body = int(model.geom_bodyid[geoms[0]])
+        if model.body_weldid[body] != 0:
+            continue
+        weight = float(model.body_mass[body])
+        if weight > mass:
+            best, mass = part, weight
+    return best
+
+
+def draft_description(model_path: str | os.PathLike, model_reference: str, name: str, up: str | None = None,
+                      up_reason: str = "") -> tuple[str, list[str]]:
     """(TOML text, summary lines) of a draft description of the model at ``model_path``;
-    ``model_reference`` is what the draft's ``model`` key says (a path relative to it)."""
+    ``model_reference`` is what the draft's ``model`` key says (a path relative to it); ``up``, the
+    export's up axis the model was converted with (None: an MJCF's own gravity), and why."""
     from mechanism.machine.models import load_model
 
     model = load_model(model_path)
@@ -69,6 +85,9 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     plate = _plate_guess(model, zero)
     if zero and not plate:
         unknown.append("the plate: no fixed part under the tool")
+    ground = _ground_guess(model)
+    if ground is None:
+        unknown.append("the ground: no part is fixed to the world")
     ratio = guess.ratios.get(motor, 1.0)
     if guess.travel is not None and shaft:
         low, high = guess.travel
@@ -80,6 +99,8 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
                   + ", ".join(f"{j} {guess.ratios[j]:+.4g}" for j in guess.revolving))
     summary = [
         f"model: {model.nbody - 1} bodies, {len(joints)} joints, {model.neq} equality constraints (loops, couplings)",
+        f"up axis: {up or 'as the model says'}; {up_reason or 'the MJCF gravity'}",
+        f"ground (GUESS): {ground or 'none found'}",
         motion,
         f"shaft (GUESS): {shaft or 'none found'}",
         f"motor (GUESS): {motor or 'none found'}" + (f" ({abs(ratio):.4g}:1 to the shaft)" if motor else ""),
@@ -97,6 +118,9 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
         "[machine]",
         f"name = {_toml_string(name)}",
         f"model = {_toml_string(model_reference)}",
+        *([f"up = {_toml_string(up)}   # {'GUESS, ' if 'assumed' in up_reason else ''}{up_reason}"] if up else []),
+        *([f"ground = {_toml_string(ground)}   # GUESS: the heaviest part fixed to the world "
+           "(the export's ground, else the part the converter fixed)"] if ground else []),
         "",
         "[drive]",
     ]

@@ -191,6 +191,21 @@ def check_names(description: MachineDescription, spec: mujoco.MjSpec) -> None:
         _require("site", hook["site"], sites, description, "hook", "site")
     if "feeding_joint" in loads:
         _require("joint", loads["feeding_joint"], joints, description, "loads", "feeding_joint")
+    ground = description.section("machine").get("ground")
+    if ground is not None:
+        owners = [g for g in [*spec.geoms, *spec.sites] if g.name in (ground, f"{ground}_visual")]
+        if not owners:
+            _require("part", ground, sorted({g.removesuffix("_visual") for g in geoms} | set(sites)), description,
+                     "machine", "ground")
+        body = owners[0].parent
+        fixed = True
+        while body is not None and body.name != "world":
+            fixed = fixed and not list(body.joints)
+            body = body.parent
+        if not fixed:
+            raise UserError(f"machine description {description.where('machine', 'ground')}: the MJCF does not fix "
+                            f"{ground!r} to the world; [machine] ground acts when the model is a CAD export "
+                            f"(converted with that part fixed): name the export as the model")
 
 
 def plate_top(model: mujoco.MjModel, data: mujoco.MjData, part: str) -> float:
