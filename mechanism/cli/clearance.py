@@ -76,7 +76,10 @@ def run(args) -> int:
     else:
         report = check_clearance(model, pairs, args.cycle, args.resolution, args.required, args.driver,
                                  description=description)
-        write_rows(args.csv, report.rows(), comments=[f"required clearance: {args.required:g} mm; angles: {args.driver} [deg]"])
+        write_rows(args.csv, report.rows(), comments=[f"required clearance: {args.required:g} mm; angles: "
+                                                                  + ("the shaft angle [deg] (0 at the described zero)"
+                                                                     if description and args.driver == description.shaft_joint
+                                                                     else f"{args.driver} [deg]")])
         if args.json:
             write_json(args.json, report.to_json())
         for result in report.results:

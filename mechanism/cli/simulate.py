@@ -27,11 +27,19 @@ def register(subparsers) -> None:
         epilog="example: mechanism simulate --voltage 12.49 --duration 3 --csv out/run.csv --summary",
     )
     add_machine_arguments(parser)
-    source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--voltage", type=number(0, 30, "V"), metavar="V", help="constant motor terminal voltage [V], 0-30")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--voltage", action="append", metavar="V|JOINT=V",
+                        help="constant motor terminal voltage [V]: V (0-30) for the one (main) motor, or JOINT=V "
+                             "for the dc motor on JOINT (repeat for several motors; negative reverses)")
     source.add_argument("--profile", metavar="FILE",
-                        help="voltage profile CSV with columns time_s (or time) and voltage_V (or voltage); "
-                             "each voltage holds until the next time (zero-order hold)")
+                        help="input profile CSV: time_s (or time) and voltage_V (or voltage) for the main motor, or one "
+                             "column per motor named JOINT_V (dc), JOINT_rad (servo goal) or JOINT_A (current drive); "
+                             "each value holds until the next time (zero-order hold)")
+    parser.add_argument("--goal", action="append", default=[], metavar="JOINT=RAD",
+                        help="goal angle [rad] of the servo on JOINT, in the joint's own coordinate (0 at the export's "
+                             "pose; repeatable; default: hold where the run starts)")
+    parser.add_argument("--current", action="append", default=[], metavar="JOINT=A",
+                        help="current command [A] of the current drive on JOINT (repeatable; default 0)")
     source.add_argument("--duty", type=float, metavar="PCT",
                         help="PWM duty cycle [%%] of the described supply; converted to motor voltage with its "
                              "measured (non-linear) map ([supply] in the description)")
@@ -63,6 +71,58 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run, inputs=("profile", "machine", "model"), outputs=("csv", "plot"), plots=("plot",))
 
 
+def motor_inputs_from_args(args: argparse.Namespace, machine):
+    """The run's inputs: one VoltageProfile for the main motor (--voltage V, --duty, a voltage_V
+    profile) or joint -> input (--voltage JOINT=V, --goal, --current, JOINT_* profile columns)."""
+    from mechanism.errors import UserError
+    from mechanism.files.limits import check_number
+    from mechanism.machine.machine import input_unit
+    from mechanism.physics.inputs import VoltageProfile, parse_joint_values, read_motor_profiles
+
+    units = {joint: input_unit(machine.description, joint) for joint in machine.drives}
+    voltages = args.voltage or []
+    plain = [v for v in voltages if "=" not in v]
+    if plain and (len(plain) > 1 or len(voltages) > 1):
+        raise UserError("--voltage V is for one motor; give --voltage JOINT=V for each of several")
+    if plain:
+        try:
+            value = float(plain[0])
+        except ValueError:
+            raise UserError(f"--voltage {plain[0]!r}: expected a number of volts or JOINT=V") from None
+        check_number(value, "--voltage", 0, 30, "V")
+        if units[machine.motor_joint] != "V":
+            raise UserError(f"--voltage {plain[0]}: the main motor on {machine.motor_joint} is a "
+                            f"{machine.description.motor['type']} drive; give "
+                            f"{'--goal' if units[machine.motor_joint] == 'rad' else '--current'} {machine.motor_joint}=...")
+        main = VoltageProfile.constant(value)
+        if not (args.goal or args.current):
+            return main
+        inputs = {machine.motor_joint: main}
+    elif args.duty is not None:
+        main = VoltageProfile.from_duty(args.duty, machine.duty_map())
+        if not (args.goal or args.current):
+            return main
+        inputs = {machine.motor_joint: main}
+    elif args.profile is not None:
+        from mechanism.files.tables import read_table
+
+        header = read_table(args.profile, required=["time"], optional=["voltage", "voltage_V"],
+                            aliases={"time": ["time_s"]}, what="input profile")
+        if "voltage" in header.columns or "voltage_V" in header.columns:
+            main = VoltageProfile.from_csv(args.profile)
+            if not (args.goal or args.current):
+                return main
+            inputs = {machine.motor_joint: main}
+        else:
+            inputs = dict(read_motor_profiles(args.profile, units))
+    else:
+        inputs = {}
+    inputs.update(parse_joint_values([v for v in voltages if "=" in v], "--voltage", "V", units))
+    inputs.update(parse_joint_values(args.goal, "--goal", "rad", units))
+    inputs.update(parse_joint_values(args.current, "--current", "A", units))
+    return inputs
+
+
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -72,7 +132,6 @@ def run(args: argparse.Namespace) -> int:
     from mechanism.errors import UserError
     from mechanism.files.tables import write_table
     from mechanism.machine.machine import Machine, MachineConfig, motor_from_description
-    from mechanism.physics.inputs import VoltageProfile
     from mechanism.physics.motor import Thermal
 
     if not (args.csv or args.plot or args.summary):
@@ -81,31 +140,36 @@ def run(args: argparse.Namespace) -> int:
         from mechanism.files.limits import check_elements
 
         check_elements(args.duration * args.rate * 16, "--duration x --rate")
+    if args.voltage is None and args.profile is None and args.duty is None and not args.goal and not args.current:
+        raise UserError("no input: give --voltage, --profile, --duty, --goal or --current")
     description = description_from_args(args)
-    motor = motor_from_description(description.motor)
-    options = {"inductance_H": args.inductance, "cogging_Nm": args.cogging}
-    motor = replace(motor, **{k: v for k, v in options.items() if v is not None})
-    if args.thermal and motor.thermal is None:
-        motor = replace(motor, thermal=Thermal())
+    motor = None
+    if description.motor["type"] == "dc":
+        motor = motor_from_description(description.motor)
+        options = {"inductance_H": args.inductance, "cogging_Nm": args.cogging}
+        motor = replace(motor, **{k: v for k, v in options.items() if v is not None})
+        if args.thermal and motor.thermal is None:
+            motor = replace(motor, thermal=Thermal())
+    elif args.inductance is not None or args.cogging is not None or args.thermal:
+        raise UserError(f"--inductance, --cogging and --thermal change a dc motor; the main motor on "
+                        f"{description.motor_joint} is a {description.motor['type']} drive")
     config = MachineConfig(warm_s=args.warm_s, layers=args.layers, needle=not args.no_needle, feeding=args.feeding,
                            belt_tension=args.belt_tension, motor=motor,
                            timestep_s=None if args.timestep is None else args.timestep * 1e-3)
     machine = Machine(description, config)
-    if args.voltage is not None:
-        voltage = VoltageProfile.constant(args.voltage)
-    elif args.duty is not None:
-        voltage = VoltageProfile.from_duty(args.duty, machine.duty_map())
-    else:
-        voltage = VoltageProfile.from_csv(args.profile)
+    voltage = motor_inputs_from_args(args, machine)
     duration = args.duration
     if duration is None:
-        if args.profile is None or voltage.end_s <= 0:
+        ends = [p.end_s for p in (voltage.values() if isinstance(voltage, dict) else [voltage])]
+        if args.profile is None or max(ends) <= 0:
             raise UserError("--duration is required (simulated time in seconds)")
-        duration = voltage.end_s
+        duration = max(ends)
     start = float(np.deg2rad(args.start_angle))
     if args.reduced:
         from mechanism.dynamics.reduced import ReducedModel
 
+        if isinstance(voltage, dict) or len(machine.drives) > 1:
+            raise UserError("the reduced model drives one dc motor with --voltage, --duty or a voltage_V profile")
         result = ReducedModel(machine).simulate(voltage, duration, start_angle_rad=start, sample_rate_hz=args.rate)
     else:
         result = simulate(voltage, duration, machine=machine, start_angle_rad=start, sample_rate_hz=args.rate,

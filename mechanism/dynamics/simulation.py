@@ -16,7 +16,7 @@ import numpy as np
 
 from mechanism.errors import UserError
 from mechanism.physics.inputs import VoltageProfile
-from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig
+from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig, actuator_name
 
 MAX_DURATION_S = 3600.0
 
@@ -107,16 +107,30 @@ def runaway_guard(machine: Machine, voltages_V: np.ndarray):
     nq = model.nq
     extent = float(model.stat.extent)
     centre = np.array(model.stat.center)
+    from mechanism.machine.machine import actuator_name
+    from mechanism.physics.motor import DCMotor
+
     supply = machine.description.section("supply").get("voltage_V", 0.0)
-    largest = max(float(np.max(np.abs(voltages_V))) if np.size(voltages_V) else 0.0, supply) or STALL_VOLTAGE_V
-    no_load = largest / machine.motor.back_emf_V_s_rad
+    limits = []  # (joint, dof, no-load speed [rad/s], at what voltage)
+    for joint, drive in machine.drives.items():
+        if isinstance(drive, DCMotor):
+            column = np.atleast_2d(voltages_V)[:, machine.model.actuator(actuator_name(machine.description, joint)).id] \
+                if np.ndim(voltages_V) == 2 else np.asarray(voltages_V)
+            volts = max(float(np.max(np.abs(column))) if np.size(column) else 0.0, supply) or STALL_VOLTAGE_V
+        else:
+            volts = STALL_VOLTAGE_V
+        speed = drive.no_load_speed_rad_s(volts)
+        if speed is not None:
+            limits.append((joint, int(machine.model.jnt_dofadr[machine.model.joint(joint).id]), speed, volts))
     data = mujoco.MjData(model)
     dt = model.opt.timestep
 
     def check(states: np.ndarray, start_s: float) -> None:
-        speed = np.abs(states[:, 1 + nq + machine.motor_dof])
-        fast = np.flatnonzero(~(speed <= RUNAWAY_SPEED * no_load))
-        first_fast = int(fast[0]) if fast.size else None
+        first_fast, fast_motor = None, None
+        for joint, dof, no_load, volts in limits:
+            over = np.flatnonzero(~(np.abs(states[:, 1 + nq + dof]) <= RUNAWAY_SPEED * no_load))
+            if over.size and (first_fast is None or over[0] < first_fast):
+                first_fast, fast_motor = int(over[0]), (joint, dof, no_load, volts)
         picks = list(range(0, len(states), RUNAWAY_BODY_STRIDE)) + [len(states) - 1]
         for i in picks:
             if first_fast is not None and i > first_fast:
@@ -134,10 +148,11 @@ def runaway_guard(machine: Machine, voltages_V: np.ndarray):
                                 f"({extent * 1e3:.4g} mm): a joint without a limit or damping ran away (give "
                                 f'[limits."{joint}"] or [friction."{joint}"] viscous_Nm_s_per_rad)')
         if first_fast is not None:
-            rpm = float(speed[first_fast]) * 60 / (2 * np.pi)
-            raise UserError(f"the motor joint {machine.motor_joint} turned at {rpm:.4g} rpm at t = "
+            joint, dof, no_load, volts = fast_motor
+            rpm = abs(float(states[first_fast, 1 + nq + dof])) * 60 / (2 * np.pi)
+            raise UserError(f"the motor joint {joint} turned at {rpm:.4g} rpm at t = "
                             f"{start_s + (first_fast + 1) * dt:.4f} s, more than {RUNAWAY_SPEED:g} times its no-load "
-                            f"speed ({no_load * 60 / (2 * np.pi):.4g} rpm at {largest:g} V): the numbers are not "
+                            f"speed ({no_load * 60 / (2 * np.pi):.4g} rpm at {volts:g} V): the numbers are not "
                             f"physical; {LIKELY_CAUSE}")
 
     return check
@@ -156,6 +171,7 @@ class SimulationResult:
     metadata: dict = field(default_factory=dict)
     state: np.ndarray | None = None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
     sensordata: np.ndarray | None = None  # the model's sensors after each sample (full model only)
+    joints: dict[str, np.ndarray] = field(default_factory=dict)  # every joint's position/velocity, each motor's input/current
 
     def columns(self) -> dict[str, np.ndarray]:
         return {
@@ -168,6 +184,7 @@ class SimulationResult:
             "needle_z_mm": self.needle_z_mm,
             "motor_velocity_rad_s": self.motor_velocity_rad_s,
             "arm_speed_rpm": self.arm_velocity_rad_s * 60 / (2 * np.pi),
+            **self.joints,
         }
 
     def window(self, last_s: float) -> slice:
@@ -198,7 +215,7 @@ def simulate(
     ``start_angle_rad`` for ``duration_s`` seconds."""
     machine = machine or Machine(None, config)
     run = _Run(machine, voltage, duration_s, start_angle_rad, sample_rate_hz)
-    guard = runaway_guard(machine, run.control[:, machine.actuator])
+    guard = runaway_guard(machine, run.control)
     state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress, guard)
     return run.result(state, sensordata)
 
@@ -224,7 +241,7 @@ def simulate_batch(machines: list[Machine], voltages: list[VoltageProfile | floa
     for run, state, sensor in zip(runs, states, sensors):
         try:
             check_stable(run.machine.model, None, state, sensor, 0.0, run.control)
-            runaway_guard(run.machine, run.control[:, run.machine.actuator])(state, 0.0)
+            runaway_guard(run.machine, run.control)(state, 0.0)
             results.append(run.result(state, sensor))
         except UserError as exc:
             results.append(exc)
@@ -246,8 +263,6 @@ class _Run:
             raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
         if not 10 <= sample_rate_hz <= 100_000:
             raise UserError("sample rate must be between 10 Hz and 100 kHz")
-        if not isinstance(voltage, VoltageProfile):
-            voltage = VoltageProfile.constant(voltage)
         from mechanism.files.limits import check_elements
 
         self.machine, self.start_angle_rad = machine, start_angle_rad
@@ -258,9 +273,11 @@ class _Run:
         nstep = self.nsample * self.substeps
         width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
         check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
-        self.control = np.zeros((nstep, model.nu))
-        self.control[:, machine.actuator] = voltage(np.arange(nstep) * dt)
         machine.reset(start_angle_rad)
+        self.control = np.zeros((nstep, model.nu))
+        times = np.arange(nstep) * dt
+        for joint, profile in motor_inputs(machine, voltage).items():
+            self.control[:, model.actuator(actuator_name(machine.description, joint)).id] = profile(times)
 
     def result(self, state: np.ndarray, sensordata: np.ndarray) -> SimulationResult:
         machine, model, dt, substeps = self.machine, self.machine.model, self.dt, self.substeps
@@ -286,6 +303,7 @@ class _Run:
             commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
             current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
         needle = machine.tool_height_mm_at(arm_angle)
+        joints = joint_columns(machine, qpos[samples], qvel[samples], self.control[samples], sensordata[samples])
         return SimulationResult(
             time_s=(samples + 1) * dt,
             voltage_V=applied[samples],
@@ -299,7 +317,77 @@ class _Run:
                       "sensor_columns": {model.sensor(i).name: int(model.sensor_adr[i]) for i in range(model.nsensor)}},
             state=state[samples],
             sensordata=sensordata[samples],
+            joints=joints,
         )
+
+
+def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
+    """Each motor's input over time (a zero-order hold in its unit: V, goal rad or A). ``inputs``:
+    the main motor's (a number or profile), or a mapping joint -> number or profile. A motor given
+    none gets 0 V (dc), 0 A (current), or holds its joint where the run starts (servo)."""
+    from mechanism.machine.machine import input_unit
+    from mechanism.physics.motor import ServoDrive
+
+    description = machine.description
+    given = dict(inputs) if isinstance(inputs, dict) else {machine.motor_joint: inputs}
+    for joint in given:
+        if joint not in machine.drives:
+            raise UserError(f"no motor on joint {joint!r}; the described motors: {', '.join(machine.drives)}")
+    out = {}
+    for joint, drive in machine.drives.items():
+        value = given.get(joint)
+        unit = input_unit(description, joint)
+        if value is None:
+            if isinstance(drive, ServoDrive):
+                value = float(machine.data.qpos[machine.model.jnt_qposadr[machine.model.joint(joint).id]])
+            else:
+                value = 0.0
+        if not isinstance(value, VoltageProfile):
+            value = float(value)
+            if not np.isfinite(value):
+                raise UserError(f"input of the motor on {joint}: must be a finite number of {unit}")
+            if joint == machine.motor_joint and unit == "V" and not isinstance(inputs, dict):
+                value = VoltageProfile.constant(value)  # the one-motor voltage keeps its range check
+            else:
+                value = VoltageProfile(np.array([0.0]), np.array([value]))
+        out[joint] = value
+    return out
+
+
+def joint_columns(machine: Machine, qpos: np.ndarray, qvel: np.ndarray, control: np.ndarray,
+                  sensordata: np.ndarray) -> dict[str, np.ndarray]:
+    """Every hinge's and slide's position and velocity (``JOINT_pos_rad``/``JOINT_vel_rad_s``, or
+    ``_mm``/``_mm_s``), each motor's input (``JOINT_input_V|rad|A``) and current (``JOINT_current_A``)."""
+    from mechanism.machine.machine import actuator_name, input_unit, torque_sensor_name
+    from mechanism.physics.motor import CurrentDrive, ServoDrive
+
+    model = machine.model
+    out: dict[str, np.ndarray] = {}
+    for j in range(model.njnt):
+        name, kind = model.joint(j).name, int(model.jnt_type[j])
+        if not name or kind not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            continue
+        q, v = qpos[:, model.jnt_qposadr[j]], qvel[:, model.jnt_dofadr[j]]
+        if kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
+            out[f"{name}_pos_mm"], out[f"{name}_vel_mm_s"] = q * 1e3, v * 1e3
+        else:
+            out[f"{name}_pos_rad"], out[f"{name}_vel_rad_s"] = q, v
+    for joint, drive in machine.drives.items():
+        command = control[:, model.actuator(actuator_name(machine.description, joint)).id]
+        out[f"{joint}_input_{input_unit(machine.description, joint)}"] = command
+        jid = model.joint(joint).id
+        q, v = qpos[:, model.jnt_qposadr[jid]], qvel[:, model.jnt_dofadr[jid]]
+        if isinstance(drive, ServoDrive):
+            current = drive.current(command, q, v)
+        elif isinstance(drive, CurrentDrive):
+            current = drive.current(command)
+        else:
+            torque = sensordata[:, model.sensor(torque_sensor_name(machine.description, joint)).adr[0]]
+            if drive.cogging_Nm:
+                torque = torque - drive.cogging_Nm * np.sin(drive.cogging_poles * q + drive.cogging_phase_rad)
+            current = torque / drive.torque_constant_Nm_A
+        out[f"{joint}_current_A"] = np.asarray(current, dtype=float)
+    return out
 
 
 def plot_simulation(result: SimulationResult, path) -> None:

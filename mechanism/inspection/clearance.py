@@ -139,6 +139,7 @@ class PairClearance:
     interferences: list[Interference] = field(default_factory=list)
     grid_angle_deg: np.ndarray | None = None
     grid_distance_mm: np.ndarray | None = None  # sampled clearance (0 where they overlap)
+    driver_angle_deg: float | None = None  # the driver joint's own coordinate at angle_deg
 
     def passes(self, required_mm: float = 0.0) -> bool:
         return not self.interferences and self.min_distance_mm >= required_mm
@@ -183,9 +184,12 @@ class ClearanceSweep:
         revolutions: float = 1.0,
         resolution_deg: float = DEFAULT_RESOLUTION_DEG,
         travel=None,
+        frame=None,
     ):
         """``travel`` (mechanism.kinematics.travel.Travel): a driver that rocks is swept once from
-        the lower end of its travel to the upper (``revolutions`` is then ignored)."""
+        the lower end of its travel to the upper (``revolutions`` is then ignored). ``frame``
+        (zero_rad, direction: a machine's ShaftFrame): angles are reported as the described
+        shaft angle ``direction (q - zero)``, and a revolution starts at the shaft's zero."""
         if not (0 < resolution_deg <= 30):
             raise UserError(f"resolution {resolution_deg} deg: expected a value in (0, 30]")
         if not (0 < revolutions <= 100):
@@ -197,9 +201,10 @@ class ClearanceSweep:
         self.pairs = list(pairs)
         names = sorted({name for pair in self.pairs for name in (pair.a, pair.b)})
         self.shapes = {name: PartShape(model, name) for name in names}
+        self.zero, self.direction = (float(frame.zero_rad), float(frame.direction)) if frame is not None else (0.0, 1.0)
         self.periodic = travel is None or travel.rotates
         if self.periodic:
-            self.angles = cycle_angles(revolutions, resolution_deg)
+            self.angles = self.zero + cycle_angles(revolutions, resolution_deg)  # increasing joint positions
             self.period = np.radians(360.0 * revolutions)
             self._start = model.qpos0.copy()
         else:
@@ -333,12 +338,15 @@ class ClearanceSweep:
         else:
             angle, value, pa, pb = best
             result = PairClearance(pair, value * 1e3, self._degrees(angle), pa * 1e3, pb * 1e3)
-        result.grid_angle_deg = np.degrees(self.angles)
+        result.grid_angle_deg = np.array([self._degrees(a) for a in self.angles])
+        result.driver_angle_deg = float(np.degrees(self.zero + self.direction * np.radians(result.angle_deg)))
         result.grid_distance_mm = exact * 1e3
         return result
 
     def _degrees(self, angle: float) -> float:
-        return float(np.degrees(angle % self.period if self.periodic else angle))
+        """The reported angle [deg] of a driver position: the described shaft angle."""
+        shaft = self.direction * (angle - self.zero)
+        return float(np.degrees(shaft % self.period if self.periodic else shaft))
 
     def _within(self, low: float, high: float) -> tuple[float, float]:
         """An angle interval kept inside the travel of a driver that rocks."""
@@ -412,7 +420,7 @@ class ClearanceSweep:
             )
             if -found.fun > deepest.depth:
                 angle, deepest = float(found.x), self._depth(pair, float(found.x), start)
-        start_deg = self._degrees(lo)
+        start_deg = self._degrees(lo if self.direction > 0 else hi)
         return Interference(
             start_deg,
             start_deg + float(np.degrees(hi - lo)),
@@ -517,9 +525,12 @@ def check_clearance(
     ``revolutions`` turns of ``driver`` (or once over its ``travel`` where it rocks)."""
     from mechanism.machine.machine import inspection_travel
 
+    from mechanism.machine.machine import inspection_frame
+
     pairs = list(pairs) if pairs else all_pairs(model)
     travel = travel or inspection_travel(model, driver, description)
-    sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg, travel)
+    frame = inspection_frame(model, driver, description, travel)
+    sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg, travel, frame)
     return ClearanceReport(sweep.run(), required_mm, driver, revolutions, resolution_deg)
 
 

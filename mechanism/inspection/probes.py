@@ -250,7 +250,7 @@ def probe_cycle(
     the lower end of its travel to the upper, mechanism.machine.machine.inspection_travel),
     loads by rigid inverse dynamics (frictionless joints). Adds the probes to ``spec``."""
     from mechanism.kinematics.pose import approach
-    from mechanism.machine.machine import inspection_travel
+    from mechanism.machine.machine import inspection_frame, inspection_travel
 
     if not np.isfinite(speed_rpm) or speed_rpm < 0:
         raise UserError(f"cycle speed {speed_rpm} rpm: expected a finite speed >= 0")
@@ -264,8 +264,10 @@ def probe_cycle(
         raise UserError(f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}")
     omega = speed_rpm * 2 * np.pi / 60
     travel = inspection_travel(model, driver, description)
-    if travel.rotates:
-        angles = cycle_angles(revolutions, resolution_deg)
+    frame = inspection_frame(model, driver, description, travel)
+    if travel.rotates:  # forward from the described zero: the shaft angle rises
+        angles = frame.zero_rad + frame.direction * cycle_angles(revolutions, resolution_deg)
+        omega *= frame.direction
     else:
         angles = travel.samples(np.radians(resolution_deg))
         approach(model, data, driver, float(angles[0]))
@@ -276,6 +278,10 @@ def probe_cycle(
         rows.append(read_probes(model, data, attached))
     table = np.asarray(rows).reshape(len(states.angle), -1)
     columns = {"time_s": states.time, f"{driver}_angle_rad": states.angle}
+    described = description is not None and driver == description.shaft_joint
+    if described:  # the described shaft angle: 0 at its zero, rising as the motor turns forward
+        shaft = frame.direction * (states.angle - frame.zero_rad)
+        columns["shaft_angle_rad"] = np.mod(shaft, 2 * np.pi) if travel.rotates and revolutions <= 1 else shaft
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     columns[f"{driver}_drive_torque_Nm"] = np.asarray(torque)
     comments = [
@@ -284,7 +290,10 @@ def probe_cycle(
         "world frame, z up; loads: rigid inverse dynamics without friction; force/torque = load on the child side of the joint",
         f"{driver}_drive_torque_Nm: torque the driver must supply to hold the constant speed",
     ]
-    return ProbeResult(columns, comments, f"{driver}_angle_rad")
+    if described:
+        comments.append("shaft_angle_rad: the described shaft angle (0 at its zero); "
+                        f"{driver}_angle_rad: the joint's own coordinate (0 at the export's pose)")
+    return ProbeResult(columns, comments, "shaft_angle_rad" if described else f"{driver}_angle_rad")
 
 
 def probe_simulation(

@@ -530,6 +530,7 @@ class BatchConfig:
     resolution_deg: float = 0.5
     required_mm: float = 0.0
     travel: Any = None  # mechanism.kinematics.travel.Travel of a driver that rocks
+    frame: Any = None  # the described shaft's frame (angles reported as the shaft angle)
 
 
 class VariantChecker:
@@ -542,7 +543,7 @@ class VariantChecker:
         self.nominal = config.model
         self.model = _copy_model(config.model)
         self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg,
-                                    config.travel)
+                                    config.travel, config.frame)
 
     def __call__(self, values: Sequence[float] | np.ndarray) -> dict:
         for name in EDITED_FIELDS:
@@ -629,11 +630,11 @@ def run_variants(
 
     check_options(backend, workers)
     variants.check(model)
-    from mechanism.machine.machine import inspection_travel
+    from mechanism.machine.machine import inspection_frame, inspection_travel
 
     travel = inspection_travel(model, driver, description)
     config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm,
-                         None if travel.rotates else travel)
+                         None if travel.rotates else travel, inspection_frame(model, driver, description, travel))
     start = time.perf_counter()
     rows = run_batch(_check, list(variants.values), shared=config, setup=VariantChecker, workers=workers, backend=backend,
                      ray_address=ray_address, on_result=on_row, progress=progress, desc="variants", unit="variant")

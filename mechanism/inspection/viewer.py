@@ -334,7 +334,7 @@ def clearance_overlays(model: mujoco.MjModel, results, driver: str) -> Overlays:
     overlays = Overlays()
     data = mujoco.MjData(model)
     for k, result in enumerate(results):
-        angle = np.radians(result.angle_deg)
+        angle = np.radians(result.angle_deg if result.driver_angle_deg is None else result.driver_angle_deg)
         data.qpos[:] = sweep(model, np.linspace(0, angle, max(2, int(abs(angle) / 0.1) + 2)), driver)[-1]
         mujoco.mj_kinematics(model, data)
         color = MARKER_COLORS[(k + 3) % len(MARKER_COLORS)]

@@ -40,7 +40,9 @@ from mechanism.machine.models import DEFAULT_DESCRIPTION, load_spec, resolve_mod
 from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
 from mechanism.physics.inputs import DutyMap
 from mechanism.physics.loads import FabricLoad, python_needle_load
-from mechanism.physics.motor import DCMotor, SupplyLimit, Thermal, python_supply_limit
+from mechanism.machine.description import MOTOR_INPUT_UNIT
+from mechanism.physics.motor import (CurrentDrive, DCMotor, ServoDrive, SupplyLimit, Thermal, apply_servos_to_spec,
+                                     bind_servos, python_servo_limit, python_supply_limit)
 from mechanism.tolerances import ZERO_SNAP_RAD
 
 ACTUATOR = "drive_motor"  # the actuator the machine adds (its own name, not a CAD name)
@@ -49,6 +51,7 @@ DEFAULT_TIMESTEP_S = 0.0005
 ZERO_SEARCH_SAMPLES = 180
 BELT_TENSIONS = ("low", "normal", "hard")
 STALL_VOLTAGE_V = 24.0  # the voltage a hard stop is sized for where the description gives no supply voltage
+STALL_CURRENT_A = 10.0  # a current drive's stall current where the description gives no limit
 STOP_HOLD_RAD = math.radians(0.5)  # a hard stop holds the stalled motor within half a degree (a slide: 0.5 mm)
 STOP_HOLD_M = 0.5e-3
 STOP_IMPEDANCE = (0.95, 0.9999)  # MuJoCo's default dmax up to as stiff as its soft constraints go
@@ -108,6 +111,20 @@ def warmed(cold: dict, warm: dict, fraction: float) -> dict:
     return out
 
 
+def drive_from_description(motor: dict) -> DCMotor | ServoDrive | CurrentDrive:
+    """The drive of a [motor] table: a DC motor, a servo or a current drive."""
+    kind = motor.get("type", "dc")
+    if kind == "current":
+        return CurrentDrive(motor["torque_constant_Nm_per_A"], motor.get("max_current_A"))
+    if kind == "servo":
+        core = DCMotor(resistance_ohm=motor["resistance_ohm"], torque_constant_Nm_A=motor["torque_constant_Nm_per_A"],
+                       back_emf_V_s_rad=motor["back_emf_V_s_per_rad"], cogging_Nm=motor.get("cogging_Nm", 0.0),
+                       cogging_poles=motor.get("cogging_per_rev", DCMotor.cogging_poles))
+        return ServoDrive(core, motor["supply_V"], motor["kp_V_per_rad"], motor.get("kd_V_s_per_rad", 0.0),
+                          motor.get("duty_limit", 1.0))
+    return motor_from_description(motor)
+
+
 def motor_from_description(motor: dict) -> DCMotor:
     thermal = None
     if "thermal_resistance_K_per_W" in motor or "thermal_time_constant_s" in motor:
@@ -163,6 +180,8 @@ def check_names(description: MachineDescription, spec: mujoco.MjSpec) -> None:
     joints, sites = _names(spec.joints), _names(spec.sites)
     geoms = _names(spec.geoms)
     _require("joint", description.motor_joint, joints, description, "drive", "motor_joint")
+    for joint in description.motors:
+        _require("joint", joint, joints, description, f'motor."{joint}"', None)
     _require("joint", description.shaft_joint, joints, description, "drive", "shaft_joint")
     if description.zero_site is not None:
         _require("site", description.zero_site, sites, description, "drive", "zero_site")
@@ -239,6 +258,7 @@ def install_callbacks() -> bool:
                 python_friction(model, data)
                 python_needle_load(model, data)
                 python_supply_limit(model, data)
+                python_servo_limit(model, data)
 
             mujoco.set_mjcb_passive(passive)
         _CALLBACK_INSTALLED = True
@@ -368,10 +388,21 @@ def inspection_travel(model: mujoco.MjModel, driver: str, description: MachineDe
     return travel
 
 
-def stop_stiffness(model: mujoco.MjModel, joint: int, torque_at_motor_Nm: float, motor_dof: int, timestep_s: float,
+def inspection_frame(model: mujoco.MjModel, driver: str, description: MachineDescription | None = None,
+                     travel: Travel | None = None) -> ShaftFrame:
+    """The frame inspection reports ``driver``'s angle in: the described shaft's (0 at its zero,
+    counting the way the motor turns it forward) when ``driver`` is the described shaft, else the
+    joint's own coordinate."""
+    if description is None or driver != description.shaft_joint or description.motor_joint not in parts.joint_names(model):
+        return ShaftFrame(0.0, 1.0)
+    return find_shaft_frame(model, description, travel or shaft_travel(model, description))
+
+
+def stop_stiffness(model: mujoco.MjModel, joint: int, motors: list[tuple[float, int]], timestep_s: float,
                    ) -> tuple[np.ndarray, np.ndarray, float]:
     """(solref, solimp, predicted steady penetration [rad or m]) of a hard stop on ``joint``
-    that holds the motor's stall torque, as reflected to the joint, plus gravity.
+    that holds the strongest motor's stall torque (``motors``: (stall torque, dof) each), as
+    reflected to the joint, plus gravity.
 
     MuJoCo's soft constraint obeys a1 + d (b v + k r) = (1 - d) a0 with k = 1/(d^2 tc^2) at
     critical damping: held still (a1 = v = 0) against an acceleration a0 = tau / J (tau the
@@ -387,7 +418,7 @@ def stop_stiffness(model: mujoco.MjModel, joint: int, torque_at_motor_Nm: float,
     mass = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, mass)
     inertia = float(v @ mass @ v)
-    torque = abs(torque_at_motor_Nm * v[motor_dof]) + abs(float(v @ data.qfrc_bias))
+    torque = max(abs(stall * v[dof]) for stall, dof in motors) + abs(float(v @ data.qfrc_bias))
     acceleration = torque / inertia if inertia > 0 else 0.0
     hold = STOP_HOLD_M if int(model.jnt_type[joint]) == int(mujoco.mjtJoint.mjJNT_SLIDE) else STOP_HOLD_RAD
     tc = 2 * timestep_s
@@ -395,6 +426,20 @@ def stop_stiffness(model: mujoco.MjModel, joint: int, torque_at_motor_Nm: float,
     d = float(np.clip(d, *STOP_IMPEDANCE))
     solimp = np.array([d, d, 0.001, 0.5, 2.0])
     return np.array([tc, 1.0]), solimp, (1 - d) * d * tc * tc * acceleration
+
+
+def actuator_name(description: MachineDescription, joint: str) -> str:
+    """The actuator of the motor on ``joint``: ``drive_motor`` for the main one, ``drive_motor:JOINT`` else."""
+    return ACTUATOR if joint == description.motor_joint else f"{ACTUATOR}:{joint}"
+
+
+def torque_sensor_name(description: MachineDescription, joint: str) -> str:
+    return TORQUE_SENSOR if joint == description.motor_joint else f"{TORQUE_SENSOR}:{joint}"
+
+
+def input_unit(description: MachineDescription, joint: str) -> str:
+    """The unit of the motor on ``joint``'s input: V (dc), rad (servo: the goal angle) or A (current)."""
+    return MOTOR_INPUT_UNIT[description.motors[joint]["type"]]
 
 
 def _described(attribute: str) -> Any:
@@ -421,8 +466,18 @@ class Machine:
         spec.option.timestep = self.timestep_s  # before friction: its stiffness follows it
         for equality in spec.equalities:  # loops and belts as stiff as the step allows (2 steps)
             equality.solref = [2 * self.timestep_s, 1.0]
-        self.motor = self.config.motor or motor_from_description(self.description.motor)
-        self.motor.add_to_spec(spec, joint=self.motor_joint, name=ACTUATOR)
+        self.drives = {joint: drive_from_description(table) for joint, table in self.description.motors.items()}
+        if self.config.motor is not None:
+            self.drives[self.motor_joint] = self.config.motor
+        main = self.drives[self.motor_joint]
+        # the main motor's datasheet (a current drive has no R or Ke: a 1 ohm stand-in keeps the formulas defined)
+        self.motor = main if isinstance(main, DCMotor) else main.motor if isinstance(main, ServoDrive) else DCMotor(
+            resistance_ohm=1.0, torque_constant_Nm_A=main.torque_constant_Nm_A, back_emf_V_s_rad=main.torque_constant_Nm_A)
+        for joint, drive in self.drives.items():
+            drive.add_to_spec(spec, joint=joint, name=actuator_name(self.description, joint))
+        servos = [joint for joint, drive in self.drives.items() if isinstance(drive, ServoDrive)]
+        if servos:
+            apply_servos_to_spec(spec, len(servos))
         for joint, (lower, upper) in self.description.limits.items():  # hard stops; their stiffness follows compiling
             item = spec.joint(joint)
             item.limited = mujoco.mjtLimited.mjLIMITED_TRUE
@@ -439,11 +494,12 @@ class Machine:
             raise UserError(f"fabric layers need a tool site and a plate: set [tool] site and plate in "
                             f"{self.description.path or 'the machine description'}")
         self.fabric.apply_to_spec(spec)
-        self.supply = supply_limit(self.description)
+        self.supply = supply_limit(self.description) if isinstance(main, DCMotor) else None
         if self.supply:
             self.supply.apply_to_spec(spec)
-        spec.add_sensor(name=TORQUE_SENSOR, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=ACTUATOR)
+        for joint in self.drives:
+            spec.add_sensor(name=torque_sensor_name(self.description, joint), type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator_name(self.description, joint))
         if extend is not None:
             extend(spec)
         try:
@@ -458,12 +514,15 @@ class Machine:
         self.motor_qpos, self.motor_dof = joint_dof(self.model, self.motor_joint)
         if self.supply:
             self.supply.bind(self.model, self.motor, self.actuator, self.motor_dof)
+        if servos:
+            bind_servos(self.model, [self.drives[j].fields(self.model.actuator(actuator_name(self.description, j)).id,
+                                                          *reversed(joint_dof(self.model, j))) for j in servos])
         self.stops = self._stiffen_stops(spec)
         self.travel = cached_travel(self.model_path, self.description, self.model)
         self.frame = shaft_frame(self.model_path, self.description, self.model, self.travel)
         self.plate_top_z = None
         self.reset(0.0)
-        self.passive_joints = warn_passive(self.model, self.data, self.description, [self.motor_joint, self.shaft_joint])
+        self.passive_joints = warn_passive(self.model, self.data, self.description, [*self.drives, self.shaft_joint])
         if self.plate_part:
             self.plate_top_z = plate_top(self.model, self.data, self.plate_part)
         if self.fabric.layers:
@@ -474,10 +533,12 @@ class Machine:
         """Every limited joint's stop holds the stalled motor (stop_stiffness); returns each one's
         predicted steady penetration [rad or m]."""
         supply = self.description.section("supply")
-        stall = self.motor.torque_constant_Nm_A * supply.get("voltage_V", STALL_VOLTAGE_V) / self.motor.resistance_ohm
+        motors = [(drive.stall_torque_Nm(STALL_CURRENT_A if isinstance(drive, CurrentDrive) else
+                                         supply.get("voltage_V", STALL_VOLTAGE_V)), joint_dof(self.model, joint)[1])
+                  for joint, drive in self.drives.items()]
         out = {}
         for joint in np.flatnonzero(self.model.jnt_limited):
-            solref, solimp, penetration = stop_stiffness(self.model, int(joint), stall, self.motor_dof, self.timestep_s)
+            solref, solimp, penetration = stop_stiffness(self.model, int(joint), motors, self.timestep_s)
             self.model.jnt_solref[joint], self.model.jnt_solimp[joint] = solref, solimp
             name = self.model.joint(joint).name
             if name:
