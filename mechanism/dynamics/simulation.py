@@ -17,6 +17,7 @@ import numpy as np
 from mechanism.errors import UserError
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig, actuator_name
+from mechanism.physics.motor import DCMotor, ServoDrive
 
 MAX_DURATION_S = 3600.0
 
@@ -304,10 +305,18 @@ class _Run:
             current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
         needle = machine.tool_height_mm_at(arm_angle)
         joints = joint_columns(machine, qpos[samples], qvel[samples], self.control[samples], sensordata[samples])
+        voltage, current = applied[samples], current[samples]
+        main = machine.drives[machine.motor_joint]
+        if not isinstance(main, DCMotor):  # the main motor's terminal voltage and current, not its command
+            current = joints[f"{machine.motor_joint}_current_A"]
+            if isinstance(main, ServoDrive):
+                voltage = main.voltage(applied[samples], qpos[samples, machine.motor_qpos], motor_velocity[samples])
+            else:
+                voltage = np.full(len(samples), np.nan)  # a current drive's voltage is its amplifier's business
         return SimulationResult(
             time_s=(samples + 1) * dt,
-            voltage_V=applied[samples],
-            current_A=current[samples],
+            voltage_V=voltage,
+            current_A=current,
             arm_angle_rad=arm_angle[samples],
             arm_velocity_rad_s=arm_velocity[samples],
             arm_acceleration_rad_s2=acceleration,
