@@ -165,3 +165,16 @@ def test_two_motors_each_take_their_own_input(tmp_path, cli):
     assert again.returncode == 0, again.stderr
     wrong = cli("simulate", "--machine", path, "--goal", "spin_b=1", "--duration", "0.3", "--summary").assert_bad_input()
     assert "--current spin_b=" in wrong
+
+
+def test_probe_and_view_take_the_inputs_of_every_motor(tmp_path, cli):
+    path = _machine(tmp_path, SERVO_A)
+    probe = cli("probe", "--machine", path, "--part", "disk_a", "--quantity", "position", "--goal", "spin_a=0.3",
+                "--current", "spin_b=0.1", "--duration", "0.2", "--csv", tmp_path / "p.csv")
+    assert probe.returncode == 0, probe.stderr
+    view = cli("view", "--machine", path, "--goal", "spin_a=0.3", "--duration", "0.2", "--frames", "10",
+               "--html", tmp_path / "v.html")
+    assert view.returncode == 0, view.stderr
+    line = cli("probe", "--machine", path, "--part", "disk_a", "--quantity", "position", "--voltage", "5",
+               "--duration", "0.2", "--csv", tmp_path / "q.csv").assert_bad_input()
+    assert "--goal spin_a=" in line

@@ -7,6 +7,7 @@ from mechanism.files.limits import number
 import argparse
 import sys
 
+from mechanism.cli._inputs import add_input_arguments, has_inputs, inputs_from_args
 from mechanism.cli._machine import add_machine_arguments, description_from_args
 
 ORDER = 30
@@ -28,18 +29,11 @@ def register(subparsers) -> None:
     )
     add_machine_arguments(parser)
     source = parser.add_mutually_exclusive_group()
-    source.add_argument("--voltage", action="append", metavar="V|JOINT=V",
-                        help="constant motor terminal voltage [V]: V (0-30) for the one (main) motor, or JOINT=V "
-                             "for the dc motor on JOINT (repeat for several motors; negative reverses)")
+    add_input_arguments(parser, source, "a run")
     source.add_argument("--profile", metavar="FILE",
                         help="input profile CSV: time_s (or time) and voltage_V (or voltage) for the main motor, or one "
                              "column per motor named JOINT_V (dc), JOINT_rad (servo goal) or JOINT_A (current drive); "
                              "each value holds until the next time (zero-order hold)")
-    parser.add_argument("--goal", action="append", default=[], metavar="JOINT=RAD",
-                        help="goal angle [rad] of the servo on JOINT, in the joint's own coordinate (0 at the export's "
-                             "pose; repeatable; default: hold where the run starts)")
-    parser.add_argument("--current", action="append", default=[], metavar="JOINT=A",
-                        help="current command [A] of the current drive on JOINT (repeatable; default 0)")
     source.add_argument("--duty", type=float, metavar="PCT",
                         help="PWM duty cycle [%%] of the described supply; converted to motor voltage with its "
                              "measured (non-linear) map ([supply] in the description)")
@@ -74,35 +68,15 @@ def register(subparsers) -> None:
 def motor_inputs_from_args(args: argparse.Namespace, machine):
     """The run's inputs: one VoltageProfile for the main motor (--voltage V, --duty, a voltage_V
     profile) or joint -> input (--voltage JOINT=V, --goal, --current, JOINT_* profile columns)."""
-    from mechanism.errors import UserError
-    from mechanism.files.limits import check_number
     from mechanism.machine.machine import input_unit
-    from mechanism.physics.inputs import VoltageProfile, parse_joint_values, read_motor_profiles
+    from mechanism.physics.inputs import VoltageProfile, read_motor_profiles
 
-    units = {joint: input_unit(machine.description, joint) for joint in machine.drives}
-    voltages = args.voltage or []
-    plain = [v for v in voltages if "=" not in v]
-    if plain and (len(plain) > 1 or len(voltages) > 1):
-        raise UserError("--voltage V is for one motor; give --voltage JOINT=V for each of several")
-    if plain:
-        try:
-            value = float(plain[0])
-        except ValueError:
-            raise UserError(f"--voltage {plain[0]!r}: expected a number of volts or JOINT=V") from None
-        check_number(value, "--voltage", 0, 30, "V")
-        if units[machine.motor_joint] != "V":
-            raise UserError(f"--voltage {plain[0]}: the main motor on {machine.motor_joint} is a "
-                            f"{machine.description.motor['type']} drive; give "
-                            f"{'--goal' if units[machine.motor_joint] == 'rad' else '--current'} {machine.motor_joint}=...")
-        main = VoltageProfile.constant(value)
-        if not (args.goal or args.current):
-            return main
-        inputs = {machine.motor_joint: main}
-    elif args.duty is not None:
+    given = inputs_from_args(args, machine.description)
+    if not isinstance(given, dict):
+        return VoltageProfile.constant(given)
+    main = None
+    if args.duty is not None:
         main = VoltageProfile.from_duty(args.duty, machine.duty_map())
-        if not (args.goal or args.current):
-            return main
-        inputs = {machine.motor_joint: main}
     elif args.profile is not None:
         from mechanism.files.tables import read_table
 
@@ -110,17 +84,12 @@ def motor_inputs_from_args(args: argparse.Namespace, machine):
                             aliases={"time": ["time_s"]}, what="input profile")
         if "voltage" in header.columns or "voltage_V" in header.columns:
             main = VoltageProfile.from_csv(args.profile)
-            if not (args.goal or args.current):
-                return main
-            inputs = {machine.motor_joint: main}
         else:
-            inputs = dict(read_motor_profiles(args.profile, units))
-    else:
-        inputs = {}
-    inputs.update(parse_joint_values([v for v in voltages if "=" in v], "--voltage", "V", units))
-    inputs.update(parse_joint_values(args.goal, "--goal", "rad", units))
-    inputs.update(parse_joint_values(args.current, "--current", "A", units))
-    return inputs
+            units = {joint: input_unit(machine.description, joint) for joint in machine.drives}
+            return {**read_motor_profiles(args.profile, units), **given}
+    if main is not None and not given:
+        return main
+    return {**({machine.motor_joint: main} if main is not None else {}), **given}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -140,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         from mechanism.files.limits import check_elements
 
         check_elements(args.duration * args.rate * 16, "--duration x --rate")
-    if args.voltage is None and args.profile is None and args.duty is None and not args.goal and not args.current:
+    if not has_inputs(args) and args.profile is None and args.duty is None:
         raise UserError("no input: give --voltage, --profile, --duty, --goal or --current")
     description = description_from_args(args)
     motor = None

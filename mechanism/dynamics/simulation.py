@@ -338,6 +338,11 @@ def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
     from mechanism.physics.motor import ServoDrive
 
     description = machine.description
+    if not isinstance(inputs, dict) and input_unit(description, machine.motor_joint) != "V":
+        raise UserError(f"a voltage drives a dc motor; the main motor on {machine.motor_joint} is a "
+                        f"{description.motor['type']} drive: give its input by joint "
+                        f"({'--goal' if input_unit(description, machine.motor_joint) == 'rad' else '--current'} "
+                        f"{machine.motor_joint}=...)")
     given = dict(inputs) if isinstance(inputs, dict) else {machine.motor_joint: inputs}
     for joint in given:
         if joint not in machine.drives:

@@ -327,7 +327,9 @@ def probe_simulation(
     columns = {"time_s": result.time_s, f"{machine.shaft_joint}_angle_rad": result.arm_angle_rad}
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     comments = [
-        f"dynamic simulation of {machine.name}: {voltage:g} V for {duration_s:g} s from rest at shaft angle 0",
+        f"dynamic simulation of {machine.name}: "
+        + (f"{voltage:g} V" if not isinstance(voltage, dict) else ", ".join(f"{j} {v:g}" for j, v in voltage.items()))
+        + f" for {duration_s:g} s from rest at shaft angle 0",
         "world frame, z up; force/torque = load on the child side of the joint, with friction and loads",
     ]
     return ProbeResult(columns, comments, "time_s")

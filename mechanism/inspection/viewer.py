@@ -103,7 +103,10 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
 
 
 def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_FRAMES, description=None) -> tuple[mujoco.MjModel, Motion]:
-    """A dynamic simulation from rest under ``voltage``: its joint positions at ``frames`` times."""
+    """A dynamic simulation from rest under ``voltage`` (the main motor's, or joint -> input): its
+    joint positions at ``frames`` times."""
+    from mechanism.machine.machine import input_unit
+
     from mechanism.machine.machine import Machine
     from mechanism.dynamics.simulation import simulate
 
@@ -112,7 +115,10 @@ def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_F
     result = simulate(voltage, duration_s, machine=machine, progress=True)
     picks = np.linspace(0, len(result.time_s) - 1, frames).round().astype(int)
     qpos = result.state[picks, 1 : 1 + machine.model.nq]
-    return machine.model, Motion(result.time_s[picks], qpos, f"simulation at {voltage:g} V")
+    how = (f"{voltage:g} V" if not isinstance(voltage, dict)
+           else ", ".join(f"{joint} {value:g} {unit}" for joint, value, unit in
+                          ((j, v, input_unit(machine.description, j)) for j, v in voltage.items())))
+    return machine.model, Motion(result.time_s[picks], qpos, f"simulation at {how}")
 
 
 # -- the scene -------------------------------------------------------------------------------

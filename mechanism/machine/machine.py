@@ -376,8 +376,9 @@ def inspection_travel(model: mujoco.MjModel, driver: str, description: MachineDe
     or for a bare model its joint range, else whole revolutions, else where it assembles."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    motor = [description.motor_joint] if description is not None and description.motor_joint in parts.joint_names(model) else []
-    warn_passive(model, data, description, [driver, *motor])
+    names = parts.joint_names(model)
+    motors = [joint for joint in (description.motors if description is not None else ()) if joint in names]
+    warn_passive(model, data, description, [driver, *motors])
     if description is not None:
         return shaft_travel(model, description, driver)
     travel = find_travel(model, driver)
