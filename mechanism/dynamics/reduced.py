@@ -54,7 +54,7 @@ class ReducedModel:
         motor = self.machine.motor
         if not self.machine.rotates:
             raise UserError(f"the reduced model follows a shaft that turns whole revolutions; {self.machine.shaft_joint} "
-                            "rocks between hard stops: simulate the full model (without --reduced)")
+                            "rocks between hard stops: use the full multibody model (simulate without --reduced, sweep --full)")
         if motor.inductance_H:
             raise UserError("the reduced model uses the quasi-static motor current (no inductance)")
         n = self.n if not motor.cogging_Nm else max(self.n, 4096)

@@ -118,9 +118,10 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
         "[machine]",
         f"name = {_toml_string(name)}",
         f"model = {_toml_string(model_reference)}",
-        *([f"up = {_toml_string(up)}   # {'GUESS, ' if 'assumed' in up_reason else ''}{up_reason}"] if up else []),
-        *([f"ground = {_toml_string(ground)}   # GUESS: the heaviest part fixed to the world "
-           "(the export's ground, else the part the converter fixed)"] if ground else []),
+        *([f"up = {_toml_string(up)}   # {up_reason}"] if up and up_reason.startswith("given") else
+          [f"# up = {_toml_string(up)}   # {up_reason}"] if up else []),
+        *([f"# ground = {_toml_string(ground)}   # GUESS: the part fixed to the world (the export's ground, else its "
+           "heaviest part); set ground to fix another"] if ground else []),
         "",
         "[drive]",
     ]
