@@ -38,7 +38,7 @@ def inputs_from_args(args: argparse.Namespace, description):
     from mechanism.machine.machine import input_unit
     from mechanism.physics.inputs import parse_joint_values
 
-    units = {joint: input_unit(description, joint) for joint in description.motors}
+    units = {joint: input_unit(description, joint) for joint in description.drive_tables}
     voltages = list(getattr(args, "voltage", None) or [])
     plain = [v for v in voltages if not isinstance(v, str)]
     if plain and len(voltages) > 1:

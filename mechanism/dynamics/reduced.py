@@ -52,7 +52,7 @@ class ReducedModel:
 
     def __post_init__(self):
         motor = self.machine.motor
-        if not self.machine.rotates:
+        if not getattr(self.machine, "rotates", True):
             raise UserError(f"the reduced model follows a shaft that turns whole revolutions; {self.machine.shaft_joint} "
                             "rocks between hard stops: use the full multibody model (simulate without --reduced, sweep --full)")
         if motor.inductance_H:

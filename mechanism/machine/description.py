@@ -233,6 +233,11 @@ class MachineDescription:
         return self.section("tool").get("site")
 
     @property
+    def drive_tables(self) -> dict[str, dict[str, Any]]:
+        """joint -> motor table, the main motor first (its table is ``motor``, which edits replace)."""
+        return {self.motor_joint: self.motor, **{j: t for j, t in self.motors.items() if j != self.motor_joint}}
+
+    @property
     def zero_angle_rad(self) -> float | None:
         value = self.section("drive").get("zero_angle_deg")
         return None if value is None else math.radians(value)

@@ -180,7 +180,7 @@ def check_names(description: MachineDescription, spec: mujoco.MjSpec) -> None:
     joints, sites = _names(spec.joints), _names(spec.sites)
     geoms = _names(spec.geoms)
     _require("joint", description.motor_joint, joints, description, "drive", "motor_joint")
-    for joint in description.motors:
+    for joint in description.drive_tables:
         _require("joint", joint, joints, description, f'motor."{joint}"', None)
     _require("joint", description.shaft_joint, joints, description, "drive", "shaft_joint")
     if description.zero_site is not None:
@@ -377,7 +377,7 @@ def inspection_travel(model: mujoco.MjModel, driver: str, description: MachineDe
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     names = parts.joint_names(model)
-    motors = [joint for joint in (description.motors if description is not None else ()) if joint in names]
+    motors = [joint for joint in (description.drive_tables if description is not None else ()) if joint in names]
     warn_passive(model, data, description, [driver, *motors])
     if description is not None:
         return shaft_travel(model, description, driver)
@@ -440,7 +440,7 @@ def torque_sensor_name(description: MachineDescription, joint: str) -> str:
 
 def input_unit(description: MachineDescription, joint: str) -> str:
     """The unit of the motor on ``joint``'s input: V (dc), rad (servo: the goal angle) or A (current)."""
-    return MOTOR_INPUT_UNIT[description.motors[joint]["type"]]
+    return MOTOR_INPUT_UNIT[description.drive_tables[joint]["type"]]
 
 
 def _described(attribute: str) -> Any:
@@ -467,7 +467,7 @@ class Machine:
         spec.option.timestep = self.timestep_s  # before friction: its stiffness follows it
         for equality in spec.equalities:  # loops and belts as stiff as the step allows (2 steps)
             equality.solref = [2 * self.timestep_s, 1.0]
-        self.drives = {joint: drive_from_description(table) for joint, table in self.description.motors.items()}
+        self.drives = {joint: drive_from_description(table) for joint, table in self.description.drive_tables.items()}
         if self.config.motor is not None:
             self.drives[self.motor_joint] = self.config.motor
         main = self.drives[self.motor_joint]
