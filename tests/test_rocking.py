@@ -210,3 +210,14 @@ def test_init_drafts_a_mechanism_that_cannot_turn_and_every_verb_takes_the_draft
                  ("simulate", "--voltage", "5", "--duration", "0.3", "--summary")):
         run = cli(verb[0], "--machine", draft, *verb[1:])
         assert run.returncode == 0, (verb, run.stderr)
+
+
+def test_a_sweep_of_a_rocker_runs_the_full_model_and_says_it_does_not_turn(fourbar):
+    import mechanism
+
+    _, folder = fourbar
+    machine = mechanism.load_machine(_description(folder, limits=(-40.0, 5.0)))
+    result = mechanism.sweep(machine, {"parameters": {"V": "voltage_V"}, "sweep": {"V": [6.0]}}, duration_s=0.5)
+    assert result.model.startswith("full")
+    row = result.table()[1]
+    assert "no steady running" in row["note"]
