@@ -294,9 +294,14 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, tra
     span = (travel.lower, travel.upper) if rocks else None
     coarse = compute_tables(model, shaft, description.zero_site, n=ZERO_SEARCH_SAMPLES, span=span)
     motor_ratio = float(np.mean(coarse.ratios[motor])) if motor in coarse.ratios else 0.0
+    if not abs(motor_ratio) > 1e-9:  # another described motor that turns the shaft sets its direction
+        others = [float(np.mean(coarse.ratios[j])) for j in description.drive_tables if j in coarse.ratios and j != motor]
+        motor_ratio = next((r for r in others if abs(r) > 1e-9), 0.0)
     if not abs(motor_ratio) > 1e-9:
-        raise UserError(f"machine description {description.where('drive', 'motor_joint')}: the motor joint {motor!r} "
-                        f"does not move when the shaft {shaft!r} turns (no coupling between them)")
+        if len(description.drive_tables) == 1:
+            raise UserError(f"machine description {description.where('drive', 'motor_joint')}: the motor joint {motor!r} "
+                            f"does not move when the shaft {shaft!r} turns (no coupling between them)")
+        motor_ratio = 1.0  # no motor turns the shaft: it counts in its joint's own direction
     direction = 1.0 if motor_ratio > 0 else -1.0
     if description.zero_angle_rad is not None:
         return ShaftFrame(zero_rad=description.zero_angle_rad, direction=direction)
