@@ -178,3 +178,27 @@ def test_probe_and_view_take_the_inputs_of_every_motor(tmp_path, cli):
     line = cli("probe", "--machine", path, "--part", "disk_a", "--quantity", "position", "--voltage", "5",
                "--duration", "0.2", "--csv", tmp_path / "q.csv").assert_bad_input()
     assert "--goal spin_a=" in line
+
+
+def test_the_servo_limit_python_twin_matches_the_compiled_callback(tmp_path):
+    """Both callbacks add Kt/R (clip(V) - V) on the servo's joint; a saturated state tells them apart
+    from doing nothing."""
+    import mujoco
+
+    import mechanism
+    from mechanism.physics.motor import python_servo_limit
+
+    machine = mechanism.load_machine(_machine(tmp_path, SERVO_A))
+    if not machine.native:
+        pytest.skip("no C compiler: only the Python twin is in use")
+    model, data = machine.model, machine.data
+    joint = model.joint("spin_a")
+    data.qpos[joint.qposadr[0]], data.qvel[joint.dofadr[0]] = 0.1, 3.0
+    data.ctrl[model.actuator("drive_motor").id] = 2.0  # 20 (2 - 0.1) - 0.05 x 3 = 37.85 V asked of 6 V
+    mujoco.mj_forward(model, data)
+    native = data.qfrc_passive[joint.dofadr[0]]
+    data.qfrc_passive[:] = 0.0
+    python_servo_limit(model, data)
+    twin = data.qfrc_passive[joint.dofadr[0]]
+    assert twin == pytest.approx(0.02 / 4.0 * (6.0 - 37.85))
+    assert native == pytest.approx(twin, rel=1e-9)
