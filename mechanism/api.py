@@ -137,7 +137,8 @@ def identify(machine: Machine | None, recording: str | os.PathLike, **options):
     from mechanism.sysid.identification import identify as run
     from mechanism.sysid.recording import read_recording
 
-    return run(read_recording(recording), nominal=drive_nominal(machine), **options)
+    return run(read_recording(recording, machine.motor_joint if machine is not None else None),
+               nominal=drive_nominal(machine), **options)
 
 
 def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
@@ -145,7 +146,8 @@ def diagnose(machine: Machine | None, recording: str | os.PathLike, **options):
     from mechanism.sysid.diagnosis import diagnose as run
     from mechanism.sysid.recording import read_recording
 
-    return run(read_recording(recording), nominal=drive_nominal(machine), **options)
+    return run(read_recording(recording, machine.motor_joint if machine is not None else None),
+               nominal=drive_nominal(machine), **options)
 
 
 def drive_nominal(machine: Machine | None):

@@ -60,7 +60,7 @@ def run(args) -> int:
     check_batch_arguments(args, fleet, "a fleet (several recordings, a folder, or --out)")
     if fleet:
         return run_fleet(args, candidates)
-    rec = read_recording(args.recording[0])
+    rec = read_recording(args.recording[0], _main_motor(args))
     try:
         bar, tick = progress_bar("diagnose")
         with bar:
@@ -114,3 +114,12 @@ def run_fleet(args, candidates) -> int:
         sys.stderr.write(f"error: none of the {len(result.rows)} recordings could be diagnosed (see {args.out}/{SUMMARY_CSV})\n")
         return 2
     return 0
+
+
+def _main_motor(args) -> str | None:
+    """The described main motor's joint (its JOINT_V recording column is the voltage), with --machine."""
+    if not getattr(args, "machine", None):
+        return None
+    from mechanism.machine.machine import resolve_description
+
+    return resolve_description(args.machine).motor_joint

@@ -86,7 +86,7 @@ def run(args) -> int:
     if not args.recording:
         raise UserError("identify needs a recording REC.csv (or --table2)")
     free = tuple(x.strip() for x in args.free.split(",") if x.strip())
-    rec = read_recording(args.recording)
+    rec = read_recording(args.recording, _main_motor(args))
     bar, tick = progress_bar("identify")
     with bar:
         result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model, nominal=drive_nominal(args))
@@ -111,3 +111,12 @@ def run_table2(args) -> int:
         print(f"{name:10s} {fit.coulomb_arm_Nm:9.3f} +- {fit.coulomb_sigma:5.3f} {fit.viscous_motor_side_Nm_s_per_rad:14.3g} +- "
               f"{fit.viscous_sigma:7.2g} {col.high_rpm_predicted:9.0f}/{col.high_rpm_measured:<9.0f} {col.supply_deficit_V:12.2f}")
     return 0
+
+
+def _main_motor(args) -> str | None:
+    """The described main motor's joint (its JOINT_V recording column is the voltage), with --machine."""
+    if not getattr(args, "machine", None):
+        return None
+    from mechanism.machine.machine import resolve_description
+
+    return resolve_description(args.machine).motor_joint

@@ -5,7 +5,10 @@ leading ``#`` comment lines, a header, then rows. Required columns ``time`` [s, 
 increasing, nominally 1 kHz], ``voltage`` [V, motor terminal voltage as logged] and
 ``arm_angle`` [rad, unwrapped arm-shaft encoder angle, 0 = needle top dead centre];
 optional ``current`` [A]. Columns named with units (``time_s``, ``voltage_V``,
-``arm_angle_rad``, ``current_A``) are accepted as aliases; unknown columns are ignored.
+``arm_angle_rad``, ``current_A``) are accepted as aliases, as are ``shaft_angle`` (the described
+shaft's angle, from its zero) and, for a described machine, its main motor's input column
+``JOINT_V`` (a recording with one input column per motor); unknown columns (other motors' inputs,
+``JOINT_angle`` of other measured joints) are ignored.
 
 Every problem a user can fix is a :class:`~mechanism.errors.UserError` (exit 2): a missing
 column, non-numeric/NaN/inf values, time that is not strictly increasing (duplicated or
@@ -42,7 +45,7 @@ ENCODER_STEP_RAD = 2 * np.pi / 20000
 COLUMN_ALIASES = {
     "time": ["time_s", "t", "t_s"],
     "voltage": ["voltage_V", "voltage_v", "U_V", "u_V"],
-    "arm_angle": ["arm_angle_rad", "angle_rad", "arm_position_rad"],
+    "arm_angle": ["arm_angle_rad", "angle_rad", "arm_position_rad", "shaft_angle", "shaft_angle_rad"],
     "current": ["current_A", "current_a", "I_A"],
 }
 
@@ -97,15 +100,20 @@ def smoothed_velocity(angle: np.ndarray, dt: float, axis: int = -1) -> np.ndarra
     return savgol_filter(angle, window, VELOCITY_POLYORDER, deriv=1, delta=dt, axis=axis, mode="interp")
 
 
-def read_recording(path: str | os.PathLike) -> Recording:
-    """Read and validate a recording CSV (see the module docstring for the contract)."""
+def read_recording(path: str | os.PathLike, motor_joint: str | None = None) -> Recording:
+    """Read and validate a recording CSV (see the module docstring for the contract). With
+    ``motor_joint`` (the described main motor's), its input column ``JOINT_V`` is the voltage
+    where the recording names one input column per motor."""
     path = Path(path)
     label = f"recording {path}"
+    aliases = dict(COLUMN_ALIASES)
+    if motor_joint:
+        aliases["voltage"] = [*aliases["voltage"], f"{motor_joint}_V"]
     table = read_table(
         path,
         required=["time", "voltage", "arm_angle"],
         optional=["current"],
-        aliases=COLUMN_ALIASES,
+        aliases=aliases,
         min_rows=2,
         what="recording",
     )
