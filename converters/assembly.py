@@ -106,6 +106,7 @@ class Assembly:
     joints: list[Joint] = field(default_factory=list)
     couplings: list[Coupling] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    gravity: np.ndarray | None = None  # the export's gravity vector (any unit) where it carries one
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:

@@ -11,6 +11,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from mechanism.converters import inertia, mjcf, tree
 from mechanism.converters.errors import ExportError
 from mechanism.converters.geometry import load_meshes
@@ -84,8 +86,8 @@ def check_conversion_memory(export_path: Path, geometry) -> None:
                  f"converting {export_path.name} ({size / 2**20:.3g} MiB of export and geometry files)")
 
 
-def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str = "z",
-            drivers: tuple[str, ...] = ()) -> ConversionReport:
+def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str | None = "z",
+            drivers: tuple[str, ...] = (), ground: str | None = None) -> ConversionReport:
     """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).
 
     ``name`` defaults to the export's file stem. ``up`` is the export's world axis that points up
@@ -93,20 +95,26 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
     exports do not say which way is up (SolidWorks and Inventor assemblies are often Y-up). ``drivers``
     names joints a user turns (export or sanitised names): they stay joints of the kinematic tree
     and loops close elsewhere; a name the export lacks is an error. The MJCF refers to the meshes by a path
-    relative to ``outdir``. Nothing is written unless the whole conversion succeeds; other
-    files already in ``outdir`` and ``mesh_dir`` are left alone.
+    relative to ``outdir``. ``up=None``: the export's own gravity vector where it carries one
+    (:func:`detect_up`), else z. ``ground`` names a part (export or sanitised name) fixed to the
+    world besides whatever the export grounds. Nothing is written unless the whole conversion
+    succeeds; other files already in ``outdir`` and ``mesh_dir`` are left alone.
     """
     export_path = Path(export_path)
     outdir = Path(outdir)
     mesh_dir = Path(mesh_dir) if mesh_dir is not None else outdir / "meshes"
     model_name = sanitize(name or export_path.stem)
-    gravity = mjcf.gravity_along(up)
     if outdir.exists() and not outdir.is_dir():
         raise ExportError(f"output {outdir}: exists and is not a folder")
 
     check_conversion_memory(export_path, [])
     assembly = read(export_path)
     check_conversion_memory(export_path, [part.geometry for part in assembly.real_parts if part.geometry is not None])
+    if up is None:
+        up = detect_up(assembly)[0]
+    gravity = mjcf.gravity_along(up)
+    if ground is not None:
+        ground_part(assembly, ground)
     meshes = load_meshes(assembly)
     inertia.repair_parts(assembly, meshes)
     joint_names = {j.name for j in assembly.joints} | {sanitize(j.name) for j in assembly.joints}
@@ -144,6 +152,31 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
         warnings=assembly.warnings + plan.warnings + built.warnings + _locked_warning(locked),
         joint_origins=_joint_origins(assembly, plan, built),
     )
+
+
+def ground_part(assembly, part: str) -> None:
+    """Fix ``part`` (export or sanitised name) to the world: a synthetic weld to the ground."""
+    from mechanism.converters.assembly import GROUND, Joint
+
+    matches = [p for p in assembly.parts.values() if not p.virtual and part in (p.name, sanitize(p.name))]
+    if not matches:
+        names = sorted({sanitize(p.name) for p in assembly.parts.values() if not p.virtual})
+        raise ExportError(f"export {assembly.source.name}: no part {part!r} to fix to the world; close matches: "
+                          f"{', '.join(difflib.get_close_matches(part, names, 3)) or 'none'}")
+    chosen = matches[0]
+    assembly.joints.insert(0, Joint(name=f"ground:{sanitize(chosen.name)}", kind="weld", base=GROUND, follower=chosen.key,
+                                    base_frame=chosen.frame, follower_frame=chosen.frame, synthetic=True))
+
+
+def detect_up(assembly) -> tuple[str, str]:
+    """(up axis, why): against the export's gravity vector where it carries one, else z (assumed)."""
+    gravity = getattr(assembly, "gravity", None)
+    if gravity is not None and float(np.linalg.norm(gravity)) > 0:
+        axis = int(np.argmax(np.abs(gravity)))
+        down = ("-" if gravity[axis] < 0 else "") + "xyz"[axis]
+        up = down[1:] if down.startswith("-") else "-" + down
+        return up, f"the export's gravity vector ({', '.join(f'{v:g}' for v in gravity)}) points along {down}"
+    return "z", "assumed: the export carries no gravity vector (give --up when its up axis is another)"
 
 
 def _joint_origins(assembly, plan, built) -> list[str]:

@@ -103,6 +103,7 @@ class _Reader:
         where = f"export {self.path.name}"
         self.length = length_factor(units.get("length", "meter") if units is not None else "meter", f"{where}: DataUnits")
         self.mass = mass_factor(units.get("mass", "kilogram") if units is not None else "kilogram", f"{where}: DataUnits")
+        self.assembly.gravity = _gravity(root)
         top = _child(root, "RootAssembly")
         if top is None:
             raise ExportError(f"{where}: has no <RootAssembly>")
@@ -381,6 +382,23 @@ def _ancestors(key: str) -> set[str]:
     """``a/b/c`` -> {``a``, ``a/b``, ``a/b/c``}: a joint on a nested part refers to its sub-assemblies too."""
     pieces = key.split("/")
     return {"/".join(pieces[: i + 1]) for i in range(len(pieces))}
+
+
+def _gravity(root) -> np.ndarray | None:
+    """The export's gravity vector where it carries one: a ``<Gravity>`` (or ``<GravityVector>``)
+    element with three numbers as its text or as ``x``/``y``/``z`` (or ``value``) attributes."""
+    for element in root.iter():
+        if not isinstance(element.tag, str) or _local(element.tag).lower() not in ("gravity", "gravityvector"):
+            continue
+        texts = [element.get(k) for k in ("x", "y", "z")]
+        text = " ".join(texts) if None not in texts else (element.get("value") or element.text or "")
+        try:
+            values = np.array([float(v) for v in text.replace(",", " ").replace("[", " ").replace("]", " ").split()])
+        except ValueError:
+            continue
+        if values.shape == (3,) and np.all(np.isfinite(values)) and np.linalg.norm(values) > 0:
+            return values
+    return None
 
 
 def read(root, path: Path) -> Assembly:

@@ -142,7 +142,8 @@ def read_recording(recording: str | os.PathLike, machine: Machine | None = None,
     from mechanism.sysid.recording_map import resolve_recording_map
 
     description = machine.description if machine is not None else None
-    return run(recording, resolve_recording_map(description, recording_map))
+    return run(recording, resolve_recording_map(description, recording_map),
+               motor_joint=machine.motor_joint if machine is not None else None)
 
 
 def inspect_recording(recording: str | os.PathLike, machine: Machine | None = None,
@@ -154,7 +155,8 @@ def inspect_recording(recording: str | os.PathLike, machine: Machine | None = No
     from mechanism.sysid.recording_map import resolve_recording_map
 
     description = machine.description if machine is not None else None
-    return run(recording, resolve_recording_map(description, recording_map))
+    return run(recording, resolve_recording_map(description, recording_map),
+               motor_joint=machine.motor_joint if machine is not None else None)
 
 
 def identify(machine: Machine | None, recording: str | os.PathLike, recording_map: str | os.PathLike | None = None, **options):

@@ -27,4 +27,13 @@ def read_recording_from_args(args, path):
     """The recording at ``path`` read with the map the options name."""
     from mechanism.sysid.recording import read_recording
 
-    return read_recording(path, recording_map_from_args(args))
+    return read_recording(path, recording_map_from_args(args), motor_joint=main_motor(args))
+
+
+def main_motor(args) -> str | None:
+    """The described main motor's joint (its JOINT_V recording column is the voltage), with --machine."""
+    if not getattr(args, "machine", None):
+        return None
+    from mechanism.machine.machine import resolve_description
+
+    return resolve_description(args.machine).motor_joint

@@ -63,7 +63,7 @@ def run(args) -> int:
 
         variants = read_variants(args.variants, description.variant_presets if description else None)
         batch = run_variants(model, variants, pairs, args.required, args.driver, args.cycle, args.resolution,
-                             args.workers, args.backend, ray_address=args.ray_address)
+                             args.workers, args.backend, ray_address=args.ray_address, description=description)
         table = batch.table()
         write_rows(args.csv, table, comments=[f"required clearance: {args.required:g} mm; one row per variant; "
                                                "min_mm < 0 is minus the penetration depth"])
@@ -74,8 +74,12 @@ def run(args) -> int:
               f"{batch.failed} fail the required clearance of {args.required:g} mm; wrote {args.csv}")
         failed = batch.failed > 0
     else:
-        report = check_clearance(model, pairs, args.cycle, args.resolution, args.required, args.driver, progress=True)
-        write_rows(args.csv, report.rows(), comments=[f"required clearance: {args.required:g} mm; angles: {args.driver} [deg]"])
+        report = check_clearance(model, pairs, args.cycle, args.resolution, args.required, args.driver,
+                                 description=description, progress=True)
+        write_rows(args.csv, report.rows(), comments=[f"required clearance: {args.required:g} mm; angles: "
+                                                                  + ("the shaft angle [deg] (0 at the described zero)"
+                                                                     if description and args.driver == description.shaft_joint
+                                                                     else f"{args.driver} [deg]")])
         if args.json:
             write_json(args.json, report.to_json())
         for result in report.results:

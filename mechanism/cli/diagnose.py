@@ -115,3 +115,4 @@ def run_fleet(args, candidates) -> int:
         sys.stderr.write(f"error: none of the {len(result.rows)} recordings could be diagnosed (see {args.out}/{SUMMARY_CSV})\n")
         return 2
     return 0
+

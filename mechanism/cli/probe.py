@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from mechanism.files.limits import number
 
+from mechanism.cli._inputs import add_input_arguments, has_inputs, inputs_from_args
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
 
 ORDER = 40
@@ -39,9 +40,9 @@ def register(subparsers) -> None:
     parser.add_argument("--point", action="append", default=[], metavar="X,Y,Z",
                         help="point [mm] in the part frame (for force/torque: the moment reference in the joint's body "
                              "frame, from the joint anchor); once for all groups or once per group (default: the origin)")
-    mode = parser.add_mutually_exclusive_group(required=True)
+    mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--cycle", action="store_true", help="one kinematic cycle of the arm shaft at --speed")
-    mode.add_argument("--voltage", type=number(0, 1000, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
+    add_input_arguments(parser, mode)
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
     parser.add_argument("--speed", type=number(0, 1e5, "rpm"), default=600.0, metavar="RPM", help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)")
     parser.add_argument("--revolutions", type=number(0, 100, low_open=True), default=1.0, metavar="N", help="arm revolutions for --cycle (default 1)")
@@ -56,15 +57,21 @@ def run(args) -> int:
     from mechanism.errors import UserError
     from mechanism.inspection.probes import parse_probes, run_probes
 
-    if args.voltage is not None and args.duration is None:
+    dynamic = has_inputs(args)
+    if not (args.cycle or dynamic):
+        raise UserError("give --cycle (a kinematic cycle) or a motor input (--voltage, --goal, --current) for a dynamic run")
+    if args.cycle and (args.goal or args.current):
+        raise UserError("--goal and --current belong to a dynamic run, not to --cycle")
+    if dynamic and args.duration is None:
         raise UserError("--voltage needs --duration (simulated time in seconds)")
     if args.cycle and args.duration is not None:
         raise UserError("--duration belongs to a dynamic run (--voltage), not to --cycle")
     probes = parse_probes(args.part, args.quantity, args.point)
     path, driver, description = inspection_target(args)
-    result = run_probes(probes, path, args.voltage, args.duration, args.speed, args.revolutions,
-                        args.resolution, driver, progress=args.voltage is not None,
-                        description=description or description_from_args(args))
+    description = description or description_from_args(args)
+    inputs = inputs_from_args(args, description) if dynamic else None
+    result = run_probes(probes, path, inputs, args.duration, args.speed, args.revolutions,
+                        args.resolution, driver, progress=dynamic, description=description)
     result.write_csv(args.csv)
     if args.plot:
         result.plot(args.plot, probes)

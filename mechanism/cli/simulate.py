@@ -7,6 +7,7 @@ from mechanism.files.limits import number
 import argparse
 import sys
 
+from mechanism.cli._inputs import add_input_arguments, has_inputs, inputs_from_args
 from mechanism.cli._machine import add_machine_arguments, description_from_args
 
 ORDER = 30
@@ -27,11 +28,12 @@ def register(subparsers) -> None:
         epilog="example: mechanism simulate --voltage 12.49 --duration 3 --csv out/run.csv --summary",
     )
     add_machine_arguments(parser)
-    source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--voltage", type=number(0, 1000, "V"), metavar="V", help="constant motor terminal voltage [V], 0 to the motor's rated voltage ([motor] rated_voltage_V, default 30)")
+    source = parser.add_mutually_exclusive_group()
+    add_input_arguments(parser, source, "a run")
     source.add_argument("--profile", metavar="FILE",
-                        help="voltage profile CSV with columns time_s (or time) and voltage_V (or voltage); "
-                             "each voltage holds until the next time (zero-order hold)")
+                        help="input profile CSV: time_s (or time) and voltage_V (or voltage) for the main motor, or one "
+                             "column per motor named JOINT_V (dc), JOINT_rad (servo goal) or JOINT_A (current drive); "
+                             "each value holds until the next time (zero-order hold)")
     source.add_argument("--duty", type=float, metavar="PCT",
                         help="PWM duty cycle [%%] of the described supply; converted to motor voltage with its "
                              "measured (non-linear) map ([supply] in the description)")
@@ -63,6 +65,33 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run, inputs=("profile", "machine", "model"), outputs=("csv", "plot"), plots=("plot",))
 
 
+def motor_inputs_from_args(args: argparse.Namespace, machine):
+    """The run's inputs: one VoltageProfile for the main motor (--voltage V, --duty, a voltage_V
+    profile) or joint -> input (--voltage JOINT=V, --goal, --current, JOINT_* profile columns)."""
+    from mechanism.machine.machine import input_unit
+    from mechanism.physics.inputs import VoltageProfile, read_motor_profiles
+
+    given = inputs_from_args(args, machine.description)
+    if not isinstance(given, dict):
+        return VoltageProfile.constant(given)
+    main = None
+    if args.duty is not None:
+        main = VoltageProfile.from_duty(args.duty, machine.duty_map())
+    elif args.profile is not None:
+        from mechanism.files.tables import read_table
+
+        header = read_table(args.profile, required=["time"], optional=["voltage", "voltage_V"],
+                            aliases={"time": ["time_s"]}, what="input profile")
+        if "voltage" in header.columns or "voltage_V" in header.columns:
+            main = VoltageProfile.from_csv(args.profile)
+        else:
+            units = {joint: input_unit(machine.description, joint) for joint in machine.drives}
+            return {**read_motor_profiles(args.profile, units), **given}
+    if main is not None and not given:
+        return main
+    return {**({machine.motor_joint: main} if main is not None else {}), **given}
+
+
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -72,7 +101,6 @@ def run(args: argparse.Namespace) -> int:
     from mechanism.errors import UserError
     from mechanism.files.tables import write_table
     from mechanism.machine.machine import Machine, MachineConfig, motor_from_description
-    from mechanism.physics.inputs import VoltageProfile
     from mechanism.physics.motor import Thermal
 
     if not (args.csv or args.plot or args.summary):
@@ -81,31 +109,36 @@ def run(args: argparse.Namespace) -> int:
         from mechanism.files.limits import check_elements
 
         check_elements(args.duration * args.rate * 16, "--duration x --rate")
+    if not has_inputs(args) and args.profile is None and args.duty is None:
+        raise UserError("no input: give --voltage, --profile, --duty, --goal or --current")
     description = description_from_args(args)
-    motor = motor_from_description(description.motor)
-    options = {"inductance_H": args.inductance, "cogging_Nm": args.cogging}
-    motor = replace(motor, **{k: v for k, v in options.items() if v is not None})
-    if args.thermal and motor.thermal is None:
-        motor = replace(motor, thermal=Thermal())
+    motor = None
+    if description.motor["type"] == "dc":
+        motor = motor_from_description(description.motor)
+        options = {"inductance_H": args.inductance, "cogging_Nm": args.cogging}
+        motor = replace(motor, **{k: v for k, v in options.items() if v is not None})
+        if args.thermal and motor.thermal is None:
+            motor = replace(motor, thermal=Thermal())
+    elif args.inductance is not None or args.cogging is not None or args.thermal:
+        raise UserError(f"--inductance, --cogging and --thermal change a dc motor; the main motor on "
+                        f"{description.motor_joint} is a {description.motor['type']} drive")
     config = MachineConfig(warm_s=args.warm_s, layers=args.layers, needle=not args.no_needle, feeding=args.feeding,
                            belt_tension=args.belt_tension, motor=motor,
                            timestep_s=None if args.timestep is None else args.timestep * 1e-3)
     machine = Machine(description, config)
-    if args.voltage is not None:
-        voltage = VoltageProfile.constant(args.voltage)
-    elif args.duty is not None:
-        voltage = VoltageProfile.from_duty(args.duty, machine.duty_map())
-    else:
-        voltage = VoltageProfile.from_csv(args.profile)
+    voltage = motor_inputs_from_args(args, machine)
     duration = args.duration
     if duration is None:
-        if args.profile is None or voltage.end_s <= 0:
+        ends = [p.end_s for p in (voltage.values() if isinstance(voltage, dict) else [voltage])]
+        if args.profile is None or max(ends) <= 0:
             raise UserError("--duration is required (simulated time in seconds)")
-        duration = voltage.end_s
+        duration = max(ends)
     start = float(np.deg2rad(args.start_angle))
     if args.reduced:
         from mechanism.dynamics.reduced import ReducedModel
 
+        if isinstance(voltage, dict) or len(machine.drives) > 1:
+            raise UserError("the reduced model drives one dc motor with --voltage, --duty or a voltage_V profile")
         result = ReducedModel(machine).simulate(voltage, duration, start_angle_rad=start, sample_rate_hz=args.rate)
     else:
         result = simulate(voltage, duration, machine=machine, start_angle_rad=start, sample_rate_hz=args.rate,

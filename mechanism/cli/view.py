@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from mechanism.files.limits import number
 
+from mechanism.cli._inputs import add_input_arguments, has_inputs, inputs_from_args
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
 
 ORDER = 50
@@ -26,7 +27,7 @@ def register(subparsers) -> None:
     add_machine_arguments(parser)
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--cycle", action="store_true", help="one arm shaft revolution (the default)")
-    motion.add_argument("--voltage", type=number(0, 1000, "V"), metavar="V", help="dynamic simulation from rest under this motor voltage [V]")
+    add_input_arguments(parser, motion)
     motion.add_argument("--recording", metavar="FILE", help="replay a recording CSV (time, voltage, arm_angle) kinematically")
     parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
     parser.add_argument("--frames", type=int, default=120, metavar="N", help="animation frames (default 120)")
@@ -44,14 +45,18 @@ def run(args) -> int:
 
     if not args.html and not args.serve:
         raise UserError("nothing to do: give --html OUT.html and/or --serve")
-    if args.voltage is not None and args.duration is None:
+    dynamic = has_inputs(args)
+    if dynamic and args.recording:
+        raise UserError("choose one motion: a simulation (--voltage, --goal, --current) or --recording")
+    if dynamic and args.duration is None:
         raise UserError("--voltage needs --duration (simulated time in seconds)")
-    if args.duration is not None and args.voltage is None:
+    if args.duration is not None and not dynamic:
         raise UserError("--duration belongs to a simulated motion (--voltage)")
     path, driver, description = inspection_target(args)
-    summary = view(args.html, path, args.voltage, args.duration, args.recording, args.frames,
-                   args.probe, args.pairs, serve=args.serve, driver=driver,
-                   description=description or description_from_args(args))
+    description = description or description_from_args(args)
+    summary = view(args.html, path, inputs_from_args(args, description) if dynamic else None, args.duration,
+                   args.recording, args.frames, args.probe, args.pairs, serve=args.serve, driver=driver,
+                   description=description)
     for note in summary["notes"]:
         print(note)
     if args.html:

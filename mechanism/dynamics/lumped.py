@@ -75,6 +75,8 @@ class DriveNominal:
     viscous_shaft_Nm_s_per_rad: float
     joint_ratios: tuple[tuple[str, float], ...] = ()
     supply_V: float | None = None
+    tool_in_fabric: bool = True  # the machine has a tool that works in fabric (a needle-penetration load can exist)
+    zero_meaning: str = "needle top"  # what shaft angle 0 is, for reports
 
     def __post_init__(self):
         if isinstance(self.joint_ratios, dict):

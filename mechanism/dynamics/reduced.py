@@ -52,6 +52,9 @@ class ReducedModel:
 
     def __post_init__(self):
         motor = self.machine.motor
+        if not getattr(self.machine, "rotates", True):
+            raise UserError(f"the reduced model follows a shaft that turns whole revolutions; {self.machine.shaft_joint} "
+                            "rocks between hard stops: use the full multibody model (simulate without --reduced, sweep --full)")
         if motor.inductance_H:
             raise UserError("the reduced model uses the quasi-static motor current (no inductance)")
         n = self.n if not motor.cogging_Nm else max(self.n, 4096)

@@ -16,7 +16,8 @@ import numpy as np
 
 from mechanism.errors import UserError
 from mechanism.physics.inputs import VoltageProfile
-from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig
+from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig, actuator_name
+from mechanism.physics.motor import DCMotor, ServoDrive
 
 MAX_DURATION_S = 3600.0
 
@@ -24,7 +25,7 @@ MAX_DURATION_S = 3600.0
 CHUNK_STEPS = 4000  # rollout calls of ~2 s simulated: a progress bar without per-step Python
 
 
-def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool):
+def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool, guard=None):
     """``mujoco.rollout`` over the whole control sequence, continued chunk by chunk from
     the last state so that a progress bar can follow long runs."""
     from tqdm import tqdm
@@ -46,6 +47,8 @@ def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool):
             states[start:stop], sensors[start:stop] = chunk_state[0], chunk_sensors[0]
             check_stable(model, data, states[start:stop], sensors[start:stop], start * model.opt.timestep,
                          control[start:stop])
+            if guard is not None:
+                guard(states[start:stop], start * model.opt.timestep)
             state = states[stop - 1]
             warmstart = data.qacc_warmstart.copy()
             bar.update((stop - start) * model.opt.timestep)
@@ -81,6 +84,81 @@ def check_stable(model, data, states: np.ndarray, sensors: np.ndarray, start_s: 
         raise unstable(when, "non-finite or reset state")
 
 
+RUNAWAY_EXTENT = 10.0  # a body this many times the model's size from its centre has left the machine
+RUNAWAY_SPEED = 1.5  # a motor this many times faster than its no-load speed is driven by numbers, not physics
+RUNAWAY_BODY_STRIDE = 20  # body positions are checked every 20 steps (and at each chunk's end)
+
+
+def _ancestor_joint(model: mujoco.MjModel, body: int) -> str:
+    """The nearest joint at or above ``body`` (what lets it move)."""
+    while body > 0:
+        if model.body_jntnum[body]:
+            return model.joint(int(model.body_jntadr[body])).name or f"joint {int(model.body_jntadr[body])}"
+        body = int(model.body_parentid[body])
+    return "none"
+
+
+def runaway_guard(machine: Machine, voltages_V: np.ndarray):
+    """A check of each rollout chunk that ends the run with one UserError naming the joint and
+    the simulated time where a body has left ten times the model's extent or the motor turns
+    faster than 1.5 times its no-load speed (at the run's largest voltage, at least the supply's)."""
+    from mechanism.machine.machine import STALL_VOLTAGE_V
+
+    model = machine.model
+    nq = model.nq
+    extent = float(model.stat.extent)
+    centre = np.array(model.stat.center)
+    from mechanism.machine.machine import actuator_name
+    from mechanism.physics.motor import DCMotor
+
+    supply = machine.description.section("supply").get("voltage_V", 0.0)
+    limits = []  # (joint, dof, no-load speed [rad/s], at what voltage)
+    for joint, drive in machine.drives.items():
+        if isinstance(drive, DCMotor):
+            column = np.atleast_2d(voltages_V)[:, machine.model.actuator(actuator_name(machine.description, joint)).id] \
+                if np.ndim(voltages_V) == 2 else np.asarray(voltages_V)
+            volts = max(float(np.max(np.abs(column))) if np.size(column) else 0.0, supply) or STALL_VOLTAGE_V
+        else:
+            volts = STALL_VOLTAGE_V
+        speed = drive.no_load_speed_rad_s(volts)
+        if speed is not None:
+            limits.append((joint, int(machine.model.jnt_dofadr[machine.model.joint(joint).id]), speed, volts))
+    data = mujoco.MjData(model)
+    dt = model.opt.timestep
+
+    def check(states: np.ndarray, start_s: float) -> None:
+        first_fast, fast_motor = None, None
+        for joint, dof, no_load, volts in limits:
+            over = np.flatnonzero(~(np.abs(states[:, 1 + nq + dof]) <= RUNAWAY_SPEED * no_load))
+            if over.size and (first_fast is None or over[0] < first_fast):
+                first_fast, fast_motor = int(over[0]), (joint, dof, no_load, volts)
+        picks = list(range(0, len(states), RUNAWAY_BODY_STRIDE)) + [len(states) - 1]
+        for i in picks:
+            if first_fast is not None and i > first_fast:
+                break
+            data.qpos[:] = states[i, 1 : 1 + nq]
+            mujoco.mj_kinematics(model, data)
+            distance = np.linalg.norm(data.xpos[1:] - centre, axis=1)
+            far = np.flatnonzero(~(distance <= RUNAWAY_EXTENT * extent))
+            if far.size:
+                body = int(far[np.argmax(distance[far])]) + 1
+                joint = _ancestor_joint(model, body)
+                raise UserError(f"the run left the machine at t = {start_s + (i + 1) * dt:.4f} s: body "
+                                f"{model.body(body).name or body} (joint {joint}) is {distance[body - 1] * 1e3:.4g} mm "
+                                f"from the model's centre, more than {RUNAWAY_EXTENT:g} times its size "
+                                f"({extent * 1e3:.4g} mm): a joint without a limit or damping ran away (give "
+                                f'[limits."{joint}"] or [friction."{joint}"] viscous_Nm_s_per_rad)')
+        if first_fast is not None:
+            joint, dof, no_load, volts = fast_motor
+            rpm = abs(float(states[first_fast, 1 + nq + dof])) * 60 / (2 * np.pi)
+            raise UserError(f"the motor joint {joint} turned at {rpm:.4g} rpm at t = "
+                            f"{start_s + (first_fast + 1) * dt:.4f} s, more than {RUNAWAY_SPEED:g} times its no-load "
+                            f"speed ({no_load * 60 / (2 * np.pi):.4g} rpm at {volts:g} V): the numbers are not "
+                            f"physical; {LIKELY_CAUSE}")
+
+    return check
+
+
 @dataclass
 class SimulationResult:
     time_s: np.ndarray
@@ -94,6 +172,7 @@ class SimulationResult:
     metadata: dict = field(default_factory=dict)
     state: np.ndarray | None = None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
     sensordata: np.ndarray | None = None  # the model's sensors after each sample (full model only)
+    joints: dict[str, np.ndarray] = field(default_factory=dict)  # every joint's position/velocity, each motor's input/current
 
     def columns(self) -> dict[str, np.ndarray]:
         return {
@@ -106,6 +185,7 @@ class SimulationResult:
             "needle_z_mm": self.needle_z_mm,
             "motor_velocity_rad_s": self.motor_velocity_rad_s,
             "arm_speed_rpm": self.arm_velocity_rad_s * 60 / (2 * np.pi),
+            **self.joints,
         }
 
     def window(self, last_s: float) -> slice:
@@ -136,7 +216,8 @@ def simulate(
     ``start_angle_rad`` for ``duration_s`` seconds."""
     machine = machine or Machine(None, config)
     run = _Run(machine, voltage, duration_s, start_angle_rad, sample_rate_hz)
-    state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress)
+    guard = runaway_guard(machine, run.control)
+    state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress, guard)
     return run.result(state, sensordata)
 
 
@@ -161,6 +242,7 @@ def simulate_batch(machines: list[Machine], voltages: list[VoltageProfile | floa
     for run, state, sensor in zip(runs, states, sensors):
         try:
             check_stable(run.machine.model, None, state, sensor, 0.0, run.control)
+            runaway_guard(run.machine, run.control)(state, 0.0)
             results.append(run.result(state, sensor))
         except UserError as exc:
             results.append(exc)
@@ -182,9 +264,6 @@ class _Run:
             raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
         if not 10 <= sample_rate_hz <= 100_000:
             raise UserError("sample rate must be between 10 Hz and 100 kHz")
-        if not isinstance(voltage, VoltageProfile):
-            voltage = VoltageProfile.constant(voltage)
-        machine.check_voltage(voltage)
         from mechanism.files.limits import check_elements
 
         self.machine, self.start_angle_rad = machine, start_angle_rad
@@ -195,9 +274,11 @@ class _Run:
         nstep = self.nsample * self.substeps
         width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
         check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
-        self.control = np.zeros((nstep, model.nu))
-        self.control[:, machine.actuator] = voltage(np.arange(nstep) * dt)
         machine.reset(start_angle_rad)
+        self.control = np.zeros((nstep, model.nu))
+        times = np.arange(nstep) * dt
+        for joint, profile in motor_inputs(machine, voltage).items():
+            self.control[:, model.actuator(actuator_name(machine.description, joint)).id] = profile(times)
 
     def result(self, state: np.ndarray, sensordata: np.ndarray) -> SimulationResult:
         machine, model, dt, substeps = self.machine, self.machine.model, self.dt, self.substeps
@@ -223,10 +304,19 @@ class _Run:
             commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
             current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
         needle = machine.tool_height_mm_at(arm_angle)
+        joints = joint_columns(machine, qpos[samples], qvel[samples], self.control[samples], sensordata[samples])
+        voltage, current = applied[samples], current[samples]
+        main = machine.drives[machine.motor_joint]
+        if not isinstance(main, DCMotor):  # the main motor's terminal voltage and current, not its command
+            current = joints[f"{machine.motor_joint}_current_A"]
+            if isinstance(main, ServoDrive):
+                voltage = main.voltage(applied[samples], qpos[samples, machine.motor_qpos], motor_velocity[samples])
+            else:
+                voltage = np.full(len(samples), np.nan)  # a current drive's voltage is its amplifier's business
         return SimulationResult(
             time_s=(samples + 1) * dt,
-            voltage_V=applied[samples],
-            current_A=current[samples],
+            voltage_V=voltage,
+            current_A=current,
             arm_angle_rad=arm_angle[samples],
             arm_velocity_rad_s=arm_velocity[samples],
             arm_acceleration_rad_s2=acceleration,
@@ -236,7 +326,84 @@ class _Run:
                       "sensor_columns": {model.sensor(i).name: int(model.sensor_adr[i]) for i in range(model.nsensor)}},
             state=state[samples],
             sensordata=sensordata[samples],
+            joints=joints,
         )
+
+
+def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
+    """Each motor's input over time (a zero-order hold in its unit: V, goal rad or A). ``inputs``:
+    the main motor's (a number or profile), or a mapping joint -> number or profile. A motor given
+    none gets 0 V (dc), 0 A (current), or holds its joint where the run starts (servo)."""
+    from mechanism.machine.machine import input_unit
+    from mechanism.physics.motor import ServoDrive
+
+    description = machine.description
+    if not isinstance(inputs, dict) and input_unit(description, machine.motor_joint) != "V":
+        raise UserError(f"a voltage drives a dc motor; the main motor on {machine.motor_joint} is a "
+                        f"{description.motor['type']} drive: give its input by joint "
+                        f"({'--goal' if input_unit(description, machine.motor_joint) == 'rad' else '--current'} "
+                        f"{machine.motor_joint}=...)")
+    given = dict(inputs) if isinstance(inputs, dict) else {machine.motor_joint: inputs}
+    for joint in given:
+        if joint not in machine.drives:
+            raise UserError(f"no motor on joint {joint!r}; the described motors: {', '.join(machine.drives)}")
+    out = {}
+    for joint, drive in machine.drives.items():
+        value = given.get(joint)
+        unit = input_unit(description, joint)
+        if value is None:
+            if isinstance(drive, ServoDrive):
+                value = float(machine.data.qpos[machine.model.jnt_qposadr[machine.model.joint(joint).id]])
+            else:
+                value = 0.0
+        if not isinstance(value, VoltageProfile):
+            value = float(value)
+            if not np.isfinite(value):
+                raise UserError(f"input of the motor on {joint}: must be a finite number of {unit}")
+            if joint == machine.motor_joint and unit == "V" and not isinstance(inputs, dict):
+                value = VoltageProfile.constant(value)  # the one-motor voltage keeps its range check
+            else:
+                value = VoltageProfile(np.array([0.0]), np.array([value]))
+        if joint == machine.motor_joint and unit == "V":
+            machine.check_voltage(value)  # within the described motor's rated voltage
+        out[joint] = value
+    return out
+
+
+def joint_columns(machine: Machine, qpos: np.ndarray, qvel: np.ndarray, control: np.ndarray,
+                  sensordata: np.ndarray) -> dict[str, np.ndarray]:
+    """Every hinge's and slide's position and velocity (``JOINT_pos_rad``/``JOINT_vel_rad_s``, or
+    ``_mm``/``_mm_s``), each motor's input (``JOINT_input_V|rad|A``) and current (``JOINT_current_A``)."""
+    from mechanism.machine.machine import actuator_name, input_unit, torque_sensor_name
+    from mechanism.physics.motor import CurrentDrive, ServoDrive
+
+    model = machine.model
+    out: dict[str, np.ndarray] = {}
+    for j in range(model.njnt):
+        name, kind = model.joint(j).name, int(model.jnt_type[j])
+        if not name or kind not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            continue
+        q, v = qpos[:, model.jnt_qposadr[j]], qvel[:, model.jnt_dofadr[j]]
+        if kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
+            out[f"{name}_pos_mm"], out[f"{name}_vel_mm_s"] = q * 1e3, v * 1e3
+        else:
+            out[f"{name}_pos_rad"], out[f"{name}_vel_rad_s"] = q, v
+    for joint, drive in machine.drives.items():
+        command = control[:, model.actuator(actuator_name(machine.description, joint)).id]
+        out[f"{joint}_input_{input_unit(machine.description, joint)}"] = command
+        jid = model.joint(joint).id
+        q, v = qpos[:, model.jnt_qposadr[jid]], qvel[:, model.jnt_dofadr[jid]]
+        if isinstance(drive, ServoDrive):
+            current = drive.current(command, q, v)
+        elif isinstance(drive, CurrentDrive):
+            current = drive.current(command)
+        else:
+            torque = sensordata[:, model.sensor(torque_sensor_name(machine.description, joint)).adr[0]]
+            if drive.cogging_Nm:
+                torque = torque - drive.cogging_Nm * np.sin(drive.cogging_poles * q + drive.cogging_phase_rad)
+            current = torque / drive.torque_constant_Nm_A
+        out[f"{joint}_current_A"] = np.asarray(current, dtype=float)
+    return out
 
 
 def plot_simulation(result: SimulationResult, path) -> None:

@@ -40,7 +40,7 @@ from scipy.optimize import minimize_scalar
 from mechanism.machine import parts
 from mechanism.kinematics.cycle import DEFAULT_RESOLUTION_DEG, cycle_angles
 from mechanism.errors import UserError, close_matches
-from mechanism.kinematics.pose import joint_dof, solve_pose
+from mechanism.kinematics.pose import approach, joint_dof, solve_pose
 from mechanism.inspection.shapes import PartShape, overlap_volume, penetration
 from mechanism.tolerances import ANGLE_TOLERANCE_RAD, DEPTH_ANGLE_TOLERANCE_RAD, BOUNDARY_TOLERANCE_RAD, HULL_TOLERANCE_M
 
@@ -139,6 +139,7 @@ class PairClearance:
     interferences: list[Interference] = field(default_factory=list)
     grid_angle_deg: np.ndarray | None = None
     grid_distance_mm: np.ndarray | None = None  # sampled clearance (0 where they overlap)
+    driver_angle_deg: float | None = None  # the driver joint's own coordinate at angle_deg
 
     def passes(self, required_mm: float = 0.0) -> bool:
         return not self.interferences and self.min_distance_mm >= required_mm
@@ -182,7 +183,13 @@ class ClearanceSweep:
         driver: str | None = None,
         revolutions: float = 1.0,
         resolution_deg: float = DEFAULT_RESOLUTION_DEG,
+        travel=None,
+        frame=None,
     ):
+        """``travel`` (mechanism.kinematics.travel.Travel): a driver that rocks is swept once from
+        the lower end of its travel to the upper (``revolutions`` is then ignored). ``frame``
+        (zero_rad, direction: a machine's ShaftFrame): angles are reported as the described
+        shaft angle ``direction (q - zero)``, and a revolution starts at the shaft's zero."""
         if not (0 < resolution_deg <= 30):
             raise UserError(f"resolution {resolution_deg} deg: expected a value in (0, 30]")
         if not (0 < revolutions <= 100):
@@ -194,9 +201,17 @@ class ClearanceSweep:
         self.pairs = list(pairs)
         names = sorted({name for pair in self.pairs for name in (pair.a, pair.b)})
         self.shapes = {name: PartShape(model, name) for name in names}
-        self.angles = cycle_angles(revolutions, resolution_deg)
-        self.period = np.radians(360.0 * revolutions)
-        self._start = model.qpos0.copy()
+        self.zero, self.direction = (float(frame.zero_rad), float(frame.direction)) if frame is not None else (0.0, 1.0)
+        self.periodic = travel is None or travel.rotates
+        if self.periodic:
+            self.angles = self.zero + cycle_angles(revolutions, resolution_deg)  # increasing joint positions
+            self.period = np.radians(360.0 * revolutions)
+            self._start = model.qpos0.copy()
+        else:
+            self.angles = travel.samples(np.radians(resolution_deg))
+            self.period = (self.angles[-1] - self.angles[0]) * len(self.angles) / (len(self.angles) - 1)
+            approach(model, self.data, driver, float(self.angles[0]))
+            self._start = self.data.qpos.copy()
 
     # -- one pose --------------------------------------------------------------------
     def _pose(self, angle: float, start: np.ndarray) -> None:
@@ -303,10 +318,17 @@ class ClearanceSweep:
         known = np.nan_to_num(exact, nan=np.inf)  # skipped samples are far (their bound says so)
         smallest = known.min()
         hit = known <= 0.0
+
+        def before(i):
+            return (i - 1) % n if self.periodic else max(i - 1, 0)
+
+        def after(i):
+            return (i + 1) % n if self.periodic else min(i + 1, n - 1)
+
         minima = [
             i
             for i in np.flatnonzero(np.isfinite(known) & ~hit)
-            if known[i] <= known[(i - 1) % n] and known[i] <= known[(i + 1) % n] and known[i] - dip[i] <= smallest
+            if known[i] <= known[before(i)] and known[i] <= known[after(i)] and known[i] - dip[i] <= smallest
         ]
         minima = sorted(minima, key=lambda i: known[i])[:MINIMA_REFINED]
         overlaps = [
@@ -314,7 +336,7 @@ class ClearanceSweep:
                 [self.angles[first] + step * k for k in range((last - first) % n + 1)],
                 [poses[(first + k) % n] for k in range((last - first) % n + 1)],
             )
-            for first, last in _periodic_runs(hit)
+            for first, last in (_periodic_runs(hit) if self.periodic else _runs(hit))
         ]
         best = None
         for i in minima:
@@ -330,19 +352,28 @@ class ClearanceSweep:
         else:
             angle, value, pa, pb = best
             result = PairClearance(pair, value * 1e3, self._degrees(angle), pa * 1e3, pb * 1e3)
-        result.grid_angle_deg = np.degrees(self.angles)
+        result.grid_angle_deg = np.array([self._degrees(a) for a in self.angles])
+        result.driver_angle_deg = float(np.degrees(self.zero + self.direction * np.radians(result.angle_deg)))
         result.grid_distance_mm = exact * 1e3
         return result
 
     def _degrees(self, angle: float) -> float:
-        return float(np.degrees(angle % self.period))
+        """The reported angle [deg] of a driver position: the described shaft angle."""
+        shaft = self.direction * (angle - self.zero)
+        return float(np.degrees(shaft % self.period if self.periodic else shaft))
+
+    def _within(self, low: float, high: float) -> tuple[float, float]:
+        """An angle interval kept inside the travel of a driver that rocks."""
+        if self.periodic:
+            return low, high
+        return max(low, float(self.angles[0])), min(high, float(self.angles[-1]))
 
     def _refine_minimum(self, pair: Pair, i: int, poses: np.ndarray, step: float):
         start = poses[i]
         center = self.angles[i]
         found = minimize_scalar(
             lambda angle: self.distance_at(pair, angle, start)[0],
-            bounds=(center - step, center + step),
+            bounds=self._within(center - step, center + step),
             method="bounded",
             options={"xatol": ANGLE_TOLERANCE_RAD},
         )
@@ -375,6 +406,9 @@ class ClearanceSweep:
         else:
             lo = self._boundary(pair, inside[0] - step, inside[0], starts[0])
             hi = self._boundary(pair, inside[-1] + step, inside[-1], starts[-1])
+            if not self.periodic:  # the overlap runs up to an end of the travel: no boundary beyond it
+                lo = lo if inside[0] > self.angles[0] else float(self.angles[0])
+                hi = hi if inside[-1] < self.angles[-1] else float(self.angles[-1])
         # the worst angle is where the overlap volume peaks (one mesh boolean per trial,
         # far cheaper than a depth): the best sample, refined by Brent; depth is measured there
         volumes = [self._volume(pair, a, s) for a, s in zip(inside, starts)]
@@ -400,7 +434,7 @@ class ClearanceSweep:
             )
             if -found.fun > deepest.depth:
                 angle, deepest = float(found.x), self._depth(pair, float(found.x), start)
-        start_deg = self._degrees(lo)
+        start_deg = self._degrees(lo if self.direction > 0 else hi)
         return Interference(
             start_deg,
             start_deg + float(np.degrees(hi - lo)),
@@ -419,6 +453,12 @@ class _Overlap:
 
     angles: list[float]
     starts: list[np.ndarray]
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of True in a boolean array as (first, last) index pairs (no wrap-around)."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()))
 
 
 def _periodic_runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -492,12 +532,19 @@ def check_clearance(
     resolution_deg: float = DEFAULT_RESOLUTION_DEG,
     required_mm: float = 0.0,
     driver: str | None = None,
+    travel=None,
+    description=None,
     progress: bool = False,
 ) -> ClearanceReport:
     """Minimum clearance and interferences of ``pairs`` (default: all moving pairs) over
-    ``revolutions`` turns of ``driver`` (``progress``: a bar on stderr once it takes 2 s)."""
+    ``revolutions`` turns of ``driver`` (or once over its ``travel`` where it rocks);
+    ``progress``: a bar on stderr once it takes 2 s."""
+    from mechanism.machine.machine import inspection_frame, inspection_travel
+
     pairs = list(pairs) if pairs else all_pairs(model)
-    sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg)
+    travel = travel or inspection_travel(model, driver, description)
+    frame = inspection_frame(model, driver, description, travel)
+    sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg, travel, frame)
     return ClearanceReport(sweep.run(progress=progress), required_mm, driver, revolutions, resolution_deg)
 
 

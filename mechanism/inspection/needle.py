@@ -122,7 +122,7 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
     import mujoco
 
     from mechanism.kinematics.linkage import compute_tables, periodic_derivative, up_axis
-    from mechanism.kinematics.pose import solve_pose, sweep
+    from mechanism.kinematics.pose import approach, solve_pose, sweep
     from mechanism.machine.machine import load_machine
 
     samples = _check_samples(samples)
@@ -136,7 +136,8 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
     model, shaft = machine.model, machine.shaft_joint
     up = up_axis(model)
     tables = compute_tables(model, shaft, roles.tip, n=samples, zero_rad=machine.frame.zero_rad,
-                            direction=machine.frame.direction)
+                            direction=machine.frame.direction, span=machine.shaft_span_rad)
+    rocks = not tables.periodic
     data = mujoco.MjData(model)
     notes: list[str] = []
     if machine.plate_top_z is not None:
@@ -148,13 +149,18 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
     theta = tables.angle_rad
     z = (tables.tool_z_m - plate_z) * 1000.0
     velocity = tables.tool_dz_drad * 1000.0
-    acceleration = periodic_derivative(velocity)
+    acceleration = np.gradient(velocity, theta) if rocks else periodic_derivative(velocity)
 
+    if rocks:
+        approach(model, data, shaft, machine.joint_position(float(theta[0])))
     poses = sweep(model, [machine.joint_position(a) for a in theta], driver=shaft, data=data)
 
     def pose_at(angle: float) -> None:
         """Solve the pose at shaft ``angle`` starting from the nearest sampled pose (same branch)."""
-        nearest = int(round((angle % (2 * math.pi)) / (2 * math.pi) * samples)) % samples
+        if rocks:
+            nearest = int(np.argmin(np.abs(theta - angle)))
+        else:
+            nearest = int(round((angle % (2 * math.pi)) / (2 * math.pi) * samples)) % samples
         data.qpos[:] = poses[nearest]
         solve_pose(model, data, {shaft: machine.joint_position(angle)})
 
@@ -162,8 +168,13 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
         pose_at(angle)
         return (up @ data.site(roles.tip).xpos - plate_z) * 1000.0
 
-    tdc = _velocity_zero(theta, velocity, falling=True)
-    bdc = _velocity_zero(theta, velocity, falling=False)
+    if rocks:  # a rocking drive: the tool's highest and lowest points over the travel
+        tdc, bdc = float(theta[int(np.argmax(z))]), float(theta[int(np.argmin(z))])
+        notes.append(f"the shaft rocks between {math.degrees(theta[0]):.4g} and {math.degrees(theta[-1]):.4g} deg: "
+                     "the tool's top and bottom are its highest and lowest points over that travel")
+    else:
+        tdc = _velocity_zero(theta, velocity, falling=True)
+        bdc = _velocity_zero(theta, velocity, falling=False)
     tdc_z, bdc_z = needle_z_at(tdc), needle_z_at(bdc)
 
     has_hook = None not in (roles.hook_joint, roles.hook_point, roles.eye)
@@ -172,8 +183,12 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
         arm_angle_deg=np.degrees(theta), needle_z_mm=z, needle_velocity_mm_per_rad=velocity,
         needle_acceleration_mm_per_rad2=acceleration, hook_angle_deg=hook_angle,
         hook_point_to_needle_mm=np.full(samples, np.nan), stroke_mm=tdc_z - bdc_z,
-        tdc_angle_deg=_signed_deg(tdc), bdc_angle_deg=math.degrees(bdc) % 360.0, tdc_z_mm=tdc_z,
+        tdc_angle_deg=math.degrees(tdc) if rocks else _signed_deg(tdc),
+        bdc_angle_deg=math.degrees(bdc) if rocks else math.degrees(bdc) % 360.0, tdc_z_mm=tdc_z,
         bdc_z_mm=bdc_z, plate_reference=reference, speed_rpm=speed_rpm, notes=notes)
+    if has_hook and rocks:
+        notes.append("hook timing is computed for a shaft turning whole revolutions, not for one that rocks")
+        return motion
     if not has_hook:
         notes.append("no hook described ([hook] joint and site, [tool] eye_site): hook timing not computed")
         return motion

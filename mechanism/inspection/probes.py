@@ -243,10 +243,15 @@ def probe_cycle(
     revolutions: float = 1.0,
     resolution_deg: float = DEFAULT_RESOLUTION_DEG,
     driver: str | None = None,
+    description=None,
 ) -> ProbeResult:
     """Probe values over a kinematic cycle: ``driver`` turning at ``speed_rpm`` for
-    ``revolutions`` turns sampled every ``resolution_deg``, loads by rigid inverse dynamics
-    (frictionless joints). Adds the probes to ``spec``."""
+    ``revolutions`` turns sampled every ``resolution_deg`` (a driver that rocks: one stroke from
+    the lower end of its travel to the upper, mechanism.machine.machine.inspection_travel),
+    loads by rigid inverse dynamics (frictionless joints). Adds the probes to ``spec``."""
+    from mechanism.kinematics.pose import approach
+    from mechanism.machine.machine import inspection_frame, inspection_travel
+
     if not np.isfinite(speed_rpm) or speed_rpm < 0:
         raise UserError(f"cycle speed {speed_rpm} rpm: expected a finite speed >= 0")
     if not (0 < resolution_deg <= 90) or not (0 < revolutions <= 100):
@@ -258,21 +263,37 @@ def probe_cycle(
     if driver not in joints:
         raise UserError(f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}")
     omega = speed_rpm * 2 * np.pi / 60
-    states = kinematic_cycle(model, cycle_angles(revolutions, resolution_deg), omega, driver, data)
+    travel = inspection_travel(model, driver, description)
+    frame = inspection_frame(model, driver, description, travel)
+    if travel.rotates:  # forward from the described zero: the shaft angle rises
+        angles = frame.zero_rad + frame.direction * cycle_angles(revolutions, resolution_deg)
+        omega *= frame.direction
+    else:
+        angles = travel.samples(np.radians(resolution_deg))
+        approach(model, data, driver, float(angles[0]))
+    states = kinematic_cycle(model, angles, omega, driver, data)
     rows, torque = [], []
     for i in range(len(states.angle)):
         torque.append(set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i], driver))
         rows.append(read_probes(model, data, attached))
     table = np.asarray(rows).reshape(len(states.angle), -1)
     columns = {"time_s": states.time, f"{driver}_angle_rad": states.angle}
+    described = description is not None and driver == description.shaft_joint
+    if described:  # the described shaft angle: 0 at its zero, rising as the motor turns forward
+        shaft = frame.direction * (states.angle - frame.zero_rad)
+        columns["shaft_angle_rad"] = np.mod(shaft, 2 * np.pi) if travel.rotates and revolutions <= 1 else shaft
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     columns[f"{driver}_drive_torque_Nm"] = np.asarray(torque)
     comments = [
-        f"kinematic cycle: {driver} at a constant {speed_rpm:g} rpm, {revolutions:g} revolution(s), every {resolution_deg:g} deg",
+        (f"kinematic cycle: {driver} at a constant {speed_rpm:g} rpm, {revolutions:g} revolution(s), every {resolution_deg:g} deg"
+         if travel.rotates else f"kinematic cycle: {travel.text()} at a constant {speed_rpm:g} rpm, every {resolution_deg:g} deg"),
         "world frame, z up; loads: rigid inverse dynamics without friction; force/torque = load on the child side of the joint",
         f"{driver}_drive_torque_Nm: torque the driver must supply to hold the constant speed",
     ]
-    return ProbeResult(columns, comments, f"{driver}_angle_rad")
+    if described:
+        comments.append("shaft_angle_rad: the described shaft angle (0 at its zero); "
+                        f"{driver}_angle_rad: the joint's own coordinate (0 at the export's pose)")
+    return ProbeResult(columns, comments, "shaft_angle_rad" if described else f"{driver}_angle_rad")
 
 
 def probe_simulation(
@@ -306,7 +327,9 @@ def probe_simulation(
     columns = {"time_s": result.time_s, f"{machine.shaft_joint}_angle_rad": result.arm_angle_rad}
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     comments = [
-        f"dynamic simulation of {machine.name}: {voltage:g} V for {duration_s:g} s from rest at shaft angle 0",
+        f"dynamic simulation of {machine.name}: "
+        + (f"{voltage:g} V" if not isinstance(voltage, dict) else ", ".join(f"{j} {v:g}" for j, v in voltage.items()))
+        + f" for {duration_s:g} s from rest at shaft angle 0",
         "world frame, z up; force/torque = load on the child side of the joint, with friction and loads",
     ]
     return ProbeResult(columns, comments, "time_s")
@@ -360,7 +383,7 @@ def run_probes(
         raise UserError("a dynamic run needs both a voltage and a duration")
     if voltage is not None:
         return probe_simulation(probes, voltage, duration_s, description, progress)
-    return probe_cycle(load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver)
+    return probe_cycle(load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver, description)
 
 
 def plot_probes(result: ProbeResult, probes: Sequence[Probe], path: str | os.PathLike) -> None:

@@ -500,8 +500,8 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     from mechanism.kinematics.pose import degrees_of_freedom
 
     mobility = degrees_of_freedom(machine.model, machine.reset(0.0))
-    if mobility != 1 and not options.full:  # the reduced model is the 1-DOF equation: not this machine's
-        options = replace(options, full=True)
+    if (mobility != 1 or not machine.rotates) and not options.full:  # the reduced model is the 1-DOF equation of a
+        options = replace(options, full=True)                          # shaft that turns: not this machine's
     base = SweepBase.of(machine, variants.parameters, options)
     variants = with_defaults(variants, options)
     check_parameters(base, variants)

@@ -54,7 +54,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -529,6 +529,8 @@ class BatchConfig:
     revolutions: float = 1.0
     resolution_deg: float = 0.5
     required_mm: float = 0.0
+    travel: Any = None  # mechanism.kinematics.travel.Travel of a driver that rocks
+    frame: Any = None  # the described shaft's frame (angles reported as the shaft angle)
 
 
 class VariantChecker:
@@ -540,7 +542,8 @@ class VariantChecker:
         self.config = config
         self.nominal = config.model
         self.model = _copy_model(config.model)
-        self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg)
+        self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg,
+                                    config.travel, config.frame)
 
     def __call__(self, values: Sequence[float] | np.ndarray) -> dict:
         for name in EDITED_FIELDS:
@@ -616,6 +619,7 @@ def run_variants(
     progress: bool = True,
     ray_address: str | None = None,
     on_row: Callable[[int, dict], None] | None = None,
+    description=None,
 ) -> BatchResult:
     """Check every variant's clearances; one result row per variant, in file order. Each
     worker builds one :class:`VariantChecker` (model copy, fcl BVHs) from the config it
@@ -626,7 +630,11 @@ def run_variants(
 
     check_options(backend, workers)
     variants.check(model)
-    config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm)
+    from mechanism.machine.machine import inspection_frame, inspection_travel
+
+    travel = inspection_travel(model, driver, description)
+    config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm,
+                         None if travel.rotates else travel, inspection_frame(model, driver, description, travel))
     start = time.perf_counter()
     rows = run_batch(_check, list(variants.values), shared=config, setup=VariantChecker, workers=workers, backend=backend,
                      ray_address=ray_address, on_result=on_row, progress=progress, desc="variants", unit="variant")

@@ -55,13 +55,22 @@ def _check_frames(frames: int) -> None:
         raise UserError(f"frames must be between 2 and 20000, got {frames}")
 
 
-def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str | None = None) -> Motion:
-    """One revolution of ``driver`` in ``frames`` frames (the last one back at the start)."""
-    from mechanism.kinematics.pose import sweep
+def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str | None = None, description=None) -> Motion:
+    """One revolution of ``driver`` in ``frames`` frames (the last one back at the start); a
+    driver that rocks goes from the lower end of its travel to the upper and back."""
+    from mechanism.kinematics.pose import approach, sweep
+    from mechanism.machine.machine import inspection_travel
 
     _check_frames(frames)
-    angles = np.linspace(0.0, 2 * np.pi, frames)
-    return Motion(angles / (2 * np.pi), sweep(model, angles, driver), f"one {driver} revolution", realtime=False)
+    travel = inspection_travel(model, driver, description)
+    if travel.rotates:
+        angles = np.linspace(0.0, 2 * np.pi, frames)
+        return Motion(angles / (2 * np.pi), sweep(model, angles, driver), f"one {driver} revolution", realtime=False)
+    phase = np.linspace(0.0, 1.0, frames)
+    angles = travel.lower + (travel.upper - travel.lower) * (1.0 - np.cos(2 * np.pi * phase)) / 2
+    data = mujoco.MjData(model)
+    approach(model, data, driver, float(angles[0]))
+    return Motion(phase, sweep(model, angles, driver, data), f"{travel.text()} and back", realtime=False)
 
 
 def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int = DEFAULT_FRAMES, driver: str | None = None,
@@ -94,7 +103,10 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
 
 
 def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_FRAMES, description=None) -> tuple[mujoco.MjModel, Motion]:
-    """A dynamic simulation from rest under ``voltage``: its joint positions at ``frames`` times."""
+    """A dynamic simulation from rest under ``voltage`` (the main motor's, or joint -> input): its
+    joint positions at ``frames`` times."""
+    from mechanism.machine.machine import input_unit
+
     from mechanism.machine.machine import Machine
     from mechanism.dynamics.simulation import simulate
 
@@ -103,7 +115,10 @@ def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_F
     result = simulate(voltage, duration_s, machine=machine, progress=True)
     picks = np.linspace(0, len(result.time_s) - 1, frames).round().astype(int)
     qpos = result.state[picks, 1 : 1 + machine.model.nq]
-    return machine.model, Motion(result.time_s[picks], qpos, f"simulation at {voltage:g} V")
+    how = (f"{voltage:g} V" if not isinstance(voltage, dict)
+           else ", ".join(f"{joint} {value:g} {unit}" for joint, value, unit in
+                          ((j, v, input_unit(machine.description, j)) for j, v in voltage.items())))
+    return machine.model, Motion(result.time_s[picks], qpos, f"simulation at {how}")
 
 
 # -- the scene -------------------------------------------------------------------------------
@@ -325,7 +340,7 @@ def clearance_overlays(model: mujoco.MjModel, results, driver: str) -> Overlays:
     overlays = Overlays()
     data = mujoco.MjData(model)
     for k, result in enumerate(results):
-        angle = np.radians(result.angle_deg)
+        angle = np.radians(result.angle_deg if result.driver_angle_deg is None else result.driver_angle_deg)
         data.qpos[:] = sweep(model, np.linspace(0, angle, max(2, int(abs(angle) / 0.1) + 2)), driver)[-1]
         mujoco.mj_kinematics(model, data)
         color = MARKER_COLORS[(k + 3) % len(MARKER_COLORS)]
@@ -375,12 +390,12 @@ def view(
         motion = recording_motion(model, recording, frames, machine.shaft_joint, machine.frame.zero_rad, machine.frame.direction)
     else:
         model = load_model(model_path)
-        motion = cycle_motion(model, frames, driver)
+        motion = cycle_motion(model, frames, driver, description)
     overlays = Overlays(markers=probe_markers(model, list(probe_names)))
     if pairs:
         from mechanism.inspection.clearance import check_clearance, parse_pairs
 
-        report = check_clearance(model, parse_pairs(pairs, model), driver=driver)
+        report = check_clearance(model, parse_pairs(pairs, model), driver=driver, description=description)
         extra = clearance_overlays(model, report.results, driver)
         overlays.markers += extra.markers
         overlays.lines += extra.lines

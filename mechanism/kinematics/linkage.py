@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError
-from mechanism.kinematics.pose import solve_pose, velocity_ratios
+from mechanism.kinematics.pose import approach, solve_pose, velocity_ratios
 
 TWO_PI = 2 * np.pi
 
@@ -54,6 +54,14 @@ class LinkageTables:
     positions: dict[str, np.ndarray]  # q_j(θ) per one-DOF joint
     tool_z_m: np.ndarray | None = None  # height of the tool site against gravity [m]
     tool_dz_drad: np.ndarray | None = None
+    periodic: bool = True  # one revolution; False: a drive that rocks, sampled from one end of its travel to the other
+
+    def interp(self, values: np.ndarray, angle) -> np.ndarray:
+        """Samples of this table's grid at shaft angles [rad] (periodic over a revolution, or
+        held at the ends of a rocking drive's travel)."""
+        if self.periodic:
+            return periodic_interp(values, angle)
+        return np.interp(angle, self.angle_rad, values)
 
     @property
     def mean_inertia_kgm2(self) -> float:
@@ -69,7 +77,7 @@ class LinkageTables:
 
     def at(self, name: str, angle) -> np.ndarray:
         """Periodic linear interpolation of a tabulated quantity at arm angles [rad]."""
-        return periodic_interp(getattr(self, name), angle)
+        return self.interp(getattr(self, name), angle)
 
 
 def up_axis(model: mujoco.MjModel) -> np.ndarray:
@@ -80,15 +88,18 @@ def up_axis(model: mujoco.MjModel) -> np.ndarray:
 
 
 def compute_tables(model: mujoco.MjModel, driver: str, tool_site: str | None = None, n: int = 720,
-                   zero_rad: float = 0.0, direction: float = 1.0) -> LinkageTables:
+                   zero_rad: float = 0.0, direction: float = 1.0,
+                   span: tuple[float, float] | None = None) -> LinkageTables:
     """Tabulate J, J', G, joint ratios and positions over one revolution of ``driver``.
 
     Sample i is at shaft angle θ_i = 2πi/n, i.e. joint position ``zero_rad + direction θ_i``;
-    ratios are per unit of shaft angle. ``tool_z_m`` is the tool site's height against gravity."""
+    ratios are per unit of shaft angle. ``tool_z_m`` is the tool site's height against gravity.
+    ``span`` (shaft angles [rad], lower first): a drive that rocks, sampled at n points from one
+    end of its travel to the other instead of over a revolution."""
     if n < 16:
         raise UserError("at least 16 table samples per revolution are needed")
     data = mujoco.MjData(model)
-    angles = np.arange(n) * TWO_PI / n
+    angles = np.arange(n) * TWO_PI / n if span is None else np.linspace(span[0], span[1], n)
     one_dof = [j for j in range(model.njnt)
                if int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))]
     names = [model.joint(j).name for j in one_dof]
@@ -99,6 +110,8 @@ def compute_tables(model: mujoco.MjModel, driver: str, tool_site: str | None = N
     up = up_axis(model)
     tool_z, tool_dz = np.zeros(n), np.zeros(n)
     mass = np.zeros((model.nv, model.nv))
+    if span is not None:
+        approach(model, data, driver, zero_rad + direction * angles[0])
     jac = np.zeros((3, model.nv))
     for i, angle in enumerate(angles):
         solve_pose(model, data, {driver: zero_rad + direction * angle})
@@ -118,10 +131,11 @@ def compute_tables(model: mujoco.MjModel, driver: str, tool_site: str | None = N
     return LinkageTables(
         angle_rad=angles,
         inertia_kgm2=inertia,
-        dinertia_drad=periodic_derivative(inertia),
+        dinertia_drad=periodic_derivative(inertia) if span is None else np.gradient(inertia, angles),
         gravity_torque_Nm=gravity,
         ratios=ratios,
         positions=positions,
         tool_z_m=tool_z if site >= 0 else None,
         tool_dz_drad=tool_dz if site >= 0 else None,
+        periodic=span is None,
     )

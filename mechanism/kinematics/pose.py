@@ -51,6 +51,21 @@ def joint_dof(model: mujoco.MjModel, joint: str) -> tuple[int, int]:
     return int(model.jnt_qposadr[jid]), int(model.jnt_dofadr[jid])
 
 
+def is_slide(model: mujoco.MjModel, joint: str) -> bool:
+    jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+    return jid >= 0 and int(model.jnt_type[jid]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
+
+
+def joint_value_text(model: mujoco.MjModel, joint: str, value: float) -> str:
+    """A joint coordinate in the user's units: degrees for a hinge, mm for a slide."""
+    return f"{float(value) * 1e3:.4g} mm" if is_slide(model, joint) else f"{np.degrees(float(value)):.4g} deg"
+
+
+def describe_positions(model: mujoco.MjModel, fixed: Mapping[str, float]) -> str:
+    """'JOINT at 80 deg, SLIDE at 3 mm' (joint coordinates: 0 at the export's assembly pose)."""
+    return ", ".join(f"{name} at {joint_value_text(model, name, value)}" for name, value in fixed.items())
+
+
 @contextlib.contextmanager
 def position_only(model: mujoco.MjModel):
     """Dense constraint Jacobians, and no contacts: only equality constraints matter here."""
@@ -117,12 +132,29 @@ def solve_pose(
             norm = trial
         if norm >= accept:
             raise PoseError(
-                f"cannot assemble the mechanism at {dict(fixed)}: constraint residual {norm:.3g} "
-                "(the loop cannot close there, or the fixed joints over-determine it)"
+                f"cannot assemble the mechanism with {describe_positions(model, fixed)}: the loops stay "
+                f"{norm * 1e3:.3g} mm open (they cannot close there, or the fixed joints over-determine them)"
             )
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
     return norm
+
+
+APPROACH_STEP_RAD = np.radians(5.0)  # a rocker walks from the export's pose to where a sweep starts in 5 deg steps
+APPROACH_STEP_M = 2e-3
+
+
+def approach(model: mujoco.MjModel, data: mujoco.MjData, driver: str, value: float) -> None:
+    """Assemble the mechanism with ``driver`` at ``value``, walking there from the export's own
+    pose in small steps so that it stays on the export's branch (a jump to the far end of a
+    rocker's travel could land on the other assembly)."""
+    qadr, _ = joint_dof(model, driver)
+    data.qpos[:] = model.qpos0
+    step = APPROACH_STEP_M if is_slide(model, driver) else APPROACH_STEP_RAD
+    start = float(model.qpos0[qadr])
+    count = max(1, int(np.ceil(abs(value - start) / step)))
+    for target in np.linspace(start, value, count + 1)[1:]:
+        solve_pose(model, data, {driver: float(target)})
 
 
 def velocity_ratios(model: mujoco.MjModel, data: mujoco.MjData, driver: str) -> np.ndarray:
@@ -138,6 +170,38 @@ def velocity_ratios(model: mujoco.MjModel, data: mujoco.MjData, driver: str) -> 
         free[dadr] = False
         velocity[free] = -np.linalg.lstsq(jac[:, free], jac[:, dadr], rcond=None)[0]
     return velocity
+
+
+def passive_joints(model: mujoco.MjModel, data: mujoco.MjData, driven: Iterable[str]) -> list[str]:
+    """The named joints that can still move at the current pose with the ``driven`` joints held:
+    those the equality constraints (loops, couplings) leave free (a pendulum, a ball on a beam,
+    the undriven joints of an arm)."""
+    fixed = np.zeros(model.nv, dtype=bool)
+    for name in driven:
+        fixed[joint_dof(model, name)[1]] = True
+    with position_only(model):
+        _, jac = equality_residual(model, data)
+    free = np.flatnonzero(~fixed)
+    if not free.size:
+        return []
+    if jac.size:
+        _, singular, vt = np.linalg.svd(jac[:, free])
+        rank = int(np.sum(singular > JOINT_RANK_TOLERANCE * max(singular[0] if singular.size else 0.0, 1e-300)))
+        null = vt[rank:].T
+    else:
+        null = np.eye(free.size)
+    if not null.size:
+        return []
+    motion = np.zeros(model.nv)
+    motion[free] = np.linalg.norm(null, axis=1)
+    out = []
+    for j in range(model.njnt):
+        name = model.joint(j).name
+        width = {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(int(model.jnt_type[j]), 1)
+        dof = int(model.jnt_dofadr[j])
+        if name and np.max(motion[dof : dof + width]) > 1e-6:
+            out.append(name)
+    return out
 
 
 def degrees_of_freedom(model: mujoco.MjModel, data: mujoco.MjData) -> int:

@@ -83,22 +83,54 @@ FRICTION_KEYS = {
     "position_joint": _name("joint whose angle sets the position dependence (default: its own)"),
 }
 
+MOTOR_TYPES = ("dc", "servo", "current")
+# keys each drive kind needs (besides type), and the input its command is in
+MOTOR_REQUIRED = {
+    "dc": ("resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad"),
+    "servo": ("resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad", "supply_V", "kp_V_per_rad"),
+    "current": ("torque_constant_Nm_per_A",),
+}
+MOTOR_INPUT_UNIT = {"dc": "V", "servo": "rad", "current": "A"}
+
+LIMIT_KEYS = {
+    "lower_deg": Key(float, "a hinge's lower hard stop [deg], its own coordinate (0 at the export's pose)", low=-3600.0, high=3600.0),
+    "upper_deg": Key(float, "a hinge's upper hard stop [deg]", low=-3600.0, high=3600.0),
+    "lower_mm": Key(float, "a slide's lower hard stop [mm], its own coordinate (0 at the export's pose)", low=-1e5, high=1e5),
+    "upper_mm": Key(float, "a slide's upper hard stop [mm]", low=-1e5, high=1e5),
+}
+
 SCHEMA: dict[str, dict[str, Key]] = {
     "machine": {
         "name": _name("a name for reports", required=True),
         "model": _name("converted MJCF or CAD export, relative to this file", required=True),
         "timestep_ms": Key(float, "simulation time step [ms]; loops and belts stiffen with it", low=0.01, high=2.0),
+        "ground": _name("the part fixed to the world (default: the export's ground, else its heaviest part)"),
+        "up": Key(str, "the export's axis that points up, for a CAD export (default: its gravity vector, else z)",
+                  choices=("x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z")),
     },
     "drive": {
-        "motor_joint": _name("the joint the motor turns", required=True),
+        "motor_joint": _name("the joint the motor turns (with [motor]; optional with [motor.\"JOINT\"] tables: "
+                             "the first is the main motor)"),
         "shaft_joint": _name("the main shaft: recordings' angle and the cycle's driver", required=True),
-        "zero_site": _name("the shaft angle is 0 where this site is highest against gravity", required=True),
+        "zero_site": _name("the shaft angle is 0 where this site is highest against gravity (or zero_angle_deg)"),
+        "zero_angle_deg": Key(float, "the shaft angle's 0 as the shaft joint's own coordinate [deg], where no site "
+                                     "rises and falls (a vertical shaft)", low=-3600.0, high=3600.0),
+        "range_deg": Key(list, "[lower, upper] shaft joint coordinates [deg] inspected for a drive that rocks "
+                               "(default: its limits)", item=float),
     },
     "motor": {
-        "type": Key(str, "motor kind", required=True, choices=("dc",)),
-        "resistance_ohm": _positive("armature resistance [ohm]", required=True, high=1e4),
+        "type": Key(str, "drive kind: a DC motor (input: voltage), a servo (a DC motor behind a position loop; input: "
+                         "the goal angle) or a current drive (input: the current command)", required=True,
+                    choices=MOTOR_TYPES),
+        "resistance_ohm": _positive("armature resistance [ohm] (dc, servo)", high=1e4),
         "torque_constant_Nm_per_A": _positive("torque constant Kt [N m/A]", required=True, high=100.0),
-        "back_emf_V_s_per_rad": _positive("back-EMF constant Ke [V s/rad]", required=True, high=100.0),
+        "back_emf_V_s_per_rad": _positive("back-EMF constant Ke [V s/rad] (dc, servo)", high=100.0),
+        "supply_V": _positive("servo: the supply voltage its driver switches [V]", high=1e3),
+        "kp_V_per_rad": _non_negative("servo: proportional gain of the position loop [V/rad]", 1e6),
+        "kd_V_s_per_rad": _non_negative("servo: derivative gain of the position loop [V s/rad] (default 0)", 1e4),
+        "duty_limit": Key(float, "servo: the largest duty its driver puts out, a fraction of supply_V (default 1)",
+                          low=0.0, open_low=True, high=1.0),
+        "max_current_A": _positive("current drive: the amplifier's current limit [A] (default: none)", high=1e4),
         "inductance_H": _non_negative("winding inductance [H] (0: quasi-static current)", 10.0),
         "rated_voltage_V": _positive("the highest terminal voltage a run may apply [V] (default 30)", high=1e3),
         "cogging_Nm": _non_negative("cogging torque amplitude [N m]", 100.0),
@@ -186,7 +218,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
 }
 # Sections keyed by joint name; their keys are FRICTION_KEYS.
-JOINT_TABLES = {"friction": FRICTION_KEYS, "warm_friction": FRICTION_KEYS}
+JOINT_TABLES = {"friction": FRICTION_KEYS, "warm_friction": FRICTION_KEYS, "limits": LIMIT_KEYS}
 # Named variant-parameter targets (mechanism-variants/1 syntax) the machine offers.
 PRESET_TABLE = "variant_presets"
 
@@ -199,9 +231,12 @@ class MachineDescription:
     model: Path
     motor_joint: str
     shaft_joint: str
-    zero_site: str
-    motor: dict[str, Any]
+    zero_site: str | None
+    motor: dict[str, Any]  # the main motor's table (motor_joint's)
     friction: dict[str, dict[str, Any]] = field(default_factory=dict)
+    motors: dict[str, dict[str, Any]] = field(default_factory=dict)  # joint -> its motor table, the main one first
+    limits: dict[str, tuple[float, float]] = field(default_factory=dict)  # joint -> (lower, upper) [rad or m]
+    limit_units: dict[str, str] = field(default_factory=dict)  # joint -> "deg" (a hinge's) or "mm" (a slide's)
     warm_friction: dict[str, dict[str, Any]] = field(default_factory=dict)
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)  # the optional sections as written
     variant_presets: dict[str, str] = field(default_factory=dict)
@@ -213,6 +248,21 @@ class MachineDescription:
     @property
     def tool_site(self) -> str | None:
         return self.section("tool").get("site")
+
+    @property
+    def drive_tables(self) -> dict[str, dict[str, Any]]:
+        """joint -> motor table, the main motor first (its table is ``motor``, which edits replace)."""
+        return {self.motor_joint: self.motor, **{j: t for j, t in self.motors.items() if j != self.motor_joint}}
+
+    @property
+    def zero_angle_rad(self) -> float | None:
+        value = self.section("drive").get("zero_angle_deg")
+        return None if value is None else math.radians(value)
+
+    @property
+    def range_rad(self) -> tuple[float, float] | None:
+        value = self.section("drive").get("range_deg")
+        return None if value is None else (math.radians(value[0]), math.radians(value[1]))
 
     @property
     def timestep_s(self) -> float | None:
@@ -289,6 +339,67 @@ def _check_friction(source: str, section: str, laws: dict[str, Any]) -> dict[str
     return out
 
 
+def _check_limits(source: str, tables: Any) -> tuple[dict[str, tuple[float, float]], dict[str, str]]:
+    """[limits."JOINT"]: lower and upper, both in degrees (a hinge) or both in mm (a slide), in SI."""
+    if not isinstance(tables, dict):
+        raise _fail(source, "limits", None, 'expected [limits."JOINT"] tables')
+    out, units = {}, {}
+    for joint, table in tables.items():
+        section = f'limits."{joint}"'
+        values = _check_table(source, section, table, LIMIT_KEYS)
+        for unit, scale in (("deg", math.pi / 180.0), ("mm", 1e-3)):
+            pair = [values.get(f"lower_{unit}"), values.get(f"upper_{unit}")]
+            if pair == [None, None]:
+                continue
+            if None in pair or len(values) != 2:
+                raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm "
+                                                   "(a slide), one pair")
+            if not pair[1] > pair[0]:
+                raise _fail(source, section, f"upper_{unit}", f"must be above lower_{unit} ({pair[0]:g})")
+            out[joint] = (pair[0] * scale, pair[1] * scale)
+            units[joint] = unit
+        if joint not in out:
+            raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm (a slide)")
+    return out, units
+
+
+def _check_motor(source: str, section: str, table: Any) -> dict[str, Any]:
+    motor = _check_table(source, section, table, SCHEMA["motor"])
+    kind = motor["type"]
+    for key in MOTOR_REQUIRED[kind]:
+        if key not in motor:
+            raise _fail(source, section, key, f"missing ({SCHEMA['motor'][key].doc}; a {kind} drive needs it)")
+    allowed = set(MOTOR_REQUIRED[kind]) | {"type", "cogging_Nm", "cogging_per_rev"}
+    allowed |= {"dc": {"inductance_H", "thermal_resistance_K_per_W", "thermal_time_constant_s"},
+                "servo": {"kd_V_s_per_rad", "duty_limit"}, "current": {"max_current_A"}}[kind]
+    for key in motor:
+        if key not in allowed:
+            raise _fail(source, section, key, f"not a key of a {kind} drive (type = {kind!r})")
+    return motor
+
+
+def _check_motors(source: str, data: dict[str, Any], drive: dict[str, Any]) -> tuple[str, dict[str, dict[str, Any]]]:
+    """(the main motor's joint, joint -> motor table): ``[motor]`` with ``[drive] motor_joint``, or
+    ``[motor."JOINT"]`` tables (the main one: motor_joint when given, else the first)."""
+    raw = data["motor"]
+    if not isinstance(raw, dict):
+        raise _fail(source, "motor", None, "expected a table of keys, or [motor.\"JOINT\"] tables")
+    tables = {k: v for k, v in raw.items() if isinstance(v, dict)}
+    if tables and len(tables) != len(raw):
+        loose = next(k for k in raw if k not in tables)
+        raise _fail(source, "motor", loose, 'give either [motor] keys (one motor, with [drive] motor_joint) or '
+                                            '[motor."JOINT"] tables, not both')
+    if not tables:
+        if "motor_joint" not in drive:
+            raise _fail(source, "drive", "motor_joint", "missing (the joint the motor turns; or give [motor.\"JOINT\"] tables)")
+        return drive["motor_joint"], {drive["motor_joint"]: _check_motor(source, "motor", raw)}
+    motors = {joint: _check_motor(source, f'motor."{joint}"', table) for joint, table in tables.items()}
+    main = drive.get("motor_joint", next(iter(motors)))
+    if main not in motors:
+        raise _fail(source, "drive", "motor_joint", f"{main!r} has no [motor.\"{main}\"] table; tables: {', '.join(motors)}")
+    return main, {main: motors[main], **{j: m for j, m in motors.items() if j != main}}
+
+
 def parse_description(data: dict[str, Any], source: str = "<description>", base: Path | None = None) -> MachineDescription:
     """Validate a parsed TOML document. Relative model paths resolve against ``base``."""
     known = [*SCHEMA, *JOINT_TABLES, PRESET_TABLE]
@@ -298,7 +409,10 @@ def parse_description(data: dict[str, Any], source: str = "<description>", base:
     for section in ("machine", "drive", "motor"):
         if section not in data:
             raise _fail(source, section, None, "missing section")
-    sections = {name: _check_table(source, name, data[name], keys) for name, keys in SCHEMA.items() if name in data}
+    sections = {name: _check_table(source, name, data[name], keys) for name, keys in SCHEMA.items()
+                if name in data and name != "motor"}
+    motor_joint, motors = _check_motors(source, data, sections["drive"])
+    sections["motor"] = motors[motor_joint]
     supply = sections.get("supply", {})
     if len(supply.get("duty_percent", [])) != len(supply.get("motor_voltage_V", [])):
         raise _fail(source, "supply", "motor_voltage_V", "needs one voltage per duty_percent point")
@@ -319,15 +433,26 @@ def parse_description(data: dict[str, Any], source: str = "<description>", base:
     if not model.is_absolute():
         model = Path(os.path.normpath((base or Path.cwd()) / model))  # "../mjcf/x.xml" reads as the folder it is in
     drive = sections["drive"]
+    limits, limit_units = _check_limits(source, data.get("limits", {}))
+    if "zero_site" not in drive and "zero_angle_deg" not in drive:
+        raise _fail(source, "drive", "zero_site", "missing: name the site whose highest point is the shaft angle's 0, "
+                                                  "or give zero_angle_deg (the shaft joint's coordinate of that 0)")
+    if "zero_site" in drive and "zero_angle_deg" in drive:
+        raise _fail(source, "drive", "zero_angle_deg", "give zero_site or zero_angle_deg, not both")
+    if "range_deg" in drive and (len(drive["range_deg"]) != 2 or not drive["range_deg"][1] > drive["range_deg"][0]):
+        raise _fail(source, "drive", "range_deg", "expected [lower, upper] in degrees, lower below upper")
     return MachineDescription(
         name=sections["machine"]["name"],
         model=model,
-        motor_joint=drive["motor_joint"],
+        motor_joint=motor_joint,
         shaft_joint=drive["shaft_joint"],
-        zero_site=drive["zero_site"],
+        zero_site=drive.get("zero_site"),
         motor=sections["motor"],
+        motors=motors,
         friction=_check_friction(source, "friction", data.get("friction", {})),
         warm_friction=_check_friction(source, "warm_friction", data.get("warm_friction", {})),
+        limits=limits,
+        limit_units=limit_units,
         sections=sections,
         variant_presets=dict(presets),
     )
@@ -384,7 +509,9 @@ def _range(key: Key) -> str:
 def schema_markdown() -> str:
     """Every key of the description as Markdown tables (docs/machine.md is this, checked by a test)."""
     lines = []
-    tables = {**SCHEMA, 'friction."JOINT"': FRICTION_KEYS, 'warm_friction."JOINT"': FRICTION_KEYS}
+    tables = {**SCHEMA, 'friction."JOINT"': FRICTION_KEYS, 'warm_friction."JOINT"': FRICTION_KEYS,
+              'limits."JOINT"': LIMIT_KEYS}
+    tables = {('motor"] or [motor."JOINT' if name == "motor" else name): keys for name, keys in tables.items()}
     for section, keys in tables.items():
         lines += [f"### `[{section}]`", "", "| key | type | range | required | meaning |", "| --- | --- | --- | --- | --- |"]
         lines += [f"| `{name}` | {_kind_name(key)} | {_range(key)} | {'yes' if key.required else ''} | {key.doc} |"

@@ -85,19 +85,21 @@ def export_digest(export: Path) -> str:
     return digest.hexdigest()[:20]
 
 
-def converted_model(export: Path, drivers: tuple[str, ...] = ()) -> Path:
-    """The MJCF of a CAD export (``drivers`` kept as tree joints), converted once per content and
-    cached (mechanism.files.cache: checked against its manifest at each use, rebuilt when damaged)."""
+def converted_model(export: Path, drivers: tuple[str, ...] = (), ground: str | None = None, up: str | None = None) -> Path:
+    """The MJCF of a CAD export (``drivers`` kept as tree joints, ``ground`` fixed to the world, ``up``
+    the export's up axis, None: its gravity vector, else z), converted once per content and cached
+    (mechanism.files.cache: checked against its manifest at each use, rebuilt when damaged)."""
     from mechanism.converters import ExportError, convert
     from mechanism.files.cache import cached_folder
     from mechanism.native import cache_root
 
-    key = hashlib.sha256("\0".join([export_digest(export), *drivers]).encode()).hexdigest()[:20]
+    extra = ([f"ground={ground}"] if ground else []) + ([f"up={up}"] if up else [])
+    key = hashlib.sha256("\0".join([export_digest(export), *drivers, *extra]).encode()).hexdigest()[:20]
     folder = cache_root() / "models" / f"{export.stem}-{key}"
 
     def build(tmp: Path) -> None:
         try:
-            convert(export, tmp, name=export.stem, drivers=drivers)
+            convert(export, tmp, name=export.stem, drivers=drivers, ground=ground, up=up)
         except ExportError as exc:
             raise UserError(str(exc)) from None
 
@@ -110,7 +112,9 @@ def resolve_model(description) -> Path:
     path = Path(description.model)
     if not path.is_file():
         raise UserError(f"machine description {description.where('machine', 'model')}: no such file {path}")
-    return path if is_mjcf(path) else converted_model(path, (description.motor_joint, description.shaft_joint))
+    machine = description.section("machine")
+    return path if is_mjcf(path) else converted_model(path, (description.motor_joint, description.shaft_joint),
+                                                      machine.get("ground"), machine.get("up"))
 
 
 def load_spec(path: str | os.PathLike | None = None):

@@ -41,12 +41,14 @@ def _tables_from(model: mujoco.MjModel, driver: str, site: str | None = None):
 
 @dataclass
 class RoleGuess:
-    shaft_joint: str
-    motor_joint: str
+    shaft_joint: str | None
+    motor_joint: str | None
     zero_site: str | None
     ratios: dict[str, float] = field(default_factory=dict)  # mean turns per shaft turn
     revolving: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    travel: tuple[float, float] | None = None  # a shaft that rocks: the range it assembles in (joint coordinate)
+    unknown: list[str] = field(default_factory=list)  # what could not be guessed
 
 
 def _on_frame(model: mujoco.MjModel, joint: str) -> bool:
@@ -57,19 +59,57 @@ def _on_frame(model: mujoco.MjModel, joint: str) -> bool:
 
 def guess_driver(model: mujoco.MjModel) -> str:
     """The joint to turn through a cycle when nobody said: the guessed shaft."""
-    return guess_roles(model).shaft_joint
+    guess = guess_roles(model)
+    if guess.shaft_joint is None:
+        raise UserError(f"no joint to drive: {guess.unknown[0]}")
+    return guess.shaft_joint
+
+
+def _one_dof_joints(model: mujoco.MjModel) -> list[str]:
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    return [model.joint(j).name for j in range(model.njnt) if int(model.jnt_type[j]) in kinds and model.joint(j).name]
+
+
+def _rocking_guess(model: mujoco.MjModel) -> RoleGuess:
+    """No joint turns whole revolutions: the shaft is the joint on the frame with the widest
+    travel (a hinge before a slide), driven by the motor directly; its travel is where the
+    mechanism assembles."""
+    from mechanism.kinematics.travel import assembling_range, model_limits
+
+    joints = _one_dof_joints(model)
+    if not joints:
+        return RoleGuess(None, None, None, notes=["the model has no hinge or slide joint: nothing moves"],
+                         unknown=["the shaft and the motor: the model has no hinge or slide joint"])
+    ranges = {}
+    for name in joints:
+        try:
+            ranges[name] = model_limits(model, name) or assembling_range(model, name)
+        except UserError:
+            continue
+    if not ranges:
+        return RoleGuess(None, None, None, notes=["the mechanism does not move at the export's pose"],
+                         unknown=["the shaft and the motor: no joint moves the mechanism from the export's pose"])
+    hinges = set(_hinges(model))
+
+    def preference(name: str):
+        low, high = ranges[name]
+        return (not _on_frame(model, name), name not in hinges, -round(high - low, 9), joints.index(name))
+
+    shaft = min(ranges, key=preference)
+    guess = RoleGuess(shaft, shaft, None, {shaft: 1.0}, [], travel=ranges[shaft])
+    guess.notes.append(f"no joint turns whole revolutions: the shaft {shaft} rocks (GUESS), the motor is guessed on it")
+    guess.zero_site = _moving_site(model, shaft, ranges[shaft])
+    return guess
 
 
 def guess_roles(model: mujoco.MjModel) -> RoleGuess:
     hinges = _hinges(model)
-    if not hinges:
-        raise UserError("the model has no hinge joint: nothing turns, so there is no shaft to drive")
     for start in hinges:
         tables = _tables_from(model, start)
         if tables is not None:
             break
     else:
-        raise UserError("no hinge joint of the model turns through a whole revolution")
+        return _rocking_guess(model)
     revolving = [name for name in hinges if name in tables.ratios
                  and (np.all(tables.ratios[name] > REVOLVING_RATIO_TOLERANCE) or np.all(tables.ratios[name] < -REVOLVING_RATIO_TOLERANCE))]
     speeds = {name: float(np.mean(np.abs(tables.ratios[name]))) for name in revolving}
@@ -92,11 +132,12 @@ def guess_roles(model: mujoco.MjModel) -> RoleGuess:
     return guess
 
 
-def _moving_site(model: mujoco.MjModel, shaft: str) -> str | None:
-    """A tool point: a site that rises and falls once per shaft turn, preferring a body that
-    translates without turning (a needle bar, a ram), a user-named frame over a part's own
-    site, a larger travel and, among equals, the lowest point (a tool's working end)."""
-    from mechanism.kinematics.pose import solve_pose
+def _moving_site(model: mujoco.MjModel, shaft: str, travel: tuple[float, float] | None = None) -> str | None:
+    """A tool point: a site that rises and falls once per shaft turn (or moves up and down over
+    the ``travel`` of a shaft that rocks), preferring a body that translates without turning (a
+    needle bar, a ram), a user-named frame over a part's own site, a larger travel and, among
+    equals, the lowest point (a tool's working end)."""
+    from mechanism.kinematics.pose import approach, solve_pose
 
     up = up_axis(model)
     data = mujoco.MjData(model)
@@ -108,18 +149,22 @@ def _moving_site(model: mujoco.MjModel, shaft: str) -> str | None:
     heights = np.zeros((RATIO_SAMPLES, len(sites)))
     turn = np.zeros(len(sites))
     first = None
-    for i, angle in enumerate(np.arange(RATIO_SAMPLES) * 2 * np.pi / RATIO_SAMPLES):
+    angles = np.arange(RATIO_SAMPLES) * 2 * np.pi / RATIO_SAMPLES if travel is None else np.linspace(*travel, RATIO_SAMPLES)
+    if travel is not None:
+        approach(model, data, shaft, float(angles[0]))
+    for i, angle in enumerate(angles):
         solve_pose(model, data, {shaft: angle})
         heights[i] = [up @ data.site(name).xpos for name in sites]
         frames = np.array([data.site(name).xmat.reshape(3, 3) for name in sites])
         first = frames if first is None else first
         cosine = (np.einsum("kij,kij->k", frames, first) - 1.0) / 2.0
         turn = np.maximum(turn, np.arccos(np.clip(cosine, -1.0, 1.0)))
+    periodic = travel is None
     travel = np.ptp(heights, axis=0)
     rising = np.diff(np.vstack([heights, heights[:1]]), axis=0) > 0
     peaks = np.sum(rising & ~np.roll(rising, -1, axis=0), axis=0)  # rising then not: one maximum each
     floor = 1e-6 * max(float(model.stat.extent), 1e-3)
-    candidates = [k for k in range(len(sites)) if travel[k] > floor and peaks[k] == 1]
+    candidates = [k for k in range(len(sites)) if travel[k] > floor and (peaks[k] == 1 or not periodic)]
     if not candidates:
         return None
 
@@ -146,11 +191,14 @@ def drive_lines(model_path, degrees_of_freedom: int | None) -> list[str]:
         return lines
     try:
         guess = guess_roles(model)
-        tables = compute_tables(model, guess.shaft_joint, n=180)
+        if guess.shaft_joint is None:
+            return lines
+        tables = compute_tables(model, guess.shaft_joint, n=180, span=guess.travel)
     except Exception as exc:  # noqa: BLE001 - numerical trouble in an odd export only loses this line
         return lines + [f"reflected inertia: not computed ({' '.join(str(exc).split())[:120]})"]
     inertia = tables.inertia_kgm2
-    lines.append(f"reflected inertia at {guess.shaft_joint}: {inertia.mean():.4g} kg*m^2 mean over a revolution "
+    over = "a revolution" if guess.travel is None else "its travel"
+    lines.append(f"reflected inertia at {guess.shaft_joint}: {inertia.mean():.4g} kg*m^2 mean over {over} "
                  f"({inertia.min():.4g} to {inertia.max():.4g})")
     ratio = abs(guess.ratios.get(guess.motor_joint, 1.0))
     if guess.motor_joint != guess.shaft_joint and ratio > 1:

@@ -102,6 +102,25 @@ static void apply_supply_limit(const mjModel* m, mjData* d, const mjtNum* p, int
   if (commanded < low && commanded < 0) d->qfrc_passive[dof] += kt * (low - commanded);
 }
 
+// Must match mechanism/physics/motor.py ServoDrive: the actuator carries the unsaturated loop
+// Kt/R (kp (goal - q) - (kd + Ke) q'); the driver's voltage is clipped at +-limit, so the
+// difference Kt/R (clip(V) - V) is added here.
+#define SERVO_FIELDS 9
+static void apply_servo_limit(const mjModel* m, mjData* d, const mjtNum* p, int n) {
+  // p: [version, count, count x (actuator, dof, qadr, limit_V, kp, kd, R, Kt, Ke)]
+  if (n < 2) return;
+  int count = (int)p[1];
+  for (int k = 0; k < count && 2 + SERVO_FIELDS * (k + 1) <= n; k++) {
+    const mjtNum* s = p + 2 + SERVO_FIELDS * k;
+    int act = (int)s[0], dof = (int)s[1], qadr = (int)s[2];
+    if (act < 0 || act >= m->nu || dof < 0 || dof >= m->nv || qadr < 0 || qadr >= m->nq) continue;
+    mjtNum limit = s[3], kp = s[4], kd = s[5], r = s[6], kt = s[7];
+    mjtNum wanted = kp * (d->ctrl[act] - d->qpos[qadr]) - kd * d->qvel[dof];
+    mjtNum applied = wanted > limit ? limit : (wanted < -limit ? -limit : wanted);
+    d->qfrc_passive[dof] += kt / r * (applied - wanted);
+  }
+}
+
 void mechanism_passive(const mjModel* m, mjData* d) {
   int i = find_numeric(m, "mechanism_friction");
   if (i >= 0) apply_friction(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
@@ -109,4 +128,6 @@ void mechanism_passive(const mjModel* m, mjData* d) {
   if (i >= 0) apply_needle_load(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
   i = find_numeric(m, "mechanism_supply");
   if (i >= 0) apply_supply_limit(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
+  i = find_numeric(m, "mechanism_servo");
+  if (i >= 0) apply_servo_limit(m, d, m->numeric_data + m->numeric_adr[i], m->numeric_size[i]);
 }

@@ -87,6 +87,12 @@ class DCMotor:
             thermal=thermal,
         )
 
+    def stall_torque_Nm(self, default_voltage_V: float) -> float:
+        return self.torque_constant_Nm_A * default_voltage_V / self.resistance_ohm
+
+    def no_load_speed_rad_s(self, default_voltage_V: float) -> float | None:
+        return default_voltage_V / self.back_emf_V_s_rad
+
     def torque(self, voltage, motor_velocity, temperature_rise_K=0.0):
         """Quasi-static electromagnetic torque (no inductance): thesis eq. 5."""
         resistance = self.resistance_ohm * (1 + (self.thermal.tempcoef_per_K if self.thermal else 0) * temperature_rise_K)
@@ -151,3 +157,110 @@ def python_supply_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     commanded = (data.ctrl[act] - ke * data.qvel[dof]) / r
     limited = float(SupplyLimit(vs, rs).current(motor, data.ctrl[act], data.qvel[dof]))
     data.qfrc_passive[dof] += kt * (limited - commanded)
+
+
+SERVO_NUMERIC = "mechanism_servo"
+SERVO_FIELDS = 9  # per servo: actuator, dof, qpos address, voltage limit, kp, kd, R, Kt, Ke
+
+
+@dataclass(frozen=True)
+class ServoDrive:
+    """A DC motor behind a position loop (a hobby or smart servo): the driver puts
+
+        V = clip(kp (goal - q) - kd q', -duty_limit supply_V, +duty_limit supply_V)
+
+    on the motor, whose torque is Kt/R (V - Ke q') (quasi-static current). ``ctrl`` is the goal
+    angle [rad] in the joint's own coordinate. MuJoCo's actuator carries the unsaturated law
+    (gain Kt kp/R on the goal, bias -Kt kp/R q - Kt (kd + Ke)/R q', so the loop's damping is
+    integrated implicitly); the passive callback takes back what the voltage limit removes:
+    Kt/R (V - V_unsaturated)."""
+
+    motor: DCMotor
+    supply_V: float
+    kp_V_rad: float
+    kd_V_s_rad: float = 0.0
+    duty_limit: float = 1.0
+
+    @property
+    def limit_V(self) -> float:
+        return self.duty_limit * self.supply_V
+
+    @property
+    def torque_constant_Nm_A(self) -> float:
+        return self.motor.torque_constant_Nm_A
+
+    def add_to_spec(self, spec: mujoco.MjSpec, joint: str, name: str) -> None:
+        m = self.motor
+        gain = m.torque_constant_Nm_A * self.kp_V_rad / m.resistance_ohm
+        damping = m.torque_constant_Nm_A * (self.kd_V_s_rad + m.back_emf_V_s_rad) / m.resistance_ohm
+        actuator = spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        actuator.gainprm = [gain] + [0.0] * 9
+        actuator.biasprm = [0.0, -gain, -damping] + [0.0] * 7
+
+    def voltage(self, goal, position, velocity) -> np.ndarray:
+        wanted = self.kp_V_rad * (np.asarray(goal) - np.asarray(position)) - self.kd_V_s_rad * np.asarray(velocity)
+        return np.clip(wanted, -self.limit_V, self.limit_V)
+
+    def current(self, goal, position, velocity) -> np.ndarray:
+        m = self.motor
+        return (self.voltage(goal, position, velocity) - m.back_emf_V_s_rad * np.asarray(velocity)) / m.resistance_ohm
+
+    def stall_torque_Nm(self, default_voltage_V: float) -> float:
+        return self.motor.torque_constant_Nm_A * self.limit_V / self.motor.resistance_ohm
+
+    def no_load_speed_rad_s(self, default_voltage_V: float) -> float | None:
+        return self.limit_V / self.motor.back_emf_V_s_rad
+
+    def fields(self, actuator: int, dof: int, qadr: int) -> list[float]:
+        m = self.motor
+        return [float(actuator), float(dof), float(qadr), self.limit_V, self.kp_V_rad, self.kd_V_s_rad,
+                m.resistance_ohm, m.torque_constant_Nm_A, m.back_emf_V_s_rad]
+
+
+@dataclass(frozen=True)
+class CurrentDrive:
+    """A current (torque) amplifier: torque Kt i with i the current command [A] (``ctrl``),
+    clipped at ``max_current_A`` where one is given."""
+
+    torque_constant_Nm_A: float
+    max_current_A: float | None = None
+
+    def add_to_spec(self, spec: mujoco.MjSpec, joint: str, name: str) -> None:
+        actuator = spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        actuator.biastype = mujoco.mjtBias.mjBIAS_NONE
+        actuator.gainprm = [self.torque_constant_Nm_A] + [0.0] * 9
+        if self.max_current_A is not None:
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.ctrlrange = [-self.max_current_A, self.max_current_A]
+
+    def current(self, command) -> np.ndarray:
+        command = np.asarray(command, dtype=float)
+        return command if self.max_current_A is None else np.clip(command, -self.max_current_A, self.max_current_A)
+
+    def stall_torque_Nm(self, default_current_A: float) -> float:
+        return self.torque_constant_Nm_A * (self.max_current_A or default_current_A)
+
+    def no_load_speed_rad_s(self, default_voltage_V: float) -> float | None:
+        return None  # a current drive has no back-EMF limit on its speed
+
+
+def apply_servos_to_spec(spec: mujoco.MjSpec, count: int) -> None:
+    spec.add_numeric(name=SERVO_NUMERIC, data=np.zeros(2 + SERVO_FIELDS * count))
+
+
+def bind_servos(model: mujoco.MjModel, blocks: list[list[float]]) -> None:
+    model.numeric(SERVO_NUMERIC).data[:] = [1.0, float(len(blocks))] + [v for block in blocks for v in block]
+
+
+def python_servo_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """The servo voltage limit of native/machine.c in Python (fallback without a compiler)."""
+    p = numeric_block(model, SERVO_NUMERIC)
+    if p is None:
+        return
+    for k in range(int(p[1])):
+        act, dof, qadr, limit, kp, kd, r, kt, _ = p[2 + SERVO_FIELDS * k : 2 + SERVO_FIELDS * (k + 1)]
+        wanted = kp * (data.ctrl[int(act)] - data.qpos[int(qadr)]) - kd * data.qvel[int(dof)]
+        data.qfrc_passive[int(dof)] += kt / r * (min(max(wanted, -limit), limit) - wanted)

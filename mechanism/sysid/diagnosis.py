@@ -460,7 +460,8 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
     predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
     if findings:
         predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
-    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted)
+    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted,
+                           ratio=nominal.ratio, zero_meaning=nominal.zero_meaning)
     return result
 
 

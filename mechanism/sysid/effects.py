@@ -600,9 +600,20 @@ EFFECTS: dict[str, type[Effect]] = {e.name: e for e in (
     BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating)}
 
 
+NEEDS_FABRIC = ("needle_penetration",)  # offered only where the machine has a tool working in fabric
+
+
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:
-    """The candidate effects (all, or those named) built for the described drive."""
-    return {name: EFFECTS[name](nominal) for name in (names or EFFECTS)}
+    """The candidate effects (all the machine can have, or those named) built for the described drive."""
+    from mechanism.errors import UserError
+
+    if names:
+        missing = [name for name in names if name in NEEDS_FABRIC and not nominal.tool_in_fabric]
+        if missing:
+            raise UserError(f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
+                            "and piercing_force_per_layer_N)")
+        return {name: EFFECTS[name](nominal) for name in names}
+    return {name: EFFECTS[name](nominal) for name in EFFECTS if nominal.tool_in_fabric or name not in NEEDS_FABRIC}
 
 
 def effect(name: str) -> type[Effect]:

@@ -443,7 +443,9 @@ class IdentificationResult:
 
         rec = self.recording
         prediction = self.problem.full_prediction(self.fit.structure, self.fit.values)
-        return Traces(rec.time_s, rec.arm_angle_rad, rec.voltage_V, rec.velocity_rad_s, {self.baseline: prediction})
+        nominal = self.problem.nominal
+        return Traces(rec.time_s, rec.arm_angle_rad, rec.voltage_V, rec.velocity_rad_s, {self.baseline: prediction},
+                      ratio=nominal.ratio, zero_meaning=nominal.zero_meaning)
 
     @property
     def rmse(self) -> float:

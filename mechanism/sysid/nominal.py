@@ -32,5 +32,11 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
             others[joint] = abs(mean)
     supply = machine.description.section("supply").get("voltage_V")
     constants = MotorConstants(motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, ratio)
+    description = machine.description
+    if description.zero_site is not None:
+        zero = f"{description.zero_site} highest" if description.zero_site != machine.tool_site else f"{description.zero_site} at its top"
+    else:
+        zero = f"{machine.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
     return DriveNominal(constants, inertia_kgm2=tables.mean_inertia_kgm2, coulomb_shaft_Nm=coulomb,
-                        viscous_shaft_Nm_s_per_rad=viscous, joint_ratios=tuple(others.items()), supply_V=supply)
+                        viscous_shaft_Nm_s_per_rad=viscous, joint_ratios=tuple(others.items()), supply_V=supply,
+                        tool_in_fabric=machine.fabric_capable, zero_meaning=zero)

@@ -5,7 +5,10 @@ leading ``#`` comment lines, a header, then rows. Required columns ``time`` [s, 
 increasing, nominally 1 kHz], ``voltage`` [V, motor terminal voltage as logged] and
 ``arm_angle`` [rad, unwrapped arm-shaft encoder angle, 0 = needle top dead centre];
 optional ``current`` [A]. Columns named with units (``time_s``, ``voltage_V``,
-``arm_angle_rad``, ``current_A``) are accepted as aliases; unknown columns are ignored.
+``arm_angle_rad``, ``current_A``) are accepted as aliases, as are ``shaft_angle`` (the described
+shaft's angle, from its zero) and, for a described machine, its main motor's input column
+``JOINT_V`` (a recording with one input column per motor); unknown columns (other motors' inputs,
+``JOINT_angle`` of other measured joints) are ignored.
 
 Other formats (compressed CSV, MATLAB, Parquet, TDMS, JSON; :mod:`mechanism.files.formats`)
 and other column names and units (a ``[recording]`` map; :mod:`mechanism.sysid.recording_map`)
@@ -96,12 +99,14 @@ def smoothed_velocity(angle: np.ndarray, dt: float, axis: int = -1) -> np.ndarra
     return savgol_filter(angle, window, VELOCITY_POLYORDER, deriv=1, delta=dt, axis=axis, mode="interp")
 
 
-def read_recording(path: str | os.PathLike, recording_map=None) -> Recording:
+def read_recording(path: str | os.PathLike, recording_map=None, motor_joint: str | None = None) -> Recording:
     """Read and validate a recording (see the module docstring for the contract) in any
     format :mod:`mechanism.files.formats` reads, its columns taken by ``recording_map`` (a
     :class:`~mechanism.sysid.recording_map.RecordingMap`, a path to a ``--recording-map``
     TOML, or None for the default column names). What was read and done is
-    ``Recording.reading`` (written into the identify and diagnose JSON)."""
+    ``Recording.reading`` (written into the identify and diagnose JSON). With ``motor_joint``
+    (the described main motor's), its input column ``JOINT_V`` is also a default voltage
+    column, for recordings that name one input column per motor."""
     from mechanism.files.formats import read_columns
     from mechanism.sysid.recording_map import RecordingMap, apply_map, read_recording_map
 
@@ -109,7 +114,7 @@ def read_recording(path: str | os.PathLike, recording_map=None) -> Recording:
     if recording_map is not None and not isinstance(recording_map, RecordingMap):
         recording_map = read_recording_map(recording_map)
     columns = read_columns(path, "recording", records=recording_map.get("records") if recording_map else None)
-    signals = apply_map(columns, recording_map)
+    signals = apply_map(columns, recording_map, motor_joint)
     return make_recording(signals.time_s, signals.voltage_V, signals.shaft_angle_rad, signals.current_A,
                           metadata=signals.metadata, source=str(path), label=f"recording {path}", unwrap=signals.unwrap,
                           reading=signals.reading)

@@ -237,11 +237,12 @@ class Signals:
     reading: dict
 
 
-def _default_column(columns: Columns, signal: str) -> str | None:
-    return next((name for name in DEFAULT_NAMES[signal] if name in columns), None)
+def _default_column(columns: Columns, signal: str, motor_joint: str | None = None) -> str | None:
+    names = DEFAULT_NAMES[signal] + ([f"{motor_joint}_V"] if signal == "voltage" and motor_joint else [])
+    return next((name for name in names if name in columns), None)
 
 
-def apply_map(columns: Columns, mapping: RecordingMap | None) -> Signals:
+def apply_map(columns: Columns, mapping: RecordingMap | None, motor_joint: str | None = None) -> Signals:
     """The four signals out of a file's columns by the map (or the default names)."""
     table = mapping.table if mapping else {}
     where = f"{mapping.source}: [recording]" if mapping else columns.label
@@ -258,7 +259,7 @@ def apply_map(columns: Columns, mapping: RecordingMap | None) -> Signals:
         reading["signed_bits"] = dict(table["signed_bits"])
 
     def signal(key: str, required: bool = True):
-        text = table.get(key) or _default_column(columns, key)
+        text = table.get(key) or _default_column(columns, key, motor_joint)
         if text is None:
             if not required:
                 return None, None

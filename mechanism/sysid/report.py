@@ -27,7 +27,8 @@ class Traces:
     voltage_V: np.ndarray
     measured_rad_s: np.ndarray
     predicted_rad_s: dict  # label -> prediction
-    ratio: float = 8.0
+    ratio: float = 8.0  # motor turns per shaft turn (the machine's: the callers pass it)
+    zero_meaning: str = "the described zero"
 
 
 def _profile(x, y, bins, lo, hi):
@@ -86,8 +87,10 @@ def _plots(traces: Traces, folder: Path) -> list[tuple[str, str]]:
         c, _, rms = _profile(speed, r, 20, 0, top * 1.001)
         axes[1, 1].plot(c, rms, marker=".", label=k)
     axes[0, 0].set(xlabel="time [s]", ylabel="velocity residual [rad/s]", title="residual over time")
-    axes[0, 1].set(xlabel="arm angle [deg] (0 = needle top)", ylabel="mean residual [rad/s]", title="phase-averaged over the arm angle")
-    axes[1, 0].set(xlabel="motor angle [deg] (8 per arm revolution)", ylabel="mean residual [rad/s]", title="phase-averaged over the motor angle")
+    axes[0, 1].set(xlabel=f"shaft angle [deg] (0 = {traces.zero_meaning})", ylabel="mean residual [rad/s]",
+                   title="phase-averaged over the shaft angle")
+    axes[1, 0].set(xlabel=f"motor angle [deg] ({traces.ratio:g} per shaft revolution)", ylabel="mean residual [rad/s]",
+                   title="phase-averaged over the motor angle")
     axes[1, 1].set(xlabel="arm speed [rad/s]", ylabel="RMS residual [rad/s]", title="residual against speed")
     for ax in axes.flat:
         ax.legend(fontsize=8)
