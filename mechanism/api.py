@@ -155,8 +155,7 @@ def inspect_recording(recording: str | os.PathLike, machine: Machine | None = No
     from mechanism.sysid.recording_map import resolve_recording_map
 
     description = machine.description if machine is not None else None
-    return run(recording, resolve_recording_map(description, recording_map),
-               motor_joint=machine.motor_joint if machine is not None else None)
+    return run(recording, resolve_recording_map(description, recording_map))
 
 
 def identify(machine: Machine | None, recording: str | os.PathLike, recording_map: str | os.PathLike | None = None, **options):

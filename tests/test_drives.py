@@ -211,6 +211,6 @@ def test_a_recording_with_one_input_column_per_motor_is_read_for_the_main_motor(
     rows = "\n".join(f"{x:.3f},{6.0:.3f},{0.5:.3f},{x:.6f},{0.1 * x:.6f}" for x in t)
     path = tmp_path / "bench.csv"
     path.write_text("time_s,spin_a_V,spin_b_A,shaft_angle,spin_b_angle\n" + rows + "\n")
-    recording = read_recording(path, "spin_a")
+    recording = read_recording(path, motor_joint="spin_a")
     assert recording.voltage_V == pytest.approx(np.full(len(t), 6.0))
     assert recording.arm_angle_rad == pytest.approx(t, abs=1e-6)

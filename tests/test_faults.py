@@ -362,6 +362,7 @@ def test_the_memory_available_is_known_on_this_machine(monkeypatch):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("ray")  # one Ray instance at a time on this machine (make test runs two workers)
 def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path):
     """``--backend ray`` without an address starts a private Ray instance (raylet, GCS, workers):
     SIGTERM (which ``ray.init`` would otherwise answer with a bare exit 15) stops all of it."""

@@ -96,7 +96,7 @@ def test_init_up_converts_a_y_up_export_and_says_why(tmp_path, cli):
     assumed = cli("init", export, "-o", draft)
     assert assumed.returncode == 0, assumed.stderr
     assert "up axis: z; assumed" in assumed.stdout
-    given = cli("init", export, "-o", draft, "--up", "y")
+    given = cli("init", export, "-o", draft, "--up", "y", "--force")
     assert given.returncode == 0, given.stderr
     assert "up axis: y; given by --up" in given.stdout
     assert 'up = "y"' in draft.read_text()

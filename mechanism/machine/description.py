@@ -370,7 +370,7 @@ def _check_motor(source: str, section: str, table: Any) -> dict[str, Any]:
         if key not in motor:
             raise _fail(source, section, key, f"missing ({SCHEMA['motor'][key].doc}; a {kind} drive needs it)")
     allowed = set(MOTOR_REQUIRED[kind]) | {"type", "cogging_Nm", "cogging_per_rev"}
-    allowed |= {"dc": {"inductance_H", "thermal_resistance_K_per_W", "thermal_time_constant_s"},
+    allowed |= {"dc": {"inductance_H", "thermal_resistance_K_per_W", "thermal_time_constant_s", "rated_voltage_V"},
                 "servo": {"kd_V_s_per_rad", "duty_limit"}, "current": {"max_current_A"}}[kind]
     for key in motor:
         if key not in allowed:

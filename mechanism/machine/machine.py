@@ -603,7 +603,7 @@ class Machine:
 
     @property
     def rated_voltage_V(self) -> float:
-        return float(self.description.section("motor").get("rated_voltage_V", DEFAULT_RATED_VOLTAGE_V))
+        return float(self.description.motor.get("rated_voltage_V", DEFAULT_RATED_VOLTAGE_V))
 
     def check_voltage(self, voltage: VoltageProfile) -> None:
         """Refuse an input above the motor's rated voltage (the description's, else 30 V)."""
