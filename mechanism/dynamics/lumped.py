@@ -75,6 +75,12 @@ class DriveNominal:
     viscous_shaft_Nm_s_per_rad: float
     joint_ratios: tuple[tuple[str, float], ...] = ()
     supply_V: float | None = None
+    # What the machine's model knows beyond the lumped numbers (None for a drive given by its
+    # lumped numbers alone): the linkage tables over a shaft turn (J(theta), J'(theta), the
+    # gravity torque G(theta), arm side; mechanism.kinematics.linkage.LinkageTables) and the
+    # described roles (shaft joint, zero site) that name the shaft in its MJCF.
+    linkage: object = field(default=None, compare=False, repr=False)
+    roles: tuple[str, str] | None = field(default=None, compare=False)
 
     def __post_init__(self):
         if isinstance(self.joint_ratios, dict):
@@ -121,7 +127,7 @@ class DriveNominal:
         from dataclasses import replace
 
         m = replace(self.motor, ratio=ratio or self.motor.ratio, **motor)
-        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia,
+        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia, linkage=None,
                        coulomb_shaft_Nm=self.coulomb_shaft_Nm * torque,
                        viscous_shaft_Nm_s_per_rad=self.viscous_shaft_Nm_s_per_rad * torque)
 

@@ -265,6 +265,7 @@ class Diagnosis:
             "identifiable": True,
             "baseline": {
                 "name": self.baseline_name,
+                "terms": base.structure.baseline.terms,
                 "params": base.values,
                 "uncertainty_1sigma": base.uncertainties,
                 "rmse": base.rmse_val,
@@ -401,7 +402,7 @@ def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequenc
     error falls clearly (see the module docstring for the rule). ``nominal``: the described
     drive, from which every bound and starting value scales."""
     recording = at_fitting_rate(recording)
-    require_identifiable(recording)
+    require_identifiable(recording, nominal)
     with blas_single_threaded():
         return _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers)
 

@@ -33,4 +33,5 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
     supply = machine.description.section("supply").get("voltage_V")
     constants = MotorConstants(motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, ratio)
     return DriveNominal(constants, inertia_kgm2=tables.mean_inertia_kgm2, coulomb_shaft_Nm=coulomb,
-                        viscous_shaft_Nm_s_per_rad=viscous, joint_ratios=tuple(others.items()), supply_V=supply)
+                        viscous_shaft_Nm_s_per_rad=viscous, joint_ratios=tuple(others.items()), supply_V=supply,
+                        linkage=tables, roles=(machine.shaft_joint, machine.zero_site))
