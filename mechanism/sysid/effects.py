@@ -478,6 +478,14 @@ class VoltageNonlinearity(Effect):
                 "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
                 "while the coast-downs at 0 V already fit")
 
+    def recorded_levels(self, u: np.ndarray, default) -> tuple[float, float, float]:
+        """Three voltages the recording contains (its 5th, 50th and 95th percentiles of the
+        driven samples): the evidence quotes the supply only where it was seen."""
+        driven = u[np.abs(u) > self.U_RAMP]
+        if len(driven) < 10:
+            return default
+        return tuple(float(q) for q in np.percentile(driven, [5, 50, 95]))
+
     def applied(self, v, u):
         x = u / self.U_REF
         ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
@@ -489,6 +497,8 @@ class VoltageNonlinearity(Effect):
         drive.voltage_V = self.applied(v, drive.voltage_V)
 
     def summary(self, v, s=None, levels=(5.0, 12.0, 20.0)):
+        if s is not None:
+            levels = self.recorded_levels(s.voltage_V, levels)
         lo, mid, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
         return {"lo": lo, "mid": mid, "hi": hi, "ulo": levels[0], "umid": levels[1], "uhi": levels[2]}
 
