@@ -95,3 +95,32 @@ def test_voltage_evidence_quotes_only_levels_the_recording_has():
     for key in ("ulo", "umid", "uhi"):
         assert abs(summary[key]) <= 4.3
     assert summary["ulo"] < 0 < summary["uhi"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("driving, backdriving, seed", [(0.25, 0.1, 4), (0.0, 0.0, 5)])
+def test_gearbox_friction_that_follows_the_load_is_named_on_a_geared_servo(pendulum, driving, backdriving, seed):
+    """A geared servo whose gearbox loses a share of the motor torque (more while driving than
+    while back-driven): the diagnosis names gear_load_friction with both shares; without it,
+    nothing is missing."""
+    import dataclasses
+
+    from mechanism.sysid.diagnosis import diagnose
+
+    servo = dataclasses.replace(PENDULUM_SERVO, gear_driving=driving, gear_backdriving=backdriving)
+    result = diagnose(record(servo, seed=seed, fs=1000.0, duration_s=20.0, amplitude_rad=1.2), nominal=pendulum)
+    if not driving:
+        assert result.effect_names == []
+        return
+    assert result.effect_names == ["gear_load_friction"]
+    p = result.final.values
+    assert p["gear_friction_driving_fraction"] == pytest.approx(driving, abs=0.05)
+    assert p["gear_friction_backdriving_fraction"] == pytest.approx(backdriving, abs=0.05)
+    assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
+
+
+def test_gearbox_friction_is_a_candidate_only_for_a_gearbox(pendulum):
+    from mechanism.sysid.effects import library
+    from support.nominal import SAPPHIRE
+
+    assert "gear_load_friction" in library(pendulum) and "gear_load_friction" not in library(SAPPHIRE)

@@ -63,6 +63,7 @@ class Effect:
     sentence: str = ""
     feature: str = ""  # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
     generic: bool = False  # a fallback family that names no mechanism
+    physics: str = ""  # for a generic family: what physics could be behind it
 
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal
@@ -543,6 +544,13 @@ class SensorDelay(Effect):
         # delay's fits with the lag back at a small motor's (the fit frees it again)
         return [{"sensor_delay_s": d, "electrical_time_constant_s": 5e-4} for d in (1e-3, 3e-3, 7e-3, 15e-3)]
 
+    def starts_from(self, values):
+        """The lag the model without the delay fitted is mostly the delay: move it over."""
+        lag = values.get("electrical_time_constant_s", 0.0)
+        if lag > 1e-3:
+            return [{"sensor_delay_s": min(lag - 5e-4, 0.05), "electrical_time_constant_s": 5e-4}]
+        return []
+
     def measure(self, v, s, angle):
         shift = v["sensor_delay_s"] / s.dt
         whole = int(math.floor(shift))
@@ -605,14 +613,57 @@ class WindingHeating(Effect):
         return {"end_pct": 100 * v["winding_resistance_rise_fraction"] * end, "tau": v["winding_time_constant_s"]}
 
 
+class GearLoadFriction(Effect):
+    """Friction of a geared drive that grows with the torque its teeth carry (a gearbox's
+    efficiency below one), and differently when the motor drives the load than when the load
+    drives the motor back (Duclusaud et al., "Extended friction models for the physics
+    simulation of servo actuators", arXiv:2410.08650: load-dependent and directional models).
+    The transmitted torque is the motor's, g U - c_emf w at the logged voltage and the measured
+    speed."""
+
+    name = "gear_load_friction"
+    meaning = ("gearbox friction proportional to the torque the teeth carry: a share of the motor torque when the motor "
+               "drives the load, another share when the load drives the motor back (a gearbox's efficiency, "
+               "direction-dependent)")
+    enters = "friction"
+    linear = "all"
+    feature = "steady"
+    MIN_REDUCTION = 20.0  # a gearbox: a belt (8:1) or a direct drive has no tooth friction growing with the load
+    sentence = ("gearbox friction of {drive_pct:.2g} % of the motor torque while the motor drives and {back_pct:.2g} % while "
+                "the load drives it back (efficiencies {eta_drive:.2g} and {eta_back:.2g}) explains the error that follows "
+                "the transmitted torque")
+
+    @classmethod
+    def applies(cls, nominal: DriveNominal) -> bool:
+        return nominal.ratio >= cls.MIN_REDUCTION
+
+    def make_parameters(self, nominal):
+        return (Parameter("gear_friction_driving_fraction", 0.0, 0.0, 0.8, "friction per unit motor torque, motor driving", scale=0.1),
+                Parameter("gear_friction_backdriving_fraction", 0.0, 0.0, 0.8, "friction per unit motor torque, load driving",
+                          scale=0.1))
+
+    def apply(self, v, s, drive):
+        m = self.nominal.motor
+        w = s.velocity_rad_s
+        torque = m.gain_arm * drive.voltage_V - m.emf_damping_arm * w
+        share = np.where(torque * w >= 0, v["gear_friction_driving_fraction"], v["gear_friction_backdriving_fraction"])
+        drive.coulomb_Nm = drive.coulomb_Nm + share * np.abs(torque)
+
+    def summary(self, v, s=None):
+        a, b = v["gear_friction_driving_fraction"], v["gear_friction_backdriving_fraction"]
+        return {"drive_pct": 100 * a, "back_pct": 100 * b, "eta_drive": 1 - a, "eta_back": 1 / (1 + b)}
+
+
 EFFECTS: dict[str, type[Effect]] = {e.name: e for e in (
     TorqueRipple, LinkageDynamics, PositionFriction, Stribeck, ThermalDrift, NeedlePenetration,
-    BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating)}
+    BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating, GearLoadFriction)}
 
 
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:
-    """The candidate effects (all, or those named) built for the described drive."""
-    return {name: EFFECTS[name](nominal) for name in (names or EFFECTS)}
+    """The candidate effects (all that apply to the described drive, or those named) built for it."""
+    if names:
+        return {name: EFFECTS[name](nominal) for name in names}
+    return {name: e(nominal) for name, e in EFFECTS.items() if getattr(e, "applies", lambda n: True)(nominal)}
 
 
 def effect(name: str) -> type[Effect]:

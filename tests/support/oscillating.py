@@ -30,6 +30,8 @@ class Servo:
     inductance_H: float = 0.0
     supply_V: float = 6.0
     counts_per_rev: int = 4096
+    gear_driving: float = 0.0  # gearbox friction per unit motor torque, motor driving the load
+    gear_backdriving: float = 0.0  # ... load driving the motor back
 
     def nominal(self, **changes) -> DriveNominal:
         n = self.ratio
@@ -83,7 +85,9 @@ def record(servo: Servo, duration_s: float = 6.0, fs: float = 200.0, amplitude_r
                 current += sub * (u - r * current - ke * w) / servo.inductance_H
             else:
                 current = (u - ke * w) / r
-            torque = (k * current - servo.viscous_Nm_s * w - servo.coulomb_Nm * math.tanh(w / 0.02) - servo.offset_Nm
+            motor = k * current
+            friction = servo.coulomb_Nm + abs(motor) * (servo.gear_driving if motor * w >= 0 else servo.gear_backdriving)
+            torque = (motor - servo.viscous_Nm_s * w - friction * math.tanh(w / 0.02) - servo.offset_Nm
                       - servo.gravity_Nm * math.sin(theta))
             w += sub * torque / servo.inertia_kgm2
             theta += sub * w
