@@ -109,6 +109,8 @@ def test_gearbox_friction_that_follows_the_load_is_named_on_a_geared_servo(pendu
 
     servo = dataclasses.replace(PENDULUM_SERVO, gear_driving=driving, gear_backdriving=backdriving)
     result = diagnose(record(servo, seed=seed, fs=1000.0, duration_s=20.0, amplitude_rad=1.2), nominal=pendulum)
+    information = result.to_json()["identifiability"]
+    assert information["identifiable"] and min(information["independent_fraction"].values()) > 0.03
     if not driving:
         assert result.effect_names == []
         return

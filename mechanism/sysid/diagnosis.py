@@ -246,6 +246,7 @@ class Diagnosis:
     traces: "Traces | None" = field(default=None, repr=False)
     noise: NoiseFloor | None = None  # the recording's own noise floor
     unexplained: "Unexplained | None" = None  # set when the final residual is clearly above it
+    identifiability: object = None  # what the recording determines (mechanism.sysid.identifiability.Identifiability)
 
     @property
     def final(self) -> FitResult:
@@ -275,6 +276,7 @@ class Diagnosis:
         return {
             "recording": self.recording.source,
             "identifiable": True,
+            **({"identifiability": self.identifiability.to_json()} if self.identifiability is not None else {}),
             "baseline": {
                 "name": self.baseline_name,
                 "terms": base.structure.baseline.terms,
@@ -419,9 +421,11 @@ def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequenc
     error falls clearly (see the module docstring for the rule). ``nominal``: the described
     drive, from which every bound and starting value scales."""
     recording = at_fitting_rate(recording)
-    require_identifiable(recording, nominal)
+    information = require_identifiable(recording, nominal)
     with blas_single_threaded():
-        return _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers)
+        result = _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers)
+    result.identifiability = information
+    return result
 
 
 def _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers) -> Diagnosis:

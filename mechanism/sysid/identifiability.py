@@ -51,7 +51,7 @@ class Identifiability:
     def to_json(self) -> dict:
         return {"identifiable": self.identifiable, "reason": self.reason,
                 "independent_fraction": self.independent_fraction,
-                "relative_uncertainty_1sigma": self.relative_sd,
+                "relative_uncertainty_1sigma_fraction": self.relative_sd,
                 "rule": (f"a baseline parameter is determined when at least {MIN_INDEPENDENT_FRACTION:.0%} of its "
                          f"regressor column (w', w, sgn w, 1 over the moving samples) is independent of the others")}
 
