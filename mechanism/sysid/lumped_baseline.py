@@ -98,9 +98,8 @@ class LumpedBaseline:
         """The offset and the model's gravity torque at the measured angle (resisting; arm side), or None."""
         torque = None
         if self.gravity:
-            table = signals._cache.get("model_gravity_Nm")
-            if table is None:
-                table = signals._cache["model_gravity_Nm"] = self.nominal.linkage.at("gravity_torque_Nm", signals.drive_angle_rad)
+            linkage = self.nominal.linkage  # one table per model: baselines of two models may share the signals
+            table = signals.memo("model_gravity_Nm", id(linkage), lambda: linkage.at("gravity_torque_Nm", signals.drive_angle_rad))
             torque = values["gravity_scale"] * table
         if self.offset:
             torque = values["offset_torque_arm_Nm"] + (torque if torque is not None else np.zeros(len(signals)))
