@@ -29,3 +29,17 @@ MIN_LENT_MASS_KG = 1e-9  # the least mass lent to a massless moving body (MuJoCo
 JOINT_RANK_TOLERANCE = 1e-6  # relative singular value below which a joint's freedoms count as locked by loops
 MATE_RANK_TOLERANCE = 1e-4  # relative: exports print 6+ digits, genuine mate constraints give singular values >> this
 PIVOT_TOLERANCE = 1e-3  # singular value (of unit rotations) below which a pivot direction counts as free
+
+# -- identification: what a recording must carry, and what the model already knows (sysid) --
+MIN_INDEPENDENT_FRACTION = 0.03  # of a baseline regressor column's norm that the other columns cannot explain;
+#                                  below it the parameter is not determined (a variance inflation above ~1100)
+MOVING_SPEED_RAD_S = 0.1  # a sample moving at least this fast shows the sign of its friction (10x the velocity noise)
+MIN_MOVING_SAMPLES = 200  # fewer moving samples than this carry nothing of the drive's dynamics
+BOTH_WAYS_FRACTION = 0.05  # each direction holds this share of the moving samples: a constant offset torque
+#                            is then separable from Coulomb friction (one way only, they are the same torque)
+GRAVITY_SIGNIFICANT = 0.05  # rms gravity torque over the recording, relative to the rms drive torque, that the
+#                             lumped baseline must carry (below it, gravity is within the friction's uncertainty)
+CAD_GRAVITY_TOLERANCE = 0.10  # 1-sigma, relative: a CAD export's masses and centres of mass (gravity is a prior)
+CAD_INERTIA_TOLERANCE = 0.25  # 1-sigma, relative: the CAD's angle-dependent inertia (moving parts' masses)
+CAD_MEAN_INERTIA_TOLERANCE = 0.5  # 1-sigma, in log: a described machine's total inertia (parts the CAD lacks, rotor)
+PRIOR_BOUND_SIGMAS = 3.0  # a prior's hard bounds lie this many of its sigmas from the described value

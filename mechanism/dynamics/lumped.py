@@ -77,6 +77,12 @@ class DriveNominal:
     supply_V: float | None = None
     tool_in_fabric: bool = True  # the machine has a tool that works in fabric (a needle-penetration load can exist)
     zero_meaning: str = "needle top"  # what shaft angle 0 is, for reports
+    # What the machine's model knows beyond the lumped numbers (None for a drive given by its
+    # lumped numbers alone): the linkage tables over a shaft turn (J(theta), J'(theta), the
+    # gravity torque G(theta), arm side; mechanism.kinematics.linkage.LinkageTables) and the
+    # described roles (shaft joint, zero site) that name the shaft in its MJCF.
+    linkage: object = field(default=None, compare=False, repr=False)
+    roles: tuple[str, str] | None = field(default=None, compare=False)
 
     def __post_init__(self):
         if isinstance(self.joint_ratios, dict):
@@ -123,7 +129,7 @@ class DriveNominal:
         from dataclasses import replace
 
         m = replace(self.motor, ratio=ratio or self.motor.ratio, **motor)
-        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia,
+        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia, linkage=None,
                        coulomb_shaft_Nm=self.coulomb_shaft_Nm * torque,
                        viscous_shaft_Nm_s_per_rad=self.viscous_shaft_Nm_s_per_rad * torque)
 

@@ -63,6 +63,7 @@ class Effect:
     sentence: str = ""
     feature: str = ""  # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
     generic: bool = False  # a fallback family that names no mechanism
+    physics: str = ""  # for a generic family: what physics could be behind it
 
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal
@@ -478,6 +479,14 @@ class VoltageNonlinearity(Effect):
                 "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
                 "while the coast-downs at 0 V already fit")
 
+    def recorded_levels(self, u: np.ndarray, default) -> tuple[float, float, float]:
+        """Three voltages the recording contains (its 5th, 50th and 95th percentiles of the
+        driven samples): the evidence quotes the supply only where it was seen."""
+        driven = u[np.abs(u) > self.U_RAMP]
+        if len(driven) < 10:
+            return default
+        return tuple(float(q) for q in np.percentile(driven, [5, 50, 95]))
+
     def applied(self, v, u):
         x = u / self.U_REF
         ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
@@ -489,6 +498,8 @@ class VoltageNonlinearity(Effect):
         drive.voltage_V = self.applied(v, drive.voltage_V)
 
     def summary(self, v, s=None, levels=(5.0, 12.0, 20.0)):
+        if s is not None:
+            levels = self.recorded_levels(s.voltage_V, levels)
         lo, mid, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
         return {"lo": lo, "mid": mid, "hi": hi, "ulo": levels[0], "umid": levels[1], "uhi": levels[2]}
 
@@ -532,6 +543,13 @@ class SensorDelay(Effect):
         # a model without the delay has pushed the winding lag L/R up to mimic it: start the
         # delay's fits with the lag back at a small motor's (the fit frees it again)
         return [{"sensor_delay_s": d, "electrical_time_constant_s": 5e-4} for d in (1e-3, 3e-3, 7e-3, 15e-3)]
+
+    def starts_from(self, values):
+        """The lag the model without the delay fitted is mostly the delay: move it over."""
+        lag = values.get("electrical_time_constant_s", 0.0)
+        if lag > 1e-3:
+            return [{"sensor_delay_s": min(lag - 5e-4, 0.05), "electrical_time_constant_s": 5e-4}]
+        return []
 
     def measure(self, v, s, angle):
         shift = v["sensor_delay_s"] / s.dt
@@ -595,16 +613,57 @@ class WindingHeating(Effect):
         return {"end_pct": 100 * v["winding_resistance_rise_fraction"] * end, "tau": v["winding_time_constant_s"]}
 
 
+class GearLoadFriction(Effect):
+    """Friction of a geared drive that grows with the torque its teeth carry (a gearbox's
+    efficiency below one), and differently when the motor drives the load than when the load
+    drives the motor back (Duclusaud et al., "Extended friction models for the physics
+    simulation of servo actuators", arXiv:2410.08650: load-dependent and directional models).
+    The transmitted torque is the motor's, g U - c_emf w at the logged voltage and the measured
+    speed."""
+
+    name = "gear_load_friction"
+    meaning = ("gearbox friction proportional to the torque the teeth carry: a share of the motor torque when the motor "
+               "drives the load, another share when the load drives the motor back (a gearbox's efficiency, "
+               "direction-dependent)")
+    enters = "friction"
+    linear = "all"
+    feature = "steady"
+    MIN_REDUCTION = 20.0  # a gearbox: a belt (8:1) or a direct drive has no tooth friction growing with the load
+    sentence = ("gearbox friction of {drive_pct:.2g} % of the motor torque while the motor drives and {back_pct:.2g} % while "
+                "the load drives it back (efficiencies {eta_drive:.2g} and {eta_back:.2g}) explains the error that follows "
+                "the transmitted torque")
+
+    @classmethod
+    def applies(cls, nominal: DriveNominal) -> bool:
+        return nominal.ratio >= cls.MIN_REDUCTION
+
+    def make_parameters(self, nominal):
+        return (Parameter("gear_friction_driving_fraction", 0.0, 0.0, 0.8, "friction per unit motor torque, motor driving", scale=0.1),
+                Parameter("gear_friction_backdriving_fraction", 0.0, 0.0, 0.8, "friction per unit motor torque, load driving",
+                          scale=0.1))
+
+    def apply(self, v, s, drive):
+        m = self.nominal.motor
+        w = s.velocity_rad_s
+        torque = m.gain_arm * drive.voltage_V - m.emf_damping_arm * w
+        share = np.where(torque * w >= 0, v["gear_friction_driving_fraction"], v["gear_friction_backdriving_fraction"])
+        drive.coulomb_Nm = drive.coulomb_Nm + share * np.abs(torque)
+
+    def summary(self, v, s=None):
+        a, b = v["gear_friction_driving_fraction"], v["gear_friction_backdriving_fraction"]
+        return {"drive_pct": 100 * a, "back_pct": 100 * b, "eta_drive": 1 - a, "eta_back": 1 / (1 + b)}
+
+
 EFFECTS: dict[str, type[Effect]] = {e.name: e for e in (
     TorqueRipple, LinkageDynamics, PositionFriction, Stribeck, ThermalDrift, NeedlePenetration,
-    BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating)}
+    BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating, GearLoadFriction)}
 
 
 NEEDS_FABRIC = ("needle_penetration",)  # offered only where the machine has a tool working in fabric
 
 
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:
-    """The candidate effects (all the machine can have, or those named) built for the described drive."""
+    """The candidate effects (all that apply to the described drive, or those named) built for it."""
     from mechanism.errors import UserError
 
     if names:
@@ -613,7 +672,8 @@ def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[s
             raise UserError(f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
                             "and piercing_force_per_layer_N)")
         return {name: EFFECTS[name](nominal) for name in names}
-    return {name: EFFECTS[name](nominal) for name in EFFECTS if nominal.tool_in_fabric or name not in NEEDS_FABRIC}
+    return {name: e(nominal) for name, e in EFFECTS.items()
+            if (nominal.tool_in_fabric or name not in NEEDS_FABRIC) and getattr(e, "applies", lambda n: True)(nominal)}
 
 
 def effect(name: str) -> type[Effect]:

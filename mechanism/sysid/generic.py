@@ -25,6 +25,8 @@ from mechanism.sysid.residual import Signature
 class GenericShaftTorque(Effect):
     name = "generic_shaft_torque"
     generic = True
+    physics = ("an unbalanced or eccentric part on that shaft, a cam or a mechanism it drives, a damaged gear tooth or "
+               "bearing race: a torque that repeats with the shaft's angle")
     enters = "torque"
     linear = "all"
     feature = "residual"
@@ -62,6 +64,8 @@ class GenericShaftTorque(Effect):
 class GenericSpeedFriction(Effect):
     name = "generic_speed_friction"
     generic = True
+    physics = ("a friction of another speed dependence than the library's: a lubricant film (a Stribeck curve of another "
+               "shape), a fan, pump or air drag growing with speed, eddy-current drag, a seal")
     enters = "friction"
     linear = "all"
     feature = "residual"
@@ -100,6 +104,8 @@ class GenericSpeedFriction(Effect):
 class GenericChange(Effect):
     name = "generic_change"
     generic = True
+    physics = ("something that changed at one instant: a supply dropout or a current limit engaging, a belt or clutch "
+               "starting to slip, a part working loose, a load added or removed")
     enters = "voltage"
     linear = ("coulomb_change_fraction", "viscous_change_fraction", "gain_change_fraction")
     feature = "residual"
@@ -154,6 +160,6 @@ def evidence(effect: Effect, values: dict, description: str, before: float, afte
     gain = 100 * (1 - after / before) if before > 0 else 0.0
     what = effect.words(values)
     return (f"Not in the library: {description}; {what} cuts the validation velocity error from {before:.3g} to "
-            f"{after:.3g} rad/s ({gain:.0f}% lower). It names no mechanism.")
+            f"{after:.3g} rad/s ({gain:.0f}% lower). It names no mechanism; possible physics: {effect.physics}.")
 
 

@@ -36,8 +36,9 @@ from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Segments, Signals, make_segments, simulate
 from mechanism.sysid.lumped_baseline import LumpedBaseline
-from mechanism.sysid.parameters import Parameter, internal_bounds, internal_derivative, internal_vector, values_from_internal
-from mechanism.sysid.recording import Recording, at_fitting_rate, check_excitation, smoothed_velocity, velocity_coefficients
+from mechanism.sysid.parameters import (Parameter, internal_bounds, internal_derivative, internal_vector, prior_weights,
+                                        values_from_internal)
+from mechanism.sysid.recording import Recording, at_fitting_rate, smoothed_velocity, velocity_coefficients
 
 REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
@@ -231,11 +232,13 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
     fixed.update(starts[0] if starts else {})
     lo, hi = internal_bounds(params)
     n_eval = 0
+    prior_index, prior_centre, prior_sd = prior_weights(params)
+    prior_weight = 0.0  # set from the residual at the first start (below)
 
     def values_of(x):
         return {**fixed, **values_from_internal(params, x)}
 
-    def fun(x):
+    def data_residual(x):
         nonlocal n_eval
         n_eval += 1
         if progress is not None:
@@ -244,6 +247,20 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
         # where the warnings filters are one list for the whole process and fits run on threads
         with np.errstate(all="ignore"):
             return problem.residual(structure, values_of(x), part)
+
+    def fun(x):
+        r = data_residual(x)
+        if not prior_index.size:
+            return r
+        return np.concatenate([r, prior_weight * (x[prior_index] - prior_centre) / prior_sd])
+
+    if prior_index.size:
+        # a prior row weighs as sigma sqrt(correlation length) of the data residual (MAP with
+        # the residual's own scale, as the uncertainties below): the model's knowledge counts as
+        # much as one independent stretch of data disagreeing by its stated tolerance
+        x0 = np.clip(internal_vector(params, starts[0] if starts else {}), lo, hi)
+        r0 = data_residual(x0)
+        prior_weight = float(np.sqrt(np.mean(r0 * r0) * correlation_length(r0)))
 
     def run(x0, nfev):
         x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
@@ -263,20 +280,23 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
         x_start = candidates[0]
     result = min([run(x_start, max_nfev), *scouts], key=lambda r: r.cost)  # never worse than a start
     values = values_of(result.x)
-    r_fit = result.fun if part == "fit" else problem.residual(structure, values, "fit")
+    n_data = len(result.fun) - prior_index.size
+    r_fit = result.fun[:n_data] if part == "fit" else problem.residual(structure, values, "fit")
     rmse_fit = float(np.sqrt(np.mean(r_fit**2)))
     rmse_val = problem.rmse(structure, values, "val")
     unc = {p.name: math.nan for p in every}
-    unc.update(_uncertainties(params, result, result.fun))
+    unc.update(_uncertainties(params, result, result.fun[:n_data]))
     return FitResult(structure, values, unc, rmse_fit, rmse_val, n_eval, bool(result.success), str(result.message))
 
 
 def _uncertainties(params: Sequence[Parameter], result, r: np.ndarray) -> dict[str, float]:
     jac = np.asarray(result.jac, dtype=float)
-    n, p = jac.shape
+    n, p = len(r), jac.shape[1]
     if n <= p:
         return {q.name: math.inf for q in params}
     s2 = float(r @ r) / (n - p) * correlation_length(r)
+    # prior rows (after the data's) are weighted by the data residual's own scale, so the whole
+    # Jacobian gives the posterior covariance
     with np.errstate(all="ignore"):
         cov = s2 * np.linalg.pinv(jac.T @ jac)
     sd_internal = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -352,26 +372,59 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
     return best, best_cost
 
 
-def baseline_model(nominal: DriveNominal, baseline: str = "lumped", free: Sequence[str] = (), model_path=None):
-    """The baseline model object by name: ``lumped`` or ``multibody`` (the reduced CAD
-    model at ``model_path``, default the shipped sewing machine), around the described drive."""
+def baseline_model(nominal: DriveNominal, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
+                   recording: Recording | None = None):
+    """The baseline model object by name: ``lumped`` or ``multibody`` (the reduced model of
+    the machine of ``nominal``, or of the MJCF at ``model_path``), around the described drive.
+    With ``recording``, the terms every machine of the kind may need are chosen from it (see
+    :func:`baseline_terms`)."""
     free = tuple(free)
     unknown = [f for f in free if f not in ("R", "Kt", "Ke")]
     if unknown:
         raise UserError(f"--free: unknown motor constant(s) {', '.join(unknown)}; choose from R, Kt, Ke")
+    offset, gravity, notes = baseline_terms(nominal, recording) if recording is not None else (False, False, ())
     if baseline == "lumped":
-        return LumpedBaseline(nominal, free)
+        return LumpedBaseline(nominal, free, offset=offset, gravity=gravity, notes=notes)
     if baseline == "multibody":
         from mechanism.sysid.multibody_baseline import MultibodyBaseline
 
-        return MultibodyBaseline(nominal, free, model_path)
+        return MultibodyBaseline(nominal, free, model_path, offset=offset, notes=notes)
     raise UserError(f"unknown baseline {baseline!r}; choose lumped or multibody")
+
+
+def baseline_terms(nominal: DriveNominal, rec: Recording) -> tuple[bool, bool, tuple[str, ...]]:
+    """Whether the baseline carries a constant offset torque and the model's gravity torque
+    for this recording, and why in words.
+
+    - offset: when the shaft turns both ways (one way only, a constant torque is the Coulomb level);
+    - gravity: when the machine's model has a gravity torque whose rms over the recorded angles
+      is at least :data:`~mechanism.tolerances.GRAVITY_SIGNIFICANT` of the rms drive torque."""
+    from mechanism.sysid.identifiability import turns_both_ways
+    from mechanism.tolerances import GRAVITY_SIGNIFICANT
+
+    notes = []
+    offset = turns_both_ways(rec.velocity_rad_s)
+    notes.append("a constant offset torque is fitted: the shaft turns both ways, so it is separable from Coulomb friction"
+                 if offset else "no constant offset torque: the shaft turns one way, where a constant torque is the Coulomb level")
+    gravity = False
+    if nominal.linkage is not None:
+        g = nominal.linkage.at("gravity_torque_Nm", rec.arm_angle_rad)
+        drive = nominal.motor.gain_arm * rec.voltage_V
+        ratio = float(np.sqrt(np.mean(g * g)) / max(np.sqrt(np.mean(drive * drive)), 1e-12))
+        gravity = ratio >= GRAVITY_SIGNIFICANT
+        notes.append(f"the model's gravity torque G(theta) is carried (a prior, scale 1 within the CAD's tolerance): its rms "
+                     f"over the recorded angles is {100 * ratio:.3g} % of the rms drive torque"
+                     if gravity else f"the model's gravity torque is left out: its rms over the recorded angles is "
+                                     f"{100 * ratio:.2g} % of the rms drive torque")
+    else:
+        notes.append("no gravity torque: the drive is described by its lumped numbers alone (no machine model)")
+    return offset, gravity, tuple(notes)
 
 
 def fit_baseline(problem: Problem, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
                  progress: Callable[[], None] | None = None) -> FitResult:
     """The baseline fitted from its equation-error start (and from the nominal values)."""
-    model = baseline_model(problem.nominal, baseline, free, model_path)
+    model = baseline_model(problem.nominal, baseline, free, model_path, problem.recording)
     start = initial_baseline_values(problem, model)
     return fit(problem, ModelStructure(model), [start, {p.name: p.nominal for p in model.parameters}], progress=progress)
 
@@ -400,14 +453,20 @@ def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
     moving = np.abs(w) > 1.0
     if moving.sum() < 200:
         return values
+    offset = "offset_torque_arm_Nm" in values
+    if offset:
+        values["offset_torque_arm_Nm"] = 0.0
     drive = baseline.drive(values, s)
-    y = motor.gain_arm * drive.voltage_V - motor.emf_damping_arm * w
-    X = np.column_stack([acc, w, np.sign(w)])[moving]
+    # the model's known torques (gravity at its nominal scale) stay on the measured side
+    y = motor.gain_arm * drive.voltage_V - motor.emf_damping_arm * w - drive.tau_arm_Nm
+    X = np.column_stack([acc, w, np.sign(w), *([np.ones(len(w))] if offset else [])])[moving]
     try:
         coef, *_ = np.linalg.lstsq(X, y[moving], rcond=None)
     except np.linalg.LinAlgError:
         return values
-    j_arm, c_arm, fc = coef
+    j_arm, c_arm, fc = coef[:3]
+    if offset:
+        values["offset_torque_arm_Nm"] = float(coef[3])
     by_name = {q.name: q for q in baseline.parameters}
     ke = by_name.get("motor_back_emf_V_s_per_rad")
     if ke is not None and c_arm < 0:
@@ -416,7 +475,10 @@ def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
         k = ke.nominal + (c_arm - keep) * motor.resistance_ohm / (n * n * motor.torque_constant_Nm_per_A)
         values[ke.name] = float(min(max(k, ke.lower), ke.upper))
         c_arm = keep
-    for p, value in (("inertia_motor_side_kgm2", j_arm / n**2), ("viscous_motor_side_Nm_s_per_rad", c_arm / n**2),
+    if "inertia_correction_motor_side_kgm2" in by_name:  # the multibody baseline: a correction to the model's mean
+        j_arm = j_arm - baseline.tables.mean_inertia_kgm2
+    for p, value in (("inertia_motor_side_kgm2", j_arm / n**2), ("inertia_correction_motor_side_kgm2", j_arm / n**2),
+                     ("viscous_motor_side_Nm_s_per_rad", c_arm / n**2),
                      ("coulomb_arm_Nm", fc)):
         par = by_name.get(p)
         if par is not None and np.isfinite(value) and par.lower < value < par.upper:
@@ -455,6 +517,7 @@ class IdentificationResult:
         return {
             "recording": self.recording.source,
             "baseline": self.baseline,
+            "baseline_terms": self.fit.structure.baseline.terms,
             "params": self.fit.values,
             "uncertainty_1sigma": self.fit.uncertainties,
             "rmse": self.fit.rmse_val,
@@ -474,10 +537,15 @@ def blas_single_threaded():
     return threadpool_limits(1, "blas")
 
 
-def require_identifiable(rec: Recording) -> None:
-    ex = check_excitation(rec)
-    if not ex.identifiable:
-        raise NotIdentifiable(ex.reason)
+def require_identifiable(rec: Recording, nominal: DriveNominal):
+    """The recording's information on the baseline's parameters (refused, naming the
+    parameter and why, when one is not determined; :mod:`mechanism.sysid.identifiability`)."""
+    from mechanism.sysid.identifiability import check_information
+
+    info = check_information(rec, nominal)
+    if not info.identifiable:
+        raise NotIdentifiable(info.reason)
+    return info
 
 
 class NotIdentifiable(UserError):
@@ -490,7 +558,7 @@ def identify(recording: Recording, baseline: str = "lumped", free: Sequence[str]
     ``free``) by simulation-error minimisation; rmse on the validation segments. ``nominal``:
     the described drive (starting values and bounds scale from it)."""
     recording = at_fitting_rate(recording)
-    require_identifiable(recording)
+    require_identifiable(recording, nominal)
     with blas_single_threaded():
         problem = Problem(recording, nominal)
         result = fit_baseline(problem, baseline, free, model_path, progress)

@@ -3,8 +3,11 @@ with typed parameters (starting values and bounds from the described drive)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Signals, lagged_voltage
 from mechanism.sysid.parameters import Parameter
+from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_MEAN_INERTIA_TOLERANCE, PRIOR_BOUND_SIGMAS
 
 
 MOTOR_PARAMETER_NAMES = {
@@ -48,13 +51,23 @@ class LumpedBaseline:
     VISCOUS_UPPER = 200 / 11
     COULOMB_UPPER = 100 / 9
 
-    def __init__(self, nominal: DriveNominal, free: tuple[str, ...] = ()):
+    def __init__(self, nominal: DriveNominal, free: tuple[str, ...] = (), *, offset: bool = False,
+                 gravity: bool = False, notes: tuple[str, ...] = ()):
+        """``offset``: a constant torque on the shaft (a positioning axis's cable or spring, an
+        unbalance) is fitted; it needs a shaft that turns both ways (one way only, it is the
+        Coulomb level). ``gravity``: the model's gravity torque G(theta) acts on the shaft,
+        scaled by a factor with the CAD's stated tolerance as its prior (never free to vanish).
+        ``notes``: why the terms were chosen, for the JSON."""
         self.nominal = nominal
+        self.offset, self.gravity = offset, gravity
+        self.notes = tuple(notes)
         j, d, fc = nominal.inertia_motor_side_kgm2, nominal.viscous_motor_side, nominal.torque_scale_Nm
         lo, hi = self.INERTIA_RANGE
+        described = nominal.linkage is not None  # the inertia is the model's: a prior, not a free factor
         self.parameters = (
             Parameter("inertia_motor_side_kgm2", j, lo * j, hi * j,
-                      f"total inertia seen by the motor (described {j:.3g})", log=True),
+                      f"total inertia seen by the motor (described {j:.3g})", log=True,
+                      prior_sd=CAD_MEAN_INERTIA_TOLERANCE if described else 0.0),
             Parameter("viscous_motor_side_Nm_s_per_rad", d, 0.0, self.VISCOUS_UPPER * d,
                       f"viscous friction on the motor side (described {d:.3g})", scale=10 / 11 * d),
             Parameter("coulomb_arm_Nm", fc, 0.0, self.COULOMB_UPPER * fc,
@@ -63,7 +76,34 @@ class LumpedBaseline:
                       "winding inductance over resistance, L/R (neglected in the thesis)", log=True),
             *motor_parameters(nominal.motor, free),
         )
+        if offset:
+            self.parameters += (Parameter("offset_torque_arm_Nm", 0.0, -self.COULOMB_UPPER * fc, self.COULOMB_UPPER * fc,
+                                          "constant torque on the described shaft, resisting forward motion (a cable, a "
+                                          "spring preload, an unbalance, a current sensor's offset)", scale=fc),)
+            self.linear = (*self.linear, "offset_torque_arm_Nm")
+        if gravity:
+            sd = CAD_GRAVITY_TOLERANCE
+            self.parameters += (Parameter("gravity_scale", 1.0, max(1.0 - PRIOR_BOUND_SIGMAS * sd, 0.1),
+                                          1.0 + PRIOR_BOUND_SIGMAS * sd,
+                                          f"factor on the model's gravity torque G(theta) (prior 1 +/- {sd:.0%}: the CAD's "
+                                          f"masses and centres of mass)", scale=1.0, prior_sd=sd),)
         self.free = tuple(free)
+
+    @property
+    def terms(self) -> dict:
+        """Which terms this baseline carries and why (for the JSON)."""
+        return {"constant_offset_torque": self.offset, "model_gravity_torque": self.gravity, "why": list(self.notes)}
+
+    def shaft_torque(self, values: dict[str, float], signals: Signals):
+        """The offset and the model's gravity torque at the measured angle (resisting; arm side), or None."""
+        torque = None
+        if self.gravity:
+            linkage = self.nominal.linkage  # one table per model: baselines of two models may share the signals
+            table = signals.memo("model_gravity_Nm", id(linkage), lambda: linkage.at("gravity_torque_Nm", signals.drive_angle_rad))
+            torque = values["gravity_scale"] * table
+        if self.offset:
+            torque = values["offset_torque_arm_Nm"] + (torque if torque is not None else np.zeros(len(signals)))
+        return torque
 
     def motor(self, values: dict[str, float]) -> MotorConstants:
         base = self.nominal.motor
@@ -72,8 +112,12 @@ class LumpedBaseline:
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         n = signals.ratio
-        return Drive.constant(signals, signals.voltage_V, values["inertia_motor_side_kgm2"] * n**2,
-                              values["viscous_motor_side_Nm_s_per_rad"] * n**2, values["coulomb_arm_Nm"])
+        drive = Drive.constant(signals, signals.voltage_V, values["inertia_motor_side_kgm2"] * n**2,
+                               values["viscous_motor_side_Nm_s_per_rad"] * n**2, values["coulomb_arm_Nm"])
+        torque = self.shaft_torque(values, signals)
+        if torque is not None:
+            drive.tau_arm_Nm = torque  # a fresh array: effects add to it in place
+        return drive
 
     def finish(self, values: dict[str, float], signals: Signals, drive: Drive) -> None:
         """After the effects: the winding lag acts on the voltage the motor finally sees."""

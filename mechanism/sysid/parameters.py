@@ -24,6 +24,10 @@ class Parameter:
     meaning: str = ""
     scale: float = 0.0  # typical magnitude; 0 = from the bounds
     log: bool = False  # fit log(value) (needs lower > 0)
+    # A prior (what the model already knows, with its stated tolerance): 1-sigma of the value
+    # around ``nominal`` (of log(value) for a log parameter); 0 = none. The fit is regularised
+    # towards the nominal (mechanism.sysid.identification.fit).
+    prior_sd: float = 0.0
 
     def __post_init__(self):
         if not self.lower <= self.nominal <= self.upper:
@@ -64,6 +68,14 @@ def internal_bounds(params: Sequence[Parameter]) -> tuple[np.ndarray, np.ndarray
 
 def values_from_internal(params: Sequence[Parameter], x: np.ndarray) -> dict[str, float]:
     return {p.name: p.from_internal(float(v)) for p, v in zip(params, x)}
+
+
+def prior_weights(params: Sequence[Parameter]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Indices, internal nominal values and internal 1-sigmas of the parameters with a prior."""
+    index = [i for i, p in enumerate(params) if p.prior_sd > 0]
+    centre = np.array([params[i].to_internal(params[i].nominal) for i in index], dtype=float)
+    sd = np.array([params[i].prior_sd if params[i].log else params[i].prior_sd / params[i].typical for i in index], dtype=float)
+    return np.array(index, dtype=int), centre, sd
 
 
 def internal_derivative(params: Sequence[Parameter], x: np.ndarray) -> np.ndarray:

@@ -1,0 +1,73 @@
+"""Diagnosis speed on 60 s recordings at 1 kHz (issue 23's goal: at most 3 s median on two
+cores, a four-effect recording in at most 10 s).
+
+    python -m bench bench_diagnosis_speed
+    MECHANISM_BENCH_SEEDS=0,1 python -m bench bench_diagnosis_speed
+
+Every time is also given as a multiple of a reference run in the same process: one
+simulation of the fitted baseline over every segment of the same recording (the machines
+are shared and their speed varies from minute to minute; the ratio is what compares across
+runs).
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+SINGLES = ("none", "torque_ripple", "stribeck", "thermal_drift", "sensor_delay")
+FOUR = "torque_ripple,position_friction,thermal_drift,encoder_eccentricity"
+
+
+def main() -> None:
+    from mechanism.api import drive_nominal
+    from mechanism.sysid.diagnosis import diagnose
+    from mechanism.sysid.identification import ModelStructure, Problem, identify
+    from mechanism.sysid.recording import read_recording
+    from mechanism.testbench import make_recording, write_recording
+
+    nominal = drive_nominal(None)
+    seeds = [int(s) for s in os.environ.get("MECHANISM_BENCH_SEEDS", "0").split(",")]
+    folder = Path(tempfile.mkdtemp(prefix="bench-diagnosis-speed-"))
+
+    def recording(effects: str, seed: int):
+        path = folder / f"{effects.replace(',', '+')}_{seed}.csv"
+        write_recording(make_recording(effects, seed=seed, duration_s=60.0, nominal=nominal), path)
+        return read_recording(path)
+
+    def reference(rec) -> float:
+        ident = identify(rec, nominal=nominal)
+        problem = Problem(rec, nominal)
+        structure = ModelStructure(ident.fit.structure.baseline)
+        times = []
+        for _ in range(20):
+            start = time.perf_counter()
+            problem.simulate(structure, ident.params, "all")
+            times.append(time.perf_counter() - start)
+        return statistics.median(times)
+
+    def timed(rec) -> tuple[float, list[str]]:
+        start = time.perf_counter()
+        result = diagnose(rec, nominal=nominal)
+        return time.perf_counter() - start, result.effect_names
+
+    print(f"60 s recordings at 1 kHz, {os.cpu_count()} CPU(s); reference = one baseline simulation of all segments")
+    singles, ratios = [], []
+    for seed in seeds:
+        for effects in SINGLES:
+            rec = recording(effects, seed)
+            ref = reference(rec)
+            seconds, names = timed(rec)
+            singles.append(seconds)
+            ratios.append(seconds / ref)
+            print(f"  {effects:<16} seed {seed}: {seconds:6.2f} s = {seconds / ref:7.0f} x reference ({ref * 1e3:.2f} ms); "
+                  f"found {', '.join(names) or 'nothing'}")
+    print(f"median over {len(singles)} recordings: {statistics.median(singles):.2f} s "
+          f"({statistics.median(ratios):.0f} x reference; goal 3 s)")
+    rec = recording(FOUR, seeds[0])
+    ref = reference(rec)
+    seconds, names = timed(rec)
+    print(f"four effects ({FOUR}): {seconds:.2f} s = {seconds / ref:.0f} x reference; found {', '.join(names)} (goal 10 s)")
