@@ -40,6 +40,21 @@ WORDS = {
 }
 
 
+
+def correlation_length(r: np.ndarray, max_lag: int = 2000) -> float:
+    """Integral correlation length [samples] of a residual (>= 1)."""
+    r = r - r.mean()
+    n = len(r)
+    if n < 8 or not np.any(r):
+        return 1.0
+    spec = np.fft.rfft(r, 2 * n)
+    acf = np.fft.irfft(spec * np.conj(spec))[: min(max_lag, n)]
+    acf = acf / acf[0]
+    first_negative = np.flatnonzero(acf < 0)
+    cut = first_negative[0] if first_negative.size else len(acf)
+    return float(max(1.0, 1.0 + 2.0 * acf[1:cut].sum()))
+
+
 @dataclass
 class Identifiability:
     identifiable: bool
@@ -105,7 +120,6 @@ def check_information(rec: Recording, nominal: DriveNominal, gravity_Nm: np.ndar
     if np.all(norms > 0):
         coef, *_ = np.linalg.lstsq(X, y[moving], rcond=None)
         r = y[moving] - X @ coef
-        from mechanism.sysid.identification import correlation_length
 
         s2 = float(r @ r) / max(len(r) - len(names), 1) * correlation_length(r)
         with np.errstate(all="ignore"):

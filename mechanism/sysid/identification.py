@@ -32,6 +32,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
+from mechanism.sysid.identifiability import correlation_length
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Segments, Signals, make_segments, simulate
@@ -201,20 +202,6 @@ class FitResult:
     @property
     def effect_names(self) -> list[str]:
         return self.structure.names
-
-
-def correlation_length(r: np.ndarray, max_lag: int = 2000) -> float:
-    """Integral correlation length [samples] of a residual (>= 1)."""
-    r = r - r.mean()
-    n = len(r)
-    if n < 8 or not np.any(r):
-        return 1.0
-    spec = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(spec * np.conj(spec))[: min(max_lag, n)]
-    acf = acf / acf[0]
-    first_negative = np.flatnonzero(acf < 0)
-    cut = first_negative[0] if first_negative.size else len(acf)
-    return float(max(1.0, 1.0 + 2.0 * acf[1:cut].sum()))
 
 
 def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, float]],

@@ -175,7 +175,7 @@ def _order_amplitudes(r, phase, speed, ratio, dt, max_order=MAX_ORDER):
 
 
 def _correlation_length(r: np.ndarray) -> float:
-    from mechanism.sysid.identification import correlation_length
+    from mechanism.sysid.identifiability import correlation_length
 
     return correlation_length(r[: min(len(r), 200000)])
 
