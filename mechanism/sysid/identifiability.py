@@ -64,9 +64,13 @@ class Identifiability:
     turns_both_ways: bool
 
     def to_json(self) -> dict:
+        # screening statistics: 4 digits say all they can, and the same on any BLAS or thread count
+        def shown(values: dict) -> dict:
+            return {name: float(f"{value:.4g}") for name, value in values.items()}
+
         return {"identifiable": self.identifiable, "reason": self.reason,
-                "independent_fraction": self.independent_fraction,
-                "relative_uncertainty_1sigma_fraction": self.relative_sd,
+                "independent_fraction": shown(self.independent_fraction),
+                "relative_uncertainty_1sigma_fraction": shown(self.relative_sd),
                 "rule": (f"a baseline parameter is determined when at least {MIN_INDEPENDENT_FRACTION:.0%} of its "
                          f"regressor column (w', w, sgn w, 1 over the moving samples) is independent of the others")}
 
