@@ -89,6 +89,7 @@ def test_bad_options_and_missing_ray(monkeypatch, capsys):
     assert capsys.readouterr().err == ""  # no bar was started
 
 
+@pytest.mark.slow
 def test_ray_missing_on_the_command_line_is_one_error_line(cli, tmp_path):
     """A `ray` package that cannot be imported (first on the path) stands for Ray not installed."""
     (tmp_path / "ray").mkdir()

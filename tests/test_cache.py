@@ -115,6 +115,7 @@ def test_the_cache_is_bounded_and_drops_the_least_recently_used_first(own_cache,
     assert cache.info().bytes <= 2**20
 
 
+@pytest.mark.slow
 def test_cache_clear_empties_the_cache_in_one_line(own_cache, cli, tmp_path):
     make_entry(own_cache, "one", 1000, 10)
     (own_cache / "native").mkdir()

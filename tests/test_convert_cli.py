@@ -75,6 +75,7 @@ BAD_INPUTS = {
 BAD_OPTIONS = {"up axis": (["--up", "w"], "up axis 'w' is not one of")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(BAD_INPUTS))
 def test_bad_input_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
     make, fragment = BAD_INPUTS[case]
@@ -88,6 +89,7 @@ def test_bad_input_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
     assert not (tmp_path / "out").exists(), "nothing is left behind"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(BAD_OPTIONS))
 def test_bad_option_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
     options, fragment = BAD_OPTIONS[case]
@@ -97,6 +99,7 @@ def test_bad_option_gives_one_error_line_and_writes_nothing(case, tmp_path, cli)
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_up_axis_sets_gravity_against_it(tmp_path, cli):
     """A Y-up CAD world (SolidWorks' default) falls along -y with --up y; the frame is kept."""
     import mujoco
@@ -151,6 +154,7 @@ def test_legs_cli_warns_that_meshes_are_missing(shared, tmp_path, cli):
     assert any(line.startswith("warning: ") and "geometry file(s) are missing" in line for line in result.stdout.splitlines())
 
 
+@pytest.mark.slow
 def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
     # Two shafts on a 8:1 belt: the arm feels I_arm + 64 I_motor (a hand calculation).
     from test_converter import _belt, _two_shafts
@@ -178,6 +182,7 @@ def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
     assert "degrees of freedom: 1" in result.stdout
 
 
+@pytest.mark.slow
 def test_explain_names_the_mates_behind_each_joint(tmp_path, cli):
     """``--explain``: per joint, the mates (by name) it was found from and what it became."""
     from quirk_exports import creo_ball_beam_rigid

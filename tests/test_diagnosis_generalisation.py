@@ -25,6 +25,7 @@ def thesis_machine(variant):
 
 # ----------------------------------------------------------------------------- the truth model itself
 
+@pytest.mark.slow
 @pytest.mark.parametrize("variant", ["event_long_L", "rk4_tanh"])
 def test_truth_steady_speed_matches_table2_cold(variant):
     """With the thesis's parameters both integrators reproduce Table 2's cold speeds (the

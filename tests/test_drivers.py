@@ -37,6 +37,7 @@ def test_a_named_driver_stays_a_joint(tmp_path):
         convert(export, tmp_path / "bad", drivers=("crank-coupler",))
 
 
+@pytest.mark.slow
 def test_a_bare_model_cycles_on_its_guessed_shaft_and_follows_freudenstein(tmp_path, cli):
     bar = FourBar()
     report = convert(bar.export(tmp_path), tmp_path / "out")

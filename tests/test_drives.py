@@ -68,6 +68,7 @@ def test_motor_tables_parse_with_the_first_as_the_main_motor(tmp_path):
     assert described.motors["spin_b"]["type"] == "current"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("motors, fragment", [
     ('[motor."spin_a"]\ntype = "servo"\nresistance_ohm = 4.0\ntorque_constant_Nm_per_A = 0.02\n'
      'back_emf_V_s_per_rad = 0.02\nkp_V_per_rad = 20.0\n', "supply_V: missing"),
@@ -82,6 +83,7 @@ def test_bad_motor_tables_are_one_error_line(tmp_path, cli, motors, fragment):
     assert fragment in line
 
 
+@pytest.mark.slow
 def test_a_servo_step_follows_its_loop_equation(tmp_path, cli):
     """Small step (no voltage limit): J q'' = Kt/R (kp (g - q) - (kd + Ke) q'), a damped second-order
     response with wn^2 = Kt kp / (R J) and 2 zeta wn = Kt (kd + Ke) / (R J)."""
@@ -126,6 +128,7 @@ def test_a_large_servo_step_is_limited_by_its_supply(tmp_path):
     assert np.max(np.abs(result.joints["spin_a_current_A"])) <= 6.0 / 4.0 + 1e-9
 
 
+@pytest.mark.slow
 def test_two_motors_each_take_their_own_input(tmp_path, cli):
     """A dc motor on one disk, a current drive on the other: the dc disk runs up towards its
     no-load speed V / Ke as 1 - exp(-t / tau), the current-driven one accelerates at Kt i / J."""
@@ -167,6 +170,7 @@ def test_two_motors_each_take_their_own_input(tmp_path, cli):
     assert "--current spin_b=" in wrong
 
 
+@pytest.mark.slow
 def test_probe_and_view_take_the_inputs_of_every_motor(tmp_path, cli):
     path = _machine(tmp_path, SERVO_A)
     probe = cli("probe", "--machine", path, "--part", "disk_a", "--quantity", "position", "--goal", "spin_a=0.3",

@@ -84,6 +84,7 @@ def test_speed_ripple_falls_with_speed_as_measured(bare):
         assert BDC_DEG <= where <= BDC_DEG + 90
 
 
+@pytest.mark.slow
 def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
     machine = Machine(None, MachineConfig(layers=12))
     plain = Machine(None, MachineConfig(layers=0))
@@ -106,6 +107,7 @@ def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
     assert entry <= worst <= BDC_DEG + 10  # after piercing starts, while the needle is going down
 
 
+@pytest.mark.slow
 def test_simulated_needle_height_is_the_needle_inspection_at_the_simulated_angle():
     from mechanism.inspection.needle import needle_motion
 
@@ -142,6 +144,7 @@ def test_reduced_model_matches_the_full_model_within_one_percent(bare):
     assert np.sqrt(np.mean(error**2)) / np.sqrt(np.mean(full.arm_velocity_rad_s**2)) < 0.01
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, fragment", [
     (["--voltage", "12", "--duration", "-1"], "duration must be positive"),
     (["--voltage", "31", "--duration", "1"], "outside 0-30 V"),
@@ -154,6 +157,7 @@ def test_bad_simulate_arguments_are_one_error_line(cli, tmp_path, args, fragment
     assert not (tmp_path / "out.csv").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text, fragment", [
     ("time_s,voltage_V\n0,3\n0.5,4\n0.5,5\n", "not strictly increasing"),
     ("time_s,voltage_V\n0,3\n1,abc\n", "not a number"),
@@ -167,6 +171,7 @@ def test_malformed_profiles_are_one_error_line(cli, tmp_path, text, fragment):
     assert fragment in line
 
 
+@pytest.mark.slow
 def test_simulate_writes_the_contract_columns_and_a_summary(cli, tmp_path):
     result = cli("simulate", "--duty", "50", "--duration", "2", "--csv", tmp_path / "run.csv", "--summary")
     assert result.returncode == 0, result.stderr
@@ -178,6 +183,7 @@ def test_simulate_writes_the_contract_columns_and_a_summary(cli, tmp_path):
     assert mean == pytest.approx(566, rel=0.05)  # 50 % duty is Table 2's 12.49 V row
 
 
+@pytest.mark.slow
 def test_the_voltage_bound_is_the_described_motors_rated_voltage(cli, tmp_path):
     """A 48 V motor runs at 40 V; above its rating the run is refused, naming the key."""
     from mechanism.machine.models import shipped_description

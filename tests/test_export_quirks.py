@@ -394,6 +394,7 @@ def test_sphere_tangent_mates_make_no_joint(built):
     assert report.joints_by_type == {"hinge": 1, "slide": 0, "ball": 0, "free": 0}
 
 
+@pytest.mark.slow
 def test_loose_mates_to_the_assembly_origin_make_no_joints_to_the_world(built):
     """Class 7: in a 270-instance assembly every roller's axis is also mated to the assembly's Top
     Plane, which leaves it four freedoms against the world: no joint from those (one warning), so

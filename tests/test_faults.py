@@ -258,6 +258,7 @@ def test_a_signal_at_any_write_of_a_run_keeps_the_old_outputs(tmp_path, capfd, f
 
 # ---------------------------------------------------------------- 3. concurrent runs on one output
 
+@pytest.mark.slow
 def test_a_lock_a_killed_run_left_does_not_block_the_next_run(tmp_path, cli):
     out = tmp_path / "out"
     old_outputs(out)
@@ -271,6 +272,7 @@ def test_a_lock_a_killed_run_left_does_not_block_the_next_run(tmp_path, cli):
     assert hidden(out) == []
 
 
+@pytest.mark.slow
 def test_an_output_another_live_run_holds_is_refused_with_one_line(tmp_path, cli):
     out = tmp_path / "out"
     before = old_outputs(out)
@@ -306,6 +308,7 @@ with transaction():
 """
 
 
+@pytest.mark.slow
 def test_two_runs_writing_the_same_outputs_at_once_leave_one_whole_result(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
@@ -336,6 +339,7 @@ def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path
 
 # ---------------------------------------------------------------- 6. memory
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, needs", [
     (["simulate", "--voltage", "12", "--duration", "600", "--rate", "10000"], "--duration x --rate"),
     (["convert", str(REPO / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml")], "converting sewing_machine.xml"),

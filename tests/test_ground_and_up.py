@@ -2,6 +2,7 @@
 fixes its heaviest part otherwise); ``init --up`` and the export's gravity vector set the up axis,
 and init says which it assumed and why."""
 
+import pytest
 import textwrap
 
 import numpy as np
@@ -35,6 +36,7 @@ def test_ground_fixes_the_named_part_of_an_export_that_grounds_nothing(tmp_path)
     assert _moving_bodies(chosen.mjcf_path) == {"block"}
 
 
+@pytest.mark.slow
 def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
     _ungrounded(tmp_path)
     description = tmp_path / "pendulum.toml"
@@ -67,6 +69,7 @@ def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
     assert "stroke: 120.000 mm" in result.stdout  # the tip 60 mm below the hinge turns a whole revolution
 
 
+@pytest.mark.slow
 def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli):
     from mechanism.machine.models import shipped_folder
 
@@ -90,6 +93,7 @@ def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli):
     assert "ground" in line and "RAM-1" in line
 
 
+@pytest.mark.slow
 def test_init_up_converts_a_y_up_export_and_says_why(tmp_path, cli):
     export = _ungrounded(tmp_path)
     draft = tmp_path / "draft.toml"

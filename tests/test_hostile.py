@@ -46,6 +46,7 @@ def profile(tmp_path):
 
 # -- 1. non-finite and impossible numbers ---------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, option", [
     (["simulate", "--voltage", "nan", "--reduced", "--duration", "0.1", "--summary"], "--voltage"),
     (["simulate", "--voltage", "12", "--duration", "0.1", "--inductance", "nan", "--summary"], "--inductance"),
@@ -67,6 +68,7 @@ def test_non_finite_and_impossible_numbers_are_refused_naming_the_option(cli, tm
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_description_with_a_non_finite_motor_number_is_refused(cli, tmp_path):
     from mechanism.machine.models import DEFAULT_DESCRIPTION
 
@@ -100,6 +102,7 @@ def test_a_rollout_that_blows_up_ends_with_the_time_and_the_likely_cause(tmp_pat
 
 # -- 2. outputs never overwrite inputs --------------------------------------------------------------
 
+@pytest.mark.slow
 def test_simulate_refuses_to_write_over_its_voltage_profile(cli, profile):
     before = profile.read_bytes()
     line = cli("simulate", "--profile", profile, "--reduced", "--csv", profile).assert_bad_input()
@@ -114,6 +117,7 @@ def test_identify_refuses_to_write_its_json_over_the_recording(cli, tmp_path):
     assert recording.read_bytes() == before
 
 
+@pytest.mark.slow
 def test_convert_refuses_to_write_the_model_over_its_export(cli, tmp_path):
     export = FourBar().export(tmp_path)
     before = snapshot(tmp_path)
@@ -121,6 +125,7 @@ def test_convert_refuses_to_write_the_model_over_its_export(cli, tmp_path):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.slow
 def test_a_report_folder_that_holds_the_recording_is_refused(cli, tmp_path):
     recording = tmp_path / "rec.csv"
     recording.write_text("time,voltage,arm_angle\n0,1,0\n1,1,1\n")
@@ -141,6 +146,7 @@ def test_testbench_keeps_the_previous_recording_when_the_truth_cannot_be_written
     assert recording.read_bytes() == good and no_temporaries(tmp_path)
 
 
+@pytest.mark.slow
 def test_a_folder_output_onto_a_regular_file_is_refused_and_the_file_kept(cli, tmp_path):
     target = tmp_path / "notes"
     target.write_text("my notes")
@@ -162,12 +168,14 @@ def test_convert_keeps_the_previous_conversion_when_the_new_one_cannot_be_publis
 
 # -- 4. a failed run leaves nothing of its own ---------------------------------------------------------
 
+@pytest.mark.slow
 def test_an_unknown_plot_format_fails_before_the_csv_is_written(cli, tmp_path):
     line = cli("simulate", "--voltage", "12", "--reduced", "--duration", "0.1", "--csv", tmp_path / "a.csv",
                "--plot", tmp_path / "a.bmp").assert_bad_input()
     assert ".bmp" in line and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_an_unwritable_json_path_leaves_no_csv(cli, tmp_path):
     (tmp_path / "taken.json").mkdir()
     cli("stepper", "--sequence", "thread-cut", "--csv", tmp_path / "a.csv", "--json", tmp_path / "taken.json").assert_bad_input()
@@ -293,6 +301,7 @@ def test_a_billion_variants_are_refused_before_any_is_built(tmp_path):
     assert "1000000001 variants requested, at most" in run.stdout, run.stderr[-500:]
 
 
+@pytest.mark.slow
 def test_a_long_run_at_a_high_rate_is_refused_before_allocating(cli, tmp_path):
     line = cli("simulate", "--voltage", "12", "--duration", "3600", "--rate", "100000", "--csv",
                tmp_path / "a.csv").assert_bad_input()
@@ -301,6 +310,7 @@ def test_a_long_run_at_a_high_rate_is_refused_before_allocating(cli, tmp_path):
 
 # -- 7. nothing stray on stderr -----------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_mechanism_debug_zero_is_off(cli, tmp_path):
     result = cli("simulate", "--voltage", "12", "--duration", "-1", "--summary", env={"MECHANISM_DEBUG": "0"})
     result.assert_bad_input()

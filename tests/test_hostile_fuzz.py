@@ -152,6 +152,7 @@ def toml_number(value: float) -> str:
     return repr(value)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(key=st.sampled_from(NUMBER_KEYS), value=hostile_floats)
 @example(key="back_emf_V_s_per_rad", value=1e-300)  # once a MuJoCo ValueError
@@ -206,6 +207,7 @@ def mutated_exports(draw, original: dict[str, bytes]):
     return files
 
 
+@pytest.mark.slow
 @FUZZ
 @given(data=st.data())
 def test_convert_holds_the_contract_on_any_damaged_export(tmp_path_factory, capfd, clean_export, data):

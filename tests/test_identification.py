@@ -121,6 +121,7 @@ def test_thesis_table2_friction_and_what_24V_says():
         assert 0.8 < col.supply_deficit_V < 2.0
 
 
+@pytest.mark.slow
 def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
     from pathlib import Path
 

@@ -27,6 +27,7 @@ def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_pat
     assert "shaft speed" in run.stdout
 
 
+@pytest.mark.slow
 def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
     export = shipped_folder("mjcf", "press") / "press.xml"
     copy = tmp_path / "press.xml"
@@ -35,6 +36,7 @@ def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
     assert "input" in line
 
 
+@pytest.mark.slow
 def test_init_keeps_a_description_the_user_edited_unless_forced(cli, tmp_path):
     export = shipped_folder("mjcf", "press") / "press.xml"
     out = tmp_path / "machine.toml"

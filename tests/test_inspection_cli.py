@@ -54,6 +54,7 @@ def test_clearance_single_model_and_variants(cli, model_file, tmp_path):
     assert float(rows["late hook"]["needle_vs_hook_min_mm"]) < 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -71,6 +72,7 @@ def test_bad_input_is_one_error_line(cli, model_file, tmp_path, args, message):
     assert not out.exists() and not (tmp_path / "v.html").exists()
 
 
+@pytest.mark.slow
 def test_malformed_variants_file_leaves_nothing(cli, model_file, tmp_path):
     variants = tmp_path / "v.json"
     variants.write_text('{"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [1, "two"]}}')

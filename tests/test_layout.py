@@ -6,6 +6,7 @@ import tomllib
 from pathlib import Path
 
 import networkx as nx
+import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE = REPO / "mechanism"
@@ -90,6 +91,7 @@ def test_imports_only_go_down():
     assert not wrong, "\n".join(wrong)
 
 
+@pytest.mark.slow
 def test_no_import_cycle():
     g = graph()
     # a package's __init__ exporting its own modules is how packages work, not a circle

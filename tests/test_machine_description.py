@@ -118,6 +118,7 @@ def test_shipped_steady_speed_measurements_are_the_thesis_table_2():
     assert list(zip(table["motor_voltage_V"], table["warm_s"], table["speed_rpm"])) == expected
 
 
+@pytest.mark.slow
 def test_a_renamed_reexport_with_its_shaft_flipped_and_zeroed_elsewhere_gives_the_same_machine(reexport, shipped_contract):
     renamed, shipped = mechanism.load_machine(reexport), mechanism.load_machine(shipped_contract)
     assert renamed.frame.direction == -1.0

@@ -20,6 +20,7 @@ def test_the_press_is_offered_no_fabric_penetration_and_folds_at_its_ratio():
     assert sewing.tool_in_fabric and "needle_penetration" in library(sewing)
 
 
+@pytest.mark.slow
 def test_report_traces_carry_the_machines_ratio_and_zero():
     import numpy as np
 

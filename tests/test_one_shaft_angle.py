@@ -87,6 +87,7 @@ def _answers(description, folder, cli):
     return answers
 
 
+@pytest.mark.slow
 def test_every_verb_reports_the_described_shaft_angle(presses, cli):
     shipped, reposed, folder = presses
     import mechanism

@@ -91,6 +91,7 @@ def test_a_limited_or_damped_passive_joint_is_not_warned_about(tmp_path):
     assert machine.model.jnt_limited[roll] and machine.model.jnt_range[roll] == pytest.approx([-0.09, 0.09])
 
 
+@pytest.mark.slow
 def test_a_ball_that_rolls_off_ends_the_run_naming_its_joint_and_time(tmp_path, cli):
     path = _arm(tmp_path)
     result = cli("simulate", "--machine", path, "--voltage", "0", "--duration", "4", "--summary")

@@ -105,6 +105,7 @@ def test_regenerating_the_export_and_the_mjcf_gives_the_committed_bytes(tmp_path
         assert (tmp_path / "meshes" / "press" / path.name).read_bytes() == path.read_bytes(), path.name
 
 
+@pytest.mark.slow
 def test_generator_rejects_a_bad_parameter_file_with_one_line(tmp_path):
     bad = json.loads(json.dumps(PARAMS))
     bad["rod"]["length"]["value"] = 0.5  # shorter than the crank radius

@@ -249,6 +249,7 @@ def test_bad_maps_are_one_line(tmp_path, text, fragment):
     assert fragment in str(info.value) and "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 def test_a_gap_is_refused_naming_its_time_and_inspect_lists_it(tmp_path, cli, truth):
     keep = (truth["time"] < 1.5) | (truth["time"] > 1.8)
     part = {k: v[keep] for k, v in truth.items()}
@@ -262,6 +263,7 @@ def test_a_gap_is_refused_naming_its_time_and_inspect_lists_it(tmp_path, cli, tr
     assert data["gaps"][0]["after_s"] == pytest.approx(1.499) and data["gaps"][0]["length_s"] == pytest.approx(0.302)
 
 
+@pytest.mark.slow
 def test_inspect_recording_reports_units_rate_encoder_and_excitation(tmp_path, cli, truth):
     path = tmp_path / "r.csv.gz"
     path.write_bytes(gzip.compress(csv_text(truth).encode()))
@@ -361,6 +363,7 @@ def _truncated(tmp_path, truth, name):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["r.csv.gz", "r.mat", "r.parquet", "r.tdms", "r.zip", "r.json"])
 def test_truncated_files_are_one_error_line(tmp_path, cli, truth, name):
     path = _truncated(tmp_path, truth, name)
@@ -368,6 +371,7 @@ def test_truncated_files_are_one_error_line(tmp_path, cli, truth, name):
     assert any(word in line for word in ("truncated", "not a readable", "not valid", "corrupt")), line
 
 
+@pytest.mark.slow
 def test_wrong_types_are_one_error_line(tmp_path, cli, truth):
     pa = pytest.importorskip("pyarrow")
     import pyarrow.parquet as pq
@@ -385,6 +389,7 @@ def test_wrong_types_are_one_error_line(tmp_path, cli, truth):
     assert ".gz" in cli("inspect-recording", tmp_path / "r.csv.gz").assert_bad_input()
 
 
+@pytest.mark.slow
 def test_a_mat_file_declaring_huge_dimensions_is_refused_before_allocating(tmp_path, cli):
     import scipy.io
 
@@ -397,6 +402,7 @@ def test_a_mat_file_declaring_huge_dimensions_is_refused_before_allocating(tmp_p
     assert "MECHANISM_MAX_ELEMENTS" in cli("inspect-recording", path).assert_bad_input()
 
 
+@pytest.mark.slow
 def test_a_parquet_file_with_too_many_rows_for_the_element_limit_is_refused(tmp_path, cli, truth):
     pa = pytest.importorskip("pyarrow")
     import pyarrow.parquet as pq
@@ -406,6 +412,7 @@ def test_a_parquet_file_with_too_many_rows_for_the_element_limit_is_refused(tmp_
     assert "MECHANISM_MAX_ELEMENTS" in line
 
 
+@pytest.mark.slow
 def test_zip_and_gzip_bombs_stop_at_the_input_limit(tmp_path, cli):
     zeros = b"0" * (3 << 20)  # 3 MiB of text that compresses to a few KiB
     with zipfile.ZipFile(tmp_path / "bomb.zip", "w", zipfile.ZIP_DEFLATED) as archive:
@@ -511,6 +518,7 @@ def test_a_mapped_log_reads_as_its_hand_conversion_whatever_the_time_stamps(tmp_
         assert np.allclose(hand.arm_angle_rad, rec.arm_angle_rad, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_split_cuts_at_the_gaps_into_pieces_a_fleet_reads(tmp_path, cli):
     t = np.arange(12000) / FS
     keep = (t < 3.0) | ((t >= 3.3) & (t < 3.4)) | ((t >= 4.0) & (t < 8.0)) | (t >= 9.0)  # 3 gaps; 0.1 s is too short
@@ -554,6 +562,7 @@ def test_the_public_api_reads_and_inspects_with_a_map(tmp_path, truth):
         mechanism.read_recording(path)
 
 
+@pytest.mark.slow
 def test_inspect_takes_the_descriptions_table_and_the_map_file_wins(tmp_path, cli, truth):
     import re
 
@@ -580,6 +589,7 @@ def test_inspect_takes_the_descriptions_table_and_the_map_file_wins(tmp_path, cl
     assert by_file["ranges"]["shaft_angle_rad"]["max"] == pytest.approx(np.degrees(truth["angle"]).max())
 
 
+@pytest.mark.slow
 def test_a_mat_file_whose_compressed_variable_inflates_past_the_limit_is_refused(tmp_path, cli):
     import scipy.io
 

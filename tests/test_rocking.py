@@ -77,6 +77,7 @@ def test_a_rocker_without_limits_is_inspected_where_it_assembles(fourbar):
     assert found[1] == pytest.approx(expected[1] - END_MARGIN * span, abs=0.05)
 
 
+@pytest.mark.slow
 def test_limits_set_the_travel_the_stops_and_every_verb_runs_over_it(fourbar, cli, tmp_path):
     import mechanism
 
@@ -190,6 +191,7 @@ def test_the_shipped_press_still_turns_whole_revolutions():
     assert machine.rotates and machine.shaft_span_rad is None and machine.tables.periodic
 
 
+@pytest.mark.slow
 def test_init_drafts_a_mechanism_that_cannot_turn_and_every_verb_takes_the_draft(cli, tmp_path):
     """A non-Grashof four-bar (shortest + longest > the other two): no link turns a whole
     revolution. init guesses a rocking shaft, its travel as limits, and says so."""

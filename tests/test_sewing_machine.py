@@ -46,6 +46,7 @@ def test_generator_reproduces_the_committed_export(tmp_path):
         assert (out / name).read_bytes() == (EXPORT / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_generator_rejects_a_bad_parameter_file_with_one_line(tmp_path):
     bad = json.loads(json.dumps(PARAMS))
     bad["crank"]["radius"]["unit"] = "inch"
@@ -294,6 +295,7 @@ def test_needle_cli_writes_the_table_and_the_plot(tmp_path, cli):
     assert png.stat().st_size > 10_000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args", [
     ("--samples", "5"),
     ("--speed", "-100"),
@@ -313,6 +315,7 @@ def test_needle_cli_model_without_a_needle(tmp_path, cli):
     assert "motor_joint" in line and "close matches: arm_shaft" in line  # the shipped roles do not fit it
 
 
+@pytest.mark.slow
 def test_no_two_parts_interpenetrate_over_a_revolution(model):
     """Exact mesh triangles (not MuJoCo's convex hulls) of every pair of bodies, at every
     2 degrees of arm angle: pins run in their bores with clearance, the hook point passes

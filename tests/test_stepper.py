@@ -87,6 +87,7 @@ def test_thread_cut_sequence_is_the_thesis_one():
     assert float(ramped.rate_steps_s(t_rev)) == pytest.approx(0.0, abs=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_thread_cut_peaks_at_the_stroke_and_returns(kind, thread_cut_runs, params):
     run = thread_cut_runs[kind, "full", "abrupt"]
@@ -102,6 +103,7 @@ def test_thread_cut_peaks_at_the_stroke_and_returns(kind, thread_cut_runs, param
     assert reversal["peak_speed_error_rad_s"] > 1.5 * params.step_rad * 1000  # more than the slew speed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_ramped_reversal_reduces_the_oscillation(kind, thread_cut_runs):
     """With microstepping the ramp to rest removes the reversal's overshoot and speed
@@ -176,6 +178,7 @@ def lost(kind, rate, params=None):
     return result["lost_steps"] > 0 or result["slips"] > 0
 
 
+@pytest.mark.slow
 def test_circuit_model_pulls_out_where_the_physical_model_does_not(params):
     assert not lost("circuit", 3000) and not lost("physical", 3000)
     assert lost("circuit", 4000)

@@ -33,6 +33,7 @@ def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
     assert "lost steps 0" in result.stdout and "overshoot" in result.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "args",
     [
@@ -50,6 +51,7 @@ def test_bad_input_is_one_error_line(cli, tmp_path, args):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_malformed_sequence_file(cli, tmp_path):
     bad = tmp_path / "seq.csv"
     bad.write_text("time_s,rate_steps_s\n0,100\n0.1,fast\n")
@@ -58,6 +60,7 @@ def test_malformed_sequence_file(cli, tmp_path):
     assert not (tmp_path / "out.csv").exists()
 
 
+@pytest.mark.slow
 def test_machine_option_takes_the_described_stepper_and_thread_cut(cli, tmp_path):
     from mechanism.machine.models import DEFAULT_DESCRIPTION
 

@@ -50,6 +50,7 @@ def _assert_same(single, row, speed_scale):
     assert single["note"] == row["note"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["flywheel", "drive", "counterweight"])
 def test_sweep_equals_a_single_run_of_the_variant(machine, case):
     shaft, motor = machine.shaft_joint, machine.motor_joint
@@ -169,6 +170,7 @@ def test_cli_sweep_killed_and_resumed_writes_the_same_csv(cli, tmp_path):
     assert not journal.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("document,message", [
     ({"parameters": {"fly": "inertia:arm_shat_kgm2"}, "sweep": {"fly": [0, 1e-4]}}, "arm_shaft"),
     ({"parameters": {"hook_timing_dg": None}, "sweep": {"hook_timing_dg": [0, 10]}}, "hook_timing_deg"),
@@ -193,6 +195,7 @@ def test_bad_variant_files_are_one_error_line_and_write_nothing(cli, tmp_path, d
     assert sorted(p.name for p in tmp_path.iterdir()) == ["v.json"]
 
 
+@pytest.mark.slow
 def test_cli_writes_the_contract_columns_and_a_plot(cli, tmp_path):
     path = tmp_path / "v.csv"
     path.write_text("fly_kgm2,voltage_V\n0,7\n0.001,7\n")
@@ -238,6 +241,7 @@ def test_full_model_sweep_equals_single_runs_and_agrees_with_the_reduced_model(m
     assert at_7V[0] == pytest.approx(at_7V[1], rel=2e-3) and at_7V[0] < 0.7 * full.rows[0]["mean_speed_rpm"]
 
 
+@pytest.mark.slow
 def test_a_machine_that_is_not_one_dof_runs_on_the_full_model(tmp_path, machine):
     """With its hook's worm gear taken out the shipped machine has two freedoms (the hook turns
     freely): the reduced 1-DOF equation would still drive the hook through its ratio; the sweep
@@ -266,6 +270,7 @@ def test_a_machine_that_is_not_one_dof_runs_on_the_full_model(tmp_path, machine)
     assert row["mean_speed_rpm"] == pytest.approx(whole["mean_speed_rpm"], rel=0.01)
 
 
+@pytest.mark.slow
 def test_a_coupling_ratio_variant(machine):
     """Another motor pulley: the break-away voltage scales as 1/ratio (the stalled motor's torque
     reaches the shaft times the ratio; the break-away friction is all on the shaft side, the

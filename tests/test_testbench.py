@@ -462,6 +462,7 @@ def test_cli_lists_the_vocabulary_and_writes_a_recording(cli, tmp_path):
     assert len(read_table(tmp_path / "r.csv", required=["time", "voltage", "arm_angle"])) == 3000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, fragment", [
     (["--effect", "belt"], "unknown effect 'belt'"),
     (["--effect", "none", "--duration", "0"], "duration"),
