@@ -149,6 +149,7 @@ def runaway_guard(machine: Machine, voltages_V: np.ndarray):
                                 f"({extent * 1e3:.4g} mm): a joint without a limit or damping ran away (give "
                                 f'[limits."{joint}"] or [friction."{joint}"] viscous_Nm_s_per_rad)')
         if first_fast is not None:
+            assert fast_motor is not None  # set together with first_fast
             joint, dof, no_load, volts = fast_motor
             rpm = abs(float(states[first_fast, 1 + nq + dof])) * 60 / (2 * np.pi)
             raise UserError(f"the motor joint {joint} turned at {rpm:.4g} rpm at t = "

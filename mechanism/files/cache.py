@@ -178,7 +178,7 @@ def _size(path: Path) -> int:
 
 def _entries() -> list[Path]:
     """The entries: folders in models/, files in native/ (a file's hash goes with it)."""
-    found = []
+    found: list[Path] = []
     for kind in KINDS:
         with contextlib.suppress(OSError):
             found.extend(p for p in (cache_root() / kind).iterdir()

@@ -18,8 +18,9 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+from typing import Any
 
-EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+EXIT_STATUS: dict[int, int] = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
 
 class Interrupted(KeyboardInterrupt):
@@ -35,7 +36,7 @@ class Interrupted(KeyboardInterrupt):
         return EXIT_STATUS.get(self.signum, 130)
 
 
-_state = {"installed": False, "interrupted": None, "depth": 0, "pending": None}
+_state: dict[str, Any] = {"installed": False, "interrupted": None, "depth": 0, "pending": None}
 
 
 def _handler(signum, frame):  # noqa: ARG001 - signal API

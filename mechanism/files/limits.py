@@ -44,10 +44,6 @@ def max_elements() -> int:
     return int(_env_limit("MECHANISM_MAX_ELEMENTS", DEFAULT_MAX_ELEMENTS))
 
 
-def _size(count: int) -> str:
-    return f"{count // 2**20} MiB" if count >= 2**20 else f"{count} bytes"
-
-
 def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -> bytes:
     """The bytes of ``path``, read in chunks and stopped once past ``limit``: the size a file
     claims is not trusted (pipes, devices and growing files claim anything)."""
@@ -119,7 +115,10 @@ def available_memory_bytes() -> int | None:
 
 
 def _size(count: float) -> str:
-    return f"{count / 2**30:.3g} GiB" if count >= 2**30 else f"{count / 2**20:.3g} MiB"
+    """A size in the unit a person reads it in (GiB, MiB, or bytes below a MiB)."""
+    if count >= 2**30:
+        return f"{count / 2**30:.3g} GiB"
+    return f"{count / 2**20:.3g} MiB" if count >= 2**20 else f"{count:.0f} bytes"
 
 
 def check_memory(needed_bytes: float, what: str) -> None:

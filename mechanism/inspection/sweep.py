@@ -525,6 +525,7 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
                     log.write(json.dumps({"index": todo[position], "row": row}) + "\n")
                     log.flush()
                 except OSError as exc:
+                    assert journal is not None  # a log is open only with a journal
                     raise journal_write_error(journal, exc) from None
             if on_row is not None:
                 on_row(todo[position], row)

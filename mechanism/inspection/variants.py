@@ -632,6 +632,8 @@ def run_variants(
     variants.check(model)
     from mechanism.machine.machine import inspection_frame, inspection_travel
 
+    if driver is None:
+        raise UserError("clearance variants need the joint that drives the cycle (driver)")
     travel = inspection_travel(model, driver, description)
     config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm,
                          None if travel.rotates else travel, inspection_frame(model, driver, description, travel))

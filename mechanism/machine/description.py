@@ -354,9 +354,10 @@ def _check_limits(source: str, tables: Any) -> tuple[dict[str, tuple[float, floa
             if None in pair or len(values) != 2:
                 raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm "
                                                    "(a slide), one pair")
-            if not pair[1] > pair[0]:
-                raise _fail(source, section, f"upper_{unit}", f"must be above lower_{unit} ({pair[0]:g})")
-            out[joint] = (pair[0] * scale, pair[1] * scale)
+            lower, upper = float(pair[0] or 0.0), float(pair[1] or 0.0)  # both given (checked above)
+            if not upper > lower:
+                raise _fail(source, section, f"upper_{unit}", f"must be above lower_{unit} ({lower:g})")
+            out[joint] = (lower * scale, upper * scale)
             units[joint] = unit
         if joint not in out:
             raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm (a slide)")

@@ -88,7 +88,7 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     ground = _ground_guess(model)
     if ground is None:
         unknown.append("the ground: no part is fixed to the world")
-    ratio = guess.ratios.get(motor, 1.0)
+    ratio = guess.ratios.get(motor or "", 1.0)
     if guess.travel is not None and shaft:
         low, high = guess.travel
         travel_text = (f"{low * 1e3:.4g} to {high * 1e3:.4g} mm" if slide else
@@ -127,12 +127,12 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     ]
     if guess.travel is None and shaft:
         lines += [
-            f"motor_joint = {_toml_string(motor)}   # GUESS: the joint turning fastest ({abs(ratio):.4g} turns per shaft turn)",
+            f"motor_joint = {_toml_string(motor or shaft)}   # GUESS: the joint turning fastest ({abs(ratio):.4g} turns per shaft turn)",
             f"shaft_joint = {_toml_string(shaft)}   # GUESS: the slowest shaft turning whole revolutions on the frame",
         ]
     elif shaft:
         lines += [
-            f"motor_joint = {_toml_string(motor)}   # GUESS: no joint turns whole revolutions; the motor on the shaft",
+            f"motor_joint = {_toml_string(motor or shaft)}   # GUESS: no joint turns whole revolutions; the motor on the shaft",
             f"shaft_joint = {_toml_string(shaft)}   # GUESS: the joint on the frame with the widest travel (it rocks)",
         ]
     else:

@@ -24,7 +24,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -291,7 +291,7 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, tra
     there)."""
     shaft, motor = description.shaft_joint, description.motor_joint
     rocks = travel is not None and not travel.rotates
-    span = (travel.lower, travel.upper) if rocks else None
+    span = (travel.lower, travel.upper) if travel is not None and rocks else None
     coarse = compute_tables(model, shaft, description.zero_site, n=ZERO_SEARCH_SAMPLES, span=span)
     motor_ratio = float(np.mean(coarse.ratios[motor])) if motor in coarse.ratios else 0.0
     if not abs(motor_ratio) > 1e-9:  # another described motor that turns the shaft sets its direction
@@ -521,7 +521,7 @@ class Machine:
         if self.supply:
             self.supply.bind(self.model, self.motor, self.actuator, self.motor_dof)
         if servos:
-            bind_servos(self.model, [self.drives[j].fields(self.model.actuator(actuator_name(self.description, j)).id,
+            bind_servos(self.model, [cast(ServoDrive, self.drives[j]).fields(self.model.actuator(actuator_name(self.description, j)).id,
                                                           *reversed(joint_dof(self.model, j))) for j in servos])
         self.stops = self._stiffen_stops(spec)
         self.travel = cached_travel(self.model_path, self.description, self.model)

@@ -200,7 +200,7 @@ def drive_lines(model_path, degrees_of_freedom: int | None) -> list[str]:
     over = "a revolution" if guess.travel is None else "its travel"
     lines.append(f"reflected inertia at {guess.shaft_joint}: {inertia.mean():.4g} kg*m^2 mean over {over} "
                  f"({inertia.min():.4g} to {inertia.max():.4g})")
-    ratio = abs(guess.ratios.get(guess.motor_joint, 1.0))
+    ratio = abs(guess.ratios.get(guess.motor_joint or "", 1.0))
     if guess.motor_joint != guess.shaft_joint and ratio > 1:
         lines.append(f"  = {inertia.mean() / ratio ** 2:.4g} kg*m^2 referred to {guess.motor_joint} (ratio {ratio:g}:1)")
     return lines
