@@ -42,7 +42,8 @@ from typing import IO, Callable, Iterator, Mapping, Sequence
 import numpy as np
 
 from mechanism.errors import UserError
-from mechanism.files.limits import check_elements, max_input_bytes, read_bounded
+from mechanism.files.limits import check_elements, max_input_bytes, read_bounded, read_stream_bounded
+from mechanism.files.tables import header_comments
 
 # format name -> (file name endings, optional extra or None, library, module)
 FORMATS = {
@@ -194,23 +195,14 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
         source = io.BytesIO(raw)
         stream = (gzip.GzipFile(fileobj=source) if compression == ".gz"  # type: ignore[assignment]
                   else bz2.BZ2File(source) if compression == ".bz2" else lzma.LZMAFile(source))
-    chunks, total = [], 0
     try:
         with stream:
-            while True:
-                chunk = stream.read(min(1 << 20, limit + 1 - total))
-                if not chunk:
-                    break
-                total += len(chunk)
-                if total > limit:
-                    raise too_big
-                chunks.append(chunk)
+            return read_stream_bounded(stream, limit, too_big)
     except UserError:
         raise
     except (OSError, EOFError, lzma.LZMAError, zipfile.BadZipFile, ValueError, RuntimeError, NotImplementedError,
             zlib.error) as exc:
         raise UserError(f"{label}: corrupt or truncated {compression} data ({_one_line(exc)})") from None
-    return b"".join(chunks)
 
 
 # -- text tables --------------------------------------------------------------------------------
@@ -255,16 +247,7 @@ def _read_csv(raw: bytes, label: str):
         raise UserError(f"{label}: not UTF-8 text") from None
     del raw
     lines = text.splitlines()
-    metadata: dict[str, str] = {}
-    start = 0
-    while start < len(lines) and (lines[start].lstrip().startswith("#") or not lines[start].strip()):
-        comment = lines[start].lstrip().lstrip("#").strip()
-        if ":" in comment:
-            key, value = comment.split(":", 1)
-            metadata[key.strip()] = value.strip()
-        start += 1
-    if start >= len(lines):
-        raise UserError(f"{label}: empty (no header line)")
+    metadata, start = header_comments(lines, label)
     first = lines[start]
     delimiter = "\t" if "\t" in first else ";" if ";" in first else "," if "," in first else None
     rows: Iterator[list[str]]

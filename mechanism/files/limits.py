@@ -52,23 +52,30 @@ def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -
     limit = max_input_bytes() if limit is None else limit
     if path.is_dir():
         raise UserError(f"{what} {path}: is a folder, expected a file")
-    chunks, total = [], 0
+    too_big = UserError(f"{what} {path}: larger than the input limit of {_size(limit)}"
+                        + (" (raise it with MECHANISM_MAX_INPUT_MB)" if adjustable else ""))
     try:
         with open(path, "rb") as handle:
-            while True:
-                chunk = handle.read(min(1 << 20, limit + 1 - total))
-                if not chunk:
-                    break
-                total += len(chunk)
-                if total > limit:
-                    raise UserError(f"{what} {path}: larger than the input limit of {_size(limit)}"
-                                    + (" (raise it with MECHANISM_MAX_INPUT_MB)" if adjustable else ""))
-                chunks.append(chunk)
+            return read_stream_bounded(handle, limit, too_big)
     except FileNotFoundError:
         raise UserError(f"{what} {path}: no such file") from None
     except OSError as exc:
         raise UserError(f"{what} {path}: cannot read ({exc.strerror})") from None
-    return b"".join(chunks)
+
+
+def read_stream_bounded(stream, limit: int, too_big: Exception) -> bytes:
+    """All of ``stream`` in chunks, raising ``too_big`` once past ``limit`` bytes: what a file or a
+    decompressor claims about its size is not trusted."""
+    chunks: list[bytes] = []
+    total = 0
+    while True:
+        chunk = stream.read(min(1 << 20, limit + 1 - total))
+        if not chunk:
+            return b"".join(chunks)
+        total += len(chunk)
+        if total > limit:
+            raise too_big
+        chunks.append(chunk)
 
 
 def check_elements(count: float, what: str) -> None:

@@ -69,10 +69,9 @@ def read_table(
     return parse_table(text, required, optional, aliases, min_rows, label)
 
 
-def parse_table(text: str, required: Sequence[str] = (), optional: Sequence[str] = (),
-                aliases: Mapping[str, Sequence[str]] | None = None, min_rows: int = 1, label: str = "table") -> Table:
-    """:func:`read_table` on text already read (``label`` names it in errors)."""
-    lines = text.splitlines()
+def header_comments(lines: Sequence[str], label: str) -> tuple[dict[str, str], int]:
+    """The ``# key: value`` comment lines before a table's header, as metadata, and the index of
+    the header line (blank and other comment lines are skipped)."""
     metadata: dict[str, str] = {}
     start = 0
     while start < len(lines) and (lines[start].lstrip().startswith("#") or not lines[start].strip()):
@@ -83,6 +82,14 @@ def parse_table(text: str, required: Sequence[str] = (), optional: Sequence[str]
         start += 1
     if start >= len(lines):
         raise UserError(f"{label}: empty (no header line)")
+    return metadata, start
+
+
+def parse_table(text: str, required: Sequence[str] = (), optional: Sequence[str] = (),
+                aliases: Mapping[str, Sequence[str]] | None = None, min_rows: int = 1, label: str = "table") -> Table:
+    """:func:`read_table` on text already read (``label`` names it in errors)."""
+    lines = text.splitlines()
+    metadata, start = header_comments(lines, label)
     reader = csv.reader(io.StringIO("\n".join(lines[start:])))
     try:
         header = [name.strip() for name in next(reader)]
