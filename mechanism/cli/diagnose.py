@@ -2,7 +2,23 @@
 
 from __future__ import annotations
 
+import argparse
+
 ORDER = 61
+
+
+class _EffectsInHelp(argparse.HelpFormatter):
+    """Writes the effect library's names and the selection's thresholds into the help text when
+    help is asked for (the library is imported then, not at every start of the command line)."""
+
+    def add_text(self, text):
+        if text and "{effects}" in text:
+            from mechanism.sysid.diagnosis import GENERIC_GAIN, KEEP_GAIN_JOINT, MIN_RELATIVE_GAIN
+            from mechanism.sysid.effects import EFFECTS
+
+            text = text.format(effects=", ".join(EFFECTS), alone=f"{MIN_RELATIVE_GAIN:.0%}",
+                               joint=f"{KEEP_GAIN_JOINT:.0%}", generic=f"{GENERIC_GAIN:.0%}")
+        super().add_text(text)
 
 
 def register(subparsers) -> None:
@@ -13,14 +29,16 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "diagnose",
         help="find the physics a model is missing from a bench recording, model it, show the fit improve",
+        formatter_class=_EffectsInHelp,
         description=(
-            "Fit the baseline, locate where its velocity residual lives (time, arm angle, motor angle, speed, "
-            "frequency; dynamics vs sensor artefact), then add candidate effects one at a time -- torque_ripple, "
-            "linkage_dynamics, position_friction, stribeck, thermal_drift, needle_penetration, belt_compliance, "
-            "voltage_nonlinearity, encoder_eccentricity, backlash, sensor_delay, winding_heating -- refitting on one half of the recording and keeping an "
-            "effect only if it lowers the error on the other half by at least 35%. JSON: baseline params and rmse, "
+            "Fit the baseline, locate where its velocity residual lives (time, shaft angle, motor angle, speed, "
+            "frequency; dynamics vs sensor artefact), then add candidate effects from the library -- {effects} -- "
+            "one at a time with a joint refit and a backward step, fitting on one half of the recording and keeping "
+            "what the other half supports (one effect alone must lower its error by at least {alone}, each of several "
+            "by {joint} when added last); where none explains the residual, generic models are tried and kept at a "
+            "{generic} cut, flagged generic. JSON: baseline params and rmse, "
             "the effects found in order (name, one-sentence evidence, params, rmse), final params and rmse; every "
-            "rmse is the RMS arm-velocity residual [rad/s] on the held-out half. A recording at one constant "
+            "rmse is the RMS shaft-velocity residual [rad/s] on the held-out half. A recording at one constant "
             "voltage is not identifiable: exit status 2, and the JSON says so."
         ),
         epilog="examples: mechanism diagnose rec.csv --json out/diagnosis.json --report out/diagnosis; "
