@@ -227,24 +227,3 @@ def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster,
     here = diagnose(read_recording(recording), candidates=["torque_ripple"], nominal=nominal).to_json()
     assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
     assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it
-
-
-# -- Ray: a private local instance ----------------------------------------------------------
-
-@pytest.mark.slow
-def test_a_local_ray_instance_starts_from_a_deep_temporary_folder(tmp_path):
-    """Ray's sockets live under its temporary folder and a socket path holds 107 characters: a
-    deep TMPDIR (as a deep working folder gives) must not stop a local instance. In a process of
-    its own, after the cluster tests: run before them, it left their in-process driver unable
-    to reach the cluster (Ray resolved 127.0.0.1 to this host's other address)."""
-    pytest.importorskip("ray")
-    deep = tmp_path / ("d" * 60) / ("e" * 60)
-    deep.mkdir(parents=True)
-    code = ("import operator; from mechanism.batch import run_batch; from mechanism.batch.runner import ray_temp_dir; "
-            "assert len(ray_temp_dir()) <= 32, ray_temp_dir(); "
-            "print(run_batch(operator.add, [1, 2, 3], shared=10, workers=2, backend='ray', progress=False))")
-    env = {key: value for key, value in os.environ.items() if key != "RAY_ADDRESS"}
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                            env=dict(env, TMPDIR=str(deep)), cwd=deep)
-    assert result.returncode == 0, result.stderr[-2000:]
-    assert result.stdout.split("\n")[-2] == "[11, 12, 13]"
