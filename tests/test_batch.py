@@ -1,12 +1,14 @@
 """The batch runner (mechanism.batch): local processes and a real Ray cluster started with
 `ray start`; payload once per worker, ordered and complete results, workers that die."""
 
+import contextlib
 import json
 import os
 import shutil
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -16,7 +18,6 @@ from mechanism.batch.runner import ray_temp_dir
 from mechanism.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
-pytestmark = pytest.mark.xdist_group("ray")  # one Ray test at a time, on one pytest worker (make test runs two)
 
 # -- item functions (module level: workers import them by name) -------------------------------
 
@@ -122,44 +123,99 @@ def _ray_cli() -> str:
     return str(beside) if beside.exists() else shutil.which("ray") or pytest.skip("no `ray` command")
 
 
+class RayCluster(str):
+    """The cluster's HOST:PORT; ``env``: what a driver needs to reach it (token mode, the token's path)."""
+
+    env: dict
+
+
 @pytest.fixture(scope="module")
 def ray_cluster(tmp_path_factory):
     """`ray start --head` on free ports, with a token (Ray's default since 2.5x; older Rays
     ignore RAY_AUTH_MODE); its workers import mechanism and this test module. The driver
     sends the token to an address only in token mode: RAY_AUTH_MODE=token, as a user would.
     The token is made here and named by RAY_AUTH_TOKEN_PATH (Ray's documented variable): the
-    cluster never reads or writes ~/.ray, so the test passes on a machine that never ran Ray."""
+    cluster never reads or writes ~/.ray, so the test passes on a machine that never ran Ray.
+    Nothing here changes this process's environment (each test sets ``env`` for itself), and
+    the cluster keeps its own temporary folder: a local Ray instance that another test starts
+    meanwhile shares neither its token mode nor its session files."""
     import secrets
+    import tempfile
 
     token = tmp_path_factory.mktemp("ray-auth") / "auth_token"
     token.write_text(secrets.token_hex(32))
     token.chmod(0o600)
-    overrides = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}
-    saved = {name: os.environ.get(name) for name in overrides}
-    os.environ.update(overrides)
+    temp_dir = tempfile.mkdtemp(prefix="rayc-", dir="/tmp")  # short: Ray's socket paths must fit 107 bytes
     ray_cli = _ray_cli()
+    driver_env = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token), "RAY_USAGE_STATS_ENABLED": "0"}
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]),
-               RAY_USAGE_STATS_ENABLED="0")
+               **driver_env)
     env.pop("RAY_ADDRESS", None)
     port = _free_port()
     ports = {flag: _free_port() for flag in ("--node-manager-port", "--object-manager-port", "--dashboard-agent-listen-port",
                                              "--dashboard-agent-grpc-port", "--runtime-env-agent-port",
                                              "--metrics-export-port")}
-    command = [ray_cli, "start", "--head", f"--port={port}", "--node-ip-address=127.0.0.1", "--num-cpus=2",
-               f"--temp-dir={ray_temp_dir()}",
+    command = [ray_cli, "start", "--head", f"--port={port}", "--num-cpus=2",
+               f"--temp-dir={temp_dir}",
                "--include-dashboard=false", "--disable-usage-stats", *(f"{flag}={value}" for flag, value in ports.items())]
     started = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
     try:
         assert started.returncode == 0, started.stderr[-2000:]
-        yield f"127.0.0.1:{port}"
+        cluster = RayCluster(f"127.0.0.1:{port}")
+        cluster.env = driver_env
+        yield cluster
     finally:
-        subprocess.run([ray_cli, "stop", "--grace-period", "10"], env=env, capture_output=True, timeout=60)
-        for name, value in saved.items():
-            os.environ.pop(name, None) if value is None else os.environ.update({name: value})
+        _stop_the_processes_of(temp_dir)
+        shutil.rmtree(temp_dir, ignore_errors=True)
+
+
+def _running(pid):
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"  # a zombie has ended
+    except OSError:
+        return False
+
+
+def _stop_the_processes_of(temp_dir, grace_s=10.0):
+    """This cluster's processes (each names its folder) and what they started; not `ray stop`,
+    which stops every Ray instance on the machine, another worker's or another user's too."""
+    import signal
+
+    from mechanism.batch.runner import _descendants
+
+    def named():
+        found = []
+        for entry in Path("/proc").iterdir():
+            if entry.name.isdigit():
+                try:
+                    if temp_dir.encode() in (entry / "cmdline").read_bytes():
+                        found.append(int(entry.name))
+                except OSError:
+                    pass
+        return found
+
+    roots = named()
+    everyone = set(roots).union(*(_descendants(pid) for pid in roots))
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in everyone:
+            with contextlib.suppress(OSError):
+                os.kill(pid, sig)
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline and any(_running(pid) for pid in everyone):
+            time.sleep(0.1)
+
+
+@pytest.fixture
+def on_cluster(ray_cluster, monkeypatch):
+    """The cluster, with this test's environment set to reach it (undone after the test)."""
+    for name, value in ray_cluster.env.items():
+        monkeypatch.setenv(name, value)
+    return ray_cluster
 
 
 @pytest.mark.slow
-def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_path):
+@pytest.mark.xdist_group("ray")  # one Ray test at a time (see conftest)
+def test_clearance_variants_on_a_ray_cluster_by_address(cli, on_cluster, tmp_path):
     """The CLI connects to the cluster by address (no num_cpus: Ray would refuse) and the
     rows equal the local run's."""
     import mechanisms as M
@@ -169,7 +225,7 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_pa
     variants = tmp_path / "v.json"
     variants.write_text(json.dumps({"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, -2, 0]}}))
     common = ("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants)
-    on_ray = cli(*common, "--backend", "ray", "--ray-address", ray_cluster, "--csv", tmp_path / "ray.csv")
+    on_ray = cli(*common, "--backend", "ray", "--ray-address", on_cluster, "--csv", tmp_path / "ray.csv")
     assert on_ray.returncode == 0, on_ray.stderr
     assert "warning" not in on_ray.stderr  # nothing of Ray's own logging reaches the user
     local = cli(*common, "--csv", tmp_path / "local.csv")
@@ -179,51 +235,86 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, ray_cluster, tmp_pa
 
 
 @pytest.mark.slow
-def test_a_dynamic_sweep_on_the_cluster_equals_the_local_one(cli, ray_cluster, tmp_path):
+@pytest.mark.xdist_group("ray")  # one Ray test at a time (see conftest)
+def test_a_dynamic_sweep_on_the_ray_cluster_equals_the_local_one(cli, on_cluster, tmp_path):
     """`mechanism sweep` by address: the base machine (description, compiled model, tables)
     travels to the workers once and every row equals the local run's, byte for byte."""
     variants = tmp_path / "v.json"
     variants.write_text(json.dumps({"parameters": {"fly": "inertia:arm_shaft_kgm2", "R": "motor:resistance_ohm"},
                                     "sweep": {"fly": [0, 5e-4, 1e-3], "R": [0, 0.2]}}))
     common = ("sweep", "--variants", variants, "--duration", "1")
-    on_ray = cli(*common, "--backend", "ray", "--ray-address", ray_cluster, "--csv", tmp_path / "ray.csv")
+    on_ray = cli(*common, "--backend", "ray", "--ray-address", on_cluster, "--csv", tmp_path / "ray.csv")
     assert on_ray.returncode == 0, on_ray.stderr
     local = cli(*common, "--csv", tmp_path / "local.csv")
     assert local.returncode == 0, local.stderr
     assert (tmp_path / "ray.csv").read_text() == (tmp_path / "local.csv").read_text()
 
 
-@pytest.mark.slow
-def test_ray_reruns_the_items_of_a_worker_that_died(ray_cluster, tmp_path, monkeypatch):
-    ray = pytest.importorskip("ray")
-    monkeypatch.setenv("RAY_ADDRESS", ray_cluster)  # the cluster named by the environment, not the argument
+def _in_a_process_of_its_own(function, *args):
+    """Ray reads its token mode when it is imported and keeps a driver's state in the process:
+    a driver started here, with the environment set just now, would inherit whichever mode and
+    node another test's import or instance left behind. A spawned process starts clean."""
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        return pool.apply(function, args)
+
+
+def _rerun_a_dead_workers_items(shared):
+    import ray
+
     seen = []
-    items = list(range(12))
-    results = run_batch(_die_once, items, shared=str(tmp_path), workers=2, backend="ray",
+    results = run_batch(_die_once, list(range(12)), shared=shared, workers=2, backend="ray",
                         chunk_size=2, on_result=lambda i, r: seen.append(i), progress=False)
+    return results, seen, ray.is_initialized()
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ray")  # one Ray test at a time (see conftest)
+def test_ray_reruns_the_items_of_a_worker_that_died(on_cluster, tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    monkeypatch.setenv("RAY_ADDRESS", on_cluster)  # the cluster named by the environment, not the argument
+    results, seen, still_connected = _in_a_process_of_its_own(_rerun_a_dead_workers_items, str(tmp_path))
+    items = list(range(12))
     assert (tmp_path / "died_5").exists()  # a worker process really died mid-batch
     assert [square for square, _ in results] == [i * i for i in items]  # nothing lost, in item order
-    assert {address.rpartition(":")[2] for _, address in results} == {ray_cluster.rpartition(":")[2]}
+    assert {address.rpartition(":")[2] for _, address in results} == {on_cluster.rpartition(":")[2]}
     assert sorted(seen) == items
-    assert not ray.is_initialized()  # disconnected from the cluster it did not start
+    assert not still_connected  # disconnected from the cluster it did not start
+
+
+def _fleet_on_the_cluster(recordings, out, address):
+    from mechanism.api import drive_nominal
+    from mechanism.sysid.fleet import diagnose_fleet
+
+    result = diagnose_fleet(recordings, out, backend="ray", ray_address=address, progress=False,
+                            candidates=["torque_ripple"], nominal=drive_nominal(None))
+    return result.rows
 
 
 @pytest.mark.slow
-def test_a_fleet_diagnosed_on_the_cluster_equals_one_diagnosis_here(ray_cluster, tmp_path):
+@pytest.mark.xdist_group("ray")  # one Ray test at a time (see conftest)
+def test_a_fleet_diagnosed_on_the_ray_cluster_equals_one_diagnosis_here(on_cluster, tmp_path):
     """The options travel once, each recording's path per job; a bad recording is reported."""
+    from mechanism.api import drive_nominal
     from mechanism.sysid.diagnosis import diagnose
-    from mechanism.sysid.fleet import diagnose_fleet
     from mechanism.sysid.recording import read_recording
 
     recording = ROOT / "assets" / "recordings" / "torque_ripple_seed3.csv"
     broken = tmp_path / "broken.csv"
     broken.write_text("time,voltage,arm_angle\n0,1,0\n")
-    from mechanism.api import drive_nominal
-
-    nominal = drive_nominal(None)
-    result = diagnose_fleet([recording, broken], tmp_path / "out", backend="ray", ray_address=ray_cluster, progress=False,
-                            candidates=["torque_ripple"], nominal=nominal)
-    assert [row["status"] for row in result.rows] == ["ok", "error"] and result.rows[1]["error"]
-    here = diagnose(read_recording(recording), candidates=["torque_ripple"], nominal=nominal).to_json()
+    rows = _in_a_process_of_its_own(_fleet_on_the_cluster, [recording, broken], tmp_path / "out", str(on_cluster))
+    assert [row["status"] for row in rows] == ["ok", "error"] and rows[1]["error"]
+    here = diagnose(read_recording(recording), candidates=["torque_ripple"], nominal=drive_nominal(None)).to_json()
     assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
     assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it
+
+
+def test_rays_temporary_folder_stays_short_whatever_the_systems(monkeypatch):
+    """Ray's socket paths (about 70 characters below its folder) must fit 107 bytes."""
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", "/tmp")
+    assert ray_temp_dir() == "/tmp/ray"
+    monkeypatch.setattr(tempfile, "tempdir", "/home/someone/" + "deep/" * 20)
+    assert ray_temp_dir() == f"/tmp/ray-{os.getuid()}"
