@@ -22,7 +22,7 @@ _lazy_names, __getattr__, _lazy_dir = lazy_exports(__name__, {
     "api": ("Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
             "conversion_summary", "convert", "diagnose", "diagnosis_report", "driven_inertia_kgm2", "identify",
             "inspect", "inspect_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "plot_sweep", "probe",
-            "read_recording", "read_table", "shipped_export", "shipped_folder", "shipped_machines", "simulate", "sweep", "view", "write_bench_recording",
+            "read_recording", "read_table", "shipped_export", "shipped_folder", "shipped_machines", "shipped_model", "shipped_scene", "simulate", "sweep", "view", "write_bench_recording",
             "write_needle_csv", "write_table"),
     "machine.description": ("read_description",),
     "files.cache": ("cache_info", "clear_cache"),

@@ -17,7 +17,7 @@ from mechanism.inspection.needle import NeedleMotion, needle_motion
 from mechanism.inspection.needle import plot as plot_needle
 from mechanism.inspection.needle import write_csv as write_needle_csv
 from mechanism.machine.machine import Machine, MachineConfig, load_machine
-from mechanism.machine.models import shipped_export, shipped_folder, shipped_machines
+from mechanism.machine.models import shipped_export, shipped_folder, shipped_machines, shipped_model, shipped_scene
 from mechanism.physics.inputs import VoltageProfile
 
 
@@ -214,5 +214,5 @@ def diagnosis_report(result, folder: str | os.PathLike) -> Path:
 __all__ = [
     "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
     "conversion_summary", "convert", "diagnose", "inspect_recording", "read_recording", "driven_inertia_kgm2", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
-    "plot_sweep", "shipped_export", "shipped_folder", "shipped_machines", "simulate", "sweep", "view", "write_needle_csv", "write_table",
+    "plot_sweep", "shipped_export", "shipped_folder", "shipped_machines", "shipped_model", "shipped_scene", "simulate", "sweep", "view", "write_needle_csv", "write_table",
 ]

@@ -186,14 +186,15 @@ def test_simulate_writes_the_contract_columns_and_a_summary(cli, tmp_path):
 @pytest.mark.slow
 def test_the_voltage_bound_is_the_described_motors_rated_voltage(cli, tmp_path):
     """A 48 V motor runs at 40 V; above its rating the run is refused, naming the key."""
-    from mechanism.machine.models import shipped_description
+    import re
+
+    from mechanism.machine.models import shipped_description, shipped_model
 
     text = shipped_description("press").read_text()
     assert "rated_voltage_V" not in text
     machine = tmp_path / "press48.toml"
-    model = (shipped_description("press").parent / "../mjcf/press/press.xml").resolve()
-    machine.write_text(text.replace('[motor]', '[motor]\nrated_voltage_V = 48.0', 1)
-                       .replace('model = "../mjcf/press/press.xml"', f'model = "{model}"'))
+    machine.write_text(re.sub(r'(?m)^model = .*$', f'model = "{shipped_model("press")}"',
+                              text.replace('[motor]', '[motor]\nrated_voltage_V = 48.0', 1)))
     run = cli("simulate", "--machine", machine, "--voltage", "40", "--duration", "0.2", "--reduced", "--summary")
     assert run.returncode == 0, run.stderr
     line = cli("simulate", "--machine", machine, "--voltage", "50", "--duration", "0.2", "--reduced", "--summary").assert_bad_input()

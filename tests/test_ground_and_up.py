@@ -71,13 +71,13 @@ def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
 
 @pytest.mark.slow
 def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli):
-    from mechanism.machine.models import shipped_folder
+    from mechanism.machine.models import shipped_model
 
     description = tmp_path / "press.toml"
     description.write_text(textwrap.dedent(f"""\
         [machine]
         name = "press"
-        model = "{shipped_folder('mjcf', 'press') / 'press.xml'}"
+        model = "{shipped_model('press')}"
         ground = "RAM-1"
         [drive]
         motor_joint = "MOTOR_HOUSING-1--MOTOR_ROTOR-1"

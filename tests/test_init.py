@@ -6,7 +6,7 @@ import tomllib
 import pytest
 
 from mechanism.machine.description import read_description
-from mechanism.machine.models import shipped_description, shipped_export, shipped_folder
+from mechanism.machine.models import shipped_description, shipped_export, shipped_model
 
 
 @pytest.mark.slow
@@ -29,7 +29,7 @@ def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_pat
 
 @pytest.mark.slow
 def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
-    export = shipped_folder("mjcf", "press") / "press.xml"
+    export = shipped_model("press")
     copy = tmp_path / "press.xml"
     copy.write_text(export.read_text())
     line = cli("init", copy, "-o", copy).assert_bad_input()
@@ -38,7 +38,7 @@ def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
 
 @pytest.mark.slow
 def test_init_keeps_a_description_the_user_edited_unless_forced(cli, tmp_path):
-    export = shipped_folder("mjcf", "press") / "press.xml"
+    export = shipped_model("press")
     out = tmp_path / "machine.toml"
     out.write_text("# my edits\n")
     line = cli("init", export, "-o", out).assert_bad_input()

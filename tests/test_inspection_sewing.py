@@ -6,7 +6,7 @@ import pytest
 
 from mechanism.machine.models import DEFAULT_MODEL
 
-pytestmark = pytest.mark.skipif(not DEFAULT_MODEL.exists(), reason="the shipped sewing machine MJCF is not in assets/mjcf/sapphire870")
+pytestmark = pytest.mark.skipif(not DEFAULT_MODEL.exists(), reason="the shipped sewing machine MJCF is not in assets/mjcf")
 
 RPM = 600.0
 

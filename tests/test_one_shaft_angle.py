@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mechanism.machine.models import shipped_folder
+from mechanism.machine.models import shipped_model
 
 CRANK = "BASE_FRAME-1--CRANKSHAFT-1"
 MOTOR = "MOTOR_HOUSING-1--MOTOR_ROTOR-1"
@@ -45,7 +45,7 @@ def _description(folder, model, name):
 def presses(tmp_path_factory):
     """(shipped, re-posed): the re-posed press's crank coordinate is 70 deg at the export's pose."""
     folder = tmp_path_factory.mktemp("reposed")
-    source = shipped_folder("mjcf", "press") / "press.xml"
+    source = shipped_model("press")
     spec = mujoco.MjSpec.from_file(str(source))
     spec.meshdir = str((source.parent / spec.meshdir).resolve())
     spec.joint(CRANK).ref = math.radians(OFFSET_DEG)

@@ -24,7 +24,7 @@ GENERATOR = REPO / "assets" / "cad" / "press" / "generate.py"
 PARAMS = json.loads((REPO / "assets" / "cad" / "press" / "press.params.json").read_text())
 ASSETS = REPO / "assets"
 EXPORT = ASSETS / "cad" / "press" / "export"
-MODEL = ASSETS / "mjcf" / "press" / "press.xml"
+MODEL = ASSETS / "mjcf" / "press.xml"
 INCH, POUND = 0.0254, 0.45359237
 NS = "{urn:mathworks:SimscapeMultibody:import}"
 
@@ -97,8 +97,8 @@ def test_regenerating_the_export_and_the_mjcf_gives_the_committed_bytes(tmp_path
     assert sorted(p.name for p in (tmp_path / "cad").iterdir()) == sorted(p.name for p in EXPORT.iterdir())
     for path in EXPORT.iterdir():
         assert (tmp_path / "cad" / path.name).read_bytes() == path.read_bytes(), path.name
-    convert(tmp_path / "cad" / "press.xml", tmp_path / "mjcf" / "press", name="press", mesh_dir=tmp_path / "meshes" / "press")
-    assert (tmp_path / "mjcf" / "press" / "press.xml").read_bytes() == MODEL.read_bytes()
+    convert(tmp_path / "cad" / "press.xml", tmp_path / "mjcf", name="press", mesh_dir=tmp_path / "meshes" / "press")
+    assert (tmp_path / "mjcf" / "press.xml").read_bytes() == MODEL.read_bytes()
     meshes = ASSETS / "meshes" / "press"
     assert sorted(p.name for p in (tmp_path / "meshes" / "press").iterdir()) == sorted(p.name for p in meshes.iterdir())
     for path in meshes.iterdir():

@@ -120,9 +120,9 @@ def test_export_names_the_frames_the_tools_rely_on():
 def test_committed_mjcf_is_what_the_converter_makes_of_the_committed_export(tmp_path):
     from mechanism.converters import convert
 
-    mjcf, meshes = tmp_path / "mjcf" / "sapphire870", tmp_path / "meshes" / "sapphire870"  # the assets/ layout
+    mjcf, meshes = tmp_path / "mjcf", tmp_path / "meshes" / "sapphire870"  # the assets/ layout
     convert(EXPORT / "sewing_machine.xml", mjcf, mesh_dir=meshes)
-    assert (mjcf / "sewing_machine.xml").read_text() == DEFAULT_MODEL.read_text()
+    assert (mjcf / DEFAULT_MODEL.name).read_text() == DEFAULT_MODEL.read_text()
     fresh = sorted(p.name for p in meshes.iterdir())
     assert fresh == sorted(p.name for p in MESHES.iterdir())
     for name in fresh:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mechanism
-from mechanism.machine.models import shipped_folder
+from mechanism.machine.models import ASSETS, shipped_machines, shipped_model, shipped_scene
 
 MACHINES = mechanism.shipped_machines()
 
@@ -38,16 +38,22 @@ def test_self_contained_mjcf_steps_in_stock_mujoco(name, tmp_path):
     assert machine.frame.direction * data.qvel[shaft.dofadr[0]] > 0  # forward under a positive voltage
 
 
-@pytest.mark.parametrize("name", MACHINES)
-def test_scene_compiles_and_steps(name):
-    scene = shipped_folder("mjcf", name) / "scene.xml"
-    assert scene.is_file(), f"{name} ships no scene.xml"
-    _step_without_warnings(mujoco.MjModel.from_xml_path(str(scene)), 0.0, 0.2)
+@pytest.mark.parametrize("path", sorted((ASSETS / "mjcf").glob("*.xml")), ids=lambda p: p.name)
+def test_every_mjcf_in_assets_loads_and_steps_in_stock_mujoco_where_it_lies(path):
+    """The card's ``assets/mjcf/*.xml``: each model and scene, read by MuJoCo itself from its folder."""
+    _step_without_warnings(mujoco.MjModel.from_xml_path(str(path)), 0.0, 0.2)
+
+
+def test_each_shipped_machine_has_its_mjcf_scene_and_provenance_in_assets_mjcf():
+    folder = ASSETS / "mjcf"
+    expected = {shipped_model(name).name for name in shipped_machines()}
+    expected |= {f"{name}_scene.xml" for name in shipped_machines()} | {f"{name}.md" for name in shipped_machines()}
+    assert {p.name for p in folder.iterdir()} == expected  # one place each, nothing else
 
 
 @pytest.mark.parametrize("name", MACHINES)
 def test_every_machine_has_a_readme_with_its_provenance(name):
-    readme = (shipped_folder("mjcf", name) / "README.md").read_text()
+    readme = shipped_model(name).with_name(f"{name}.md").read_text()
     assert "mechanism convert" in readme  # how the MJCF was made from its CAD export
 
 

@@ -1,10 +1,10 @@
 """Where models live and how they are loaded (every load error is a UserError).
 
 Shipped machines live in the repository's top-level ``assets/`` (the design card's layout),
-one name per machine: ``machines/<name>.toml`` (the description), ``mjcf/<name>/`` (the MJCF,
-``scene.xml`` and a README with provenance, menagerie style), ``meshes/<name>/``,
-``cad/<name>/export/`` (the CAD export the MJCF was converted from) and
-``measurements/<name>/``. The wheel installs the same tree as ``mechanism/assets/``, so the
+one name per machine: ``machines/<name>.toml`` (the description, whose ``model`` names its
+MJCF), ``mjcf/`` (every machine's MJCF side by side, each with ``<name>_scene.xml`` and a
+``<name>.md`` with its provenance, menagerie style), ``meshes/<name>/``, ``cad/<name>/export/``
+(the CAD export the MJCF was converted from) and ``measurements/<name>/``. The wheel installs the same tree as ``mechanism/assets/``, so the
 relative paths inside it (a description's ``model``, an MJCF's ``meshdir``) hold in both.
 A description's ``model`` may also name a CAD export: it is converted on first use into a
 cache folder keyed by the export's content hash.
@@ -28,7 +28,6 @@ ASSETS = _assets_root()
 MACHINES = ASSETS / "machines"
 DEFAULT_MACHINE = "sapphire870"
 DEFAULT_DESCRIPTION = MACHINES / f"{DEFAULT_MACHINE}.toml"
-DEFAULT_MODEL = ASSETS / "mjcf" / DEFAULT_MACHINE / "sewing_machine.xml"
 MAX_EXPORT_FOLDER_BYTES = 1 << 30
 
 
@@ -41,8 +40,26 @@ def shipped_description(name: str) -> Path:
 
 
 def shipped_folder(kind: str, name: str) -> Path:
-    """A shipped machine's folder of one kind: ``mjcf``, ``meshes``, ``cad`` or ``measurements``."""
+    """A shipped machine's folder of one kind: ``meshes``, ``cad`` or ``measurements``
+    (the MJCF of every machine lies in one folder: ``shipped_model``)."""
     return ASSETS / kind / name
+
+
+def shipped_model(name: str) -> Path:
+    """The MJCF a shipped machine's description names (``assets/mjcf/<file>.xml``)."""
+    import tomllib
+
+    with open(shipped_description(name), "rb") as handle:
+        model = tomllib.load(handle)["machine"]["model"]
+    return Path(os.path.normpath(MACHINES / model))
+
+
+def shipped_scene(name: str) -> Path:
+    """A shipped machine's scene (the MJCF on a floor, with lights): ``assets/mjcf/<name>_scene.xml``."""
+    return ASSETS / "mjcf" / f"{name}_scene.xml"
+
+
+DEFAULT_MODEL = shipped_model(DEFAULT_MACHINE)
 
 
 def shipped_export(name: str) -> Path | None:
