@@ -149,7 +149,7 @@ class _Writer:
         self.site_namer = Namer(reserved=self.part_names.values())
         self.mjcf_joint_namer = Namer()
         self.equality_namer = Namer()
-        self.spec_bodies: dict[int, object] = {}
+        self.spec_bodies: dict[int, mujoco.MjsBody] = {}
         self.body_names: dict[int, str] = {}
         self.body_poses: dict[int, Pose] = {}
         self.body_moves: dict[int, bool] = {}
@@ -158,8 +158,8 @@ class _Writer:
 
     # -- helpers -----------------------------------------------------------------------------
     def _loop_spacing(self) -> float:
-        points = [p.com for p in self.assembly.real_parts] + [j.follower_frame.position for j in self.assembly.joints]
-        points = np.array(points) if points else np.zeros((1, 3))
+        located = [p.com for p in self.assembly.real_parts] + [j.follower_frame.position for j in self.assembly.joints]
+        points = np.array(located) if located else np.zeros((1, 3))
         size = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
         low, high = LOOP_SPACING_LIMITS_M
         return float(np.clip(LOOP_SPACING_FRACTION * size, low, high))

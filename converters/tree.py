@@ -69,7 +69,7 @@ class Plan:
         return order
 
 
-def tree_rank(joint: Joint, coupled: set[str], drivers: set[str] = frozenset(), on_frame: bool = False) -> tuple:
+def tree_rank(joint: Joint, coupled: set[str], drivers: frozenset[str] | set[str] = frozenset(), on_frame: bool = False) -> tuple:
     """Sort key: lower ranks are taken into the tree first (closing them would cost most)."""
     kinds = [p.kind for p in joint.primitives]
     if joint.name in drivers or sanitize(joint.name) in drivers:
@@ -85,7 +85,7 @@ def tree_rank(joint: Joint, coupled: set[str], drivers: set[str] = frozenset(), 
     return (rank,)
 
 
-def plan(assembly: Assembly, drivers: set[str] = frozenset()) -> Plan:
+def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -> Plan:
     """Choose bodies, tree joints and loop closures for ``assembly``; the joints named in
     ``drivers`` (export or sanitised names) stay joints of the tree whenever a tree can hold them."""
     order = {id(joint): i for i, joint in enumerate(assembly.joints)}
@@ -106,7 +106,8 @@ def plan(assembly: Assembly, drivers: set[str] = frozenset()) -> Plan:
                   key=lambda j: (tree_rank(j, coupled, drivers, on_frame(j)), order[id(j)]))
 
     spanning = UnionFind()
-    tree_joints, left_out = [], []
+    tree_joints: list[Joint] = []
+    left_out: list[Joint] = []
     for joint in locked + welds + free:
         (tree_joints if spanning.union(joint.base, joint.follower) else left_out).append(joint)
     warnings = [f"joint {j.name} ({j.kind}) is locked by welds between its parts: kept as a joint, "
