@@ -22,8 +22,8 @@ lint: $(STAMP)
 	$(VENV)/bin/mypy
 
 # two pytest workers (pytest-xdist), one per core of the 2-core machines CI and developers have;
-# tests that share a Ray cluster stay together on one worker (xdist_group "ray")
-PYTEST := $(PY) -m pytest -q -n 2 --dist loadgroup
+# the tests named "ray" run one after another on one worker (tests/conftest.py's scheduler)
+PYTEST := $(PY) -m pytest -q -n 2
 
 test: lint
 	$(PYTEST)

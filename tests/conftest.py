@@ -39,7 +39,9 @@ else:
             return "ray" if _is_ray_test(nodeid) else nodeid
 
     def pytest_xdist_make_scheduler(config, log):
-        return _RayTestsTogether(config, log)
+        if config.getvalue("dist") in ("load", "loadgroup"):
+            return _RayTestsTogether(config, log)
+        return None  # another distribution asked for by name: xdist's own
 
 
 def shared_dir() -> Path | None:
