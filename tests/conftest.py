@@ -98,3 +98,26 @@ def run_cli(*args: str, timeout: float = 600, cwd: Path | None = None, env: dict
 @pytest.fixture
 def cli():
     return run_cli
+
+
+@pytest.fixture
+def cli_here(capfd, monkeypatch):
+    """``mechanism ARGS`` run by ``mechanism.cli.main`` in this process, its file descriptors 1 and
+    2 captured: the same parser, checks and error lines as a fresh process, without the second
+    of interpreter start and imports. For inputs refused before the work starts; what reaches
+    the terminal from a whole run (native libraries' text, exit at shutdown) needs ``cli``."""
+    from mechanism.cli import main
+
+    monkeypatch.delenv("MECHANISM_DEBUG", raising=False)
+    monkeypatch.chdir(REPO_ROOT)
+
+    def run(*args, **_ignored) -> CliResult:
+        capfd.readouterr()
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as exc:  # argparse: --help, or a usage error
+            status = exc.code if isinstance(exc.code, int) else 2
+        out, err = capfd.readouterr()
+        return CliResult(subprocess.CompletedProcess(["mechanism", *map(str, args)], status, out, err))
+
+    return run

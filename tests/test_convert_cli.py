@@ -75,26 +75,24 @@ BAD_INPUTS = {
 BAD_OPTIONS = {"up axis": (["--up", "w"], "up axis 'w' is not one of")}
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(BAD_INPUTS))
-def test_bad_input_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
+def test_bad_input_gives_one_error_line_and_writes_nothing(case, tmp_path, cli_here):
     make, fragment = BAD_INPUTS[case]
     source = tmp_path / "export"
     source.mkdir()
     path = make(source)
     out = tmp_path / "out" / "model"
-    result = cli("convert", path, "-o", out, timeout=60)  # an entity bomb would run far longer
+    result = cli_here("convert", path, "-o", out, timeout=60)  # an entity bomb would run far longer
     line = result.assert_bad_input()
     assert fragment in line, line
     assert not (tmp_path / "out").exists(), "nothing is left behind"
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(BAD_OPTIONS))
-def test_bad_option_gives_one_error_line_and_writes_nothing(case, tmp_path, cli):
+def test_bad_option_gives_one_error_line_and_writes_nothing(case, tmp_path, cli_here):
     options, fragment = BAD_OPTIONS[case]
     path = FourBar().export(tmp_path, with_geometry=False)
-    line = cli("convert", path, "-o", tmp_path / "out", *options).assert_bad_input()
+    line = cli_here("convert", path, "-o", tmp_path / "out", *options).assert_bad_input()
     assert fragment in line, line
     assert not (tmp_path / "out").exists()
 

@@ -108,11 +108,10 @@ def test_cli_diagnose_writes_the_json_contract_and_a_report(bench, cli, tmp_path
     assert "encoder_eccentricity" in done.stdout
 
 
-@pytest.mark.slow
-def test_cli_rejects_unknown_effect_and_baseline(bench, cli, tmp_path):
+def test_cli_rejects_unknown_effect_and_baseline(bench, cli_here, tmp_path):
     rec = bench("none", seed=26, duration=5.0)
-    assert "unknown effect" in cli("diagnose", rec, "--effects", "cogging").assert_bad_input()
-    cli("diagnose", rec, "--baseline", "finite_element").assert_bad_input()
+    assert "unknown effect" in cli_here("diagnose", rec, "--effects", "cogging").assert_bad_input()
+    cli_here("diagnose", rec, "--baseline", "finite_element").assert_bad_input()
 
 
 @pytest.mark.slow

@@ -68,7 +68,6 @@ def test_motor_tables_parse_with_the_first_as_the_main_motor(tmp_path):
     assert described.motors["spin_b"]["type"] == "current"
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("motors, fragment", [
     ('[motor."spin_a"]\ntype = "servo"\nresistance_ohm = 4.0\ntorque_constant_Nm_per_A = 0.02\n'
      'back_emf_V_s_per_rad = 0.02\nkp_V_per_rad = 20.0\n', "supply_V: missing"),
@@ -77,9 +76,9 @@ def test_motor_tables_parse_with_the_first_as_the_main_motor(tmp_path):
      "motor_joint: missing"),
     ('[motor]\ntype = "dc"\n[motor."spin_a"]\ntype = "current"\ntorque_constant_Nm_per_A = 0.02\n', "not both"),
 ])
-def test_bad_motor_tables_are_one_error_line(tmp_path, cli, motors, fragment):
+def test_bad_motor_tables_are_one_error_line(tmp_path, cli_here, motors, fragment):
     path = _machine(tmp_path, motors)
-    line = cli("simulate", "--machine", path, "--voltage", "5", "--duration", "0.1", "--summary").assert_bad_input()
+    line = cli_here("simulate", "--machine", path, "--voltage", "5", "--duration", "0.1", "--summary").assert_bad_input()
     assert fragment in line
 
 

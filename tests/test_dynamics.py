@@ -144,30 +144,28 @@ def test_reduced_model_matches_the_full_model_within_one_percent(bare):
     assert np.sqrt(np.mean(error**2)) / np.sqrt(np.mean(full.arm_velocity_rad_s**2)) < 0.01
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("args, fragment", [
     (["--voltage", "12", "--duration", "-1"], "duration must be positive"),
     (["--voltage", "31", "--duration", "1"], "outside 0-30 V"),
     (["--duty", "120", "--duration", "1"], "duty cycle"),
     (["--layers", "-2", "--voltage", "5", "--duration", "1"], "fabric layers"),
 ])
-def test_bad_simulate_arguments_are_one_error_line(cli, tmp_path, args, fragment):
-    line = cli("simulate", *args, "--csv", tmp_path / "out.csv").assert_bad_input()
+def test_bad_simulate_arguments_are_one_error_line(cli_here, tmp_path, args, fragment):
+    line = cli_here("simulate", *args, "--csv", tmp_path / "out.csv").assert_bad_input()
     assert fragment in line
     assert not (tmp_path / "out.csv").exists()
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("text, fragment", [
     ("time_s,voltage_V\n0,3\n0.5,4\n0.5,5\n", "not strictly increasing"),
     ("time_s,voltage_V\n0,3\n1,abc\n", "not a number"),
     ("time_s,volts\n0,3\n", "missing required column"),
     ("time_s,voltage_V\n0,3\n1,45\n", "outside 0-30 V"),
 ])
-def test_malformed_profiles_are_one_error_line(cli, tmp_path, text, fragment):
+def test_malformed_profiles_are_one_error_line(cli_here, tmp_path, text, fragment):
     profile = tmp_path / "profile.csv"
     profile.write_text(text)
-    line = cli("simulate", "--profile", profile, "--csv", tmp_path / "out.csv").assert_bad_input()
+    line = cli_here("simulate", "--profile", profile, "--csv", tmp_path / "out.csv").assert_bad_input()
     assert fragment in line
 
 

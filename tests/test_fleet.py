@@ -59,11 +59,10 @@ def test_a_fleet_gets_one_json_each_a_summary_and_survives_a_bad_recording(cli, 
     assert json.loads(single.read_text()) == json.loads((out / "torque_ripple_seed3.json").read_text())
 
 
-@pytest.mark.slow
-def test_no_recording_diagnosed_is_exit_2(cli, tmp_path):
+def test_no_recording_diagnosed_is_exit_2(cli_here, tmp_path):
     for name in ("a", "b"):
         (tmp_path / f"{name}.csv").write_text("time,voltage\n0,1\n")
-    result = cli("diagnose", tmp_path / "a.csv", tmp_path / "b.csv", "--out", tmp_path / "out")
+    result = cli_here("diagnose", tmp_path / "a.csv", tmp_path / "b.csv", "--out", tmp_path / "out")
     assert "none of the 2 recordings" in result.assert_bad_input()
     assert len(_rows(tmp_path / "out" / "summary.csv")) == 2  # the summary says why, per recording
 

@@ -69,8 +69,7 @@ def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
     assert "stroke: 120.000 mm" in result.stdout  # the tip 60 mm below the hinge turns a whole revolution
 
 
-@pytest.mark.slow
-def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli):
+def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli_here):
     from mechanism.machine.models import shipped_model
 
     description = tmp_path / "press.toml"
@@ -89,7 +88,7 @@ def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli):
         torque_constant_Nm_per_A = 0.045
         back_emf_V_s_per_rad = 0.045
         """))
-    line = cli("simulate", "--machine", description, "--voltage", "12", "--duration", "0.1", "--summary").assert_bad_input()
+    line = cli_here("simulate", "--machine", description, "--voltage", "12", "--duration", "0.1", "--summary").assert_bad_input()
     assert "ground" in line and "RAM-1" in line
 
 

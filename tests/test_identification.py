@@ -147,12 +147,11 @@ def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
     assert "inertia_correction_motor_side_kgm2" in fitted
 
 
-@pytest.mark.slow
-def test_multibody_without_a_model_is_a_user_error(tmp_path, cli):
+def test_multibody_without_a_model_is_a_user_error(tmp_path, cli_here):
     from mechanism.testbench import write_recording
 
     rec = write_recording(bench_recording("none", seed=13, duration_s=12), tmp_path / "c.csv")[0]
-    line = cli("identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml").assert_bad_input()
+    line = cli_here("identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml").assert_bad_input()
     assert "missing.xml" in line
 
 

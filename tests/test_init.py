@@ -27,12 +27,11 @@ def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_pat
     assert "shaft speed" in run.stdout
 
 
-@pytest.mark.slow
-def test_init_refuses_to_overwrite_its_input(cli, tmp_path):
+def test_init_refuses_to_overwrite_its_input(cli_here, tmp_path):
     export = shipped_model("press")
     copy = tmp_path / "press.xml"
     copy.write_text(export.read_text())
-    line = cli("init", copy, "-o", copy).assert_bad_input()
+    line = cli_here("init", copy, "-o", copy).assert_bad_input()
     assert "input" in line
 
 

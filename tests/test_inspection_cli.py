@@ -54,7 +54,6 @@ def test_clearance_single_model_and_variants(cli, model_file, tmp_path):
     assert float(rows["late hook"]["needle_vs_hook_min_mm"]) < 0
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -65,18 +64,17 @@ def test_clearance_single_model_and_variants(cli, model_file, tmp_path):
         (["view", "--frames", "1"], "frames"),
     ],
 )
-def test_bad_input_is_one_error_line(cli, model_file, tmp_path, args, message):
+def test_bad_input_is_one_error_line(cli_here, model_file, tmp_path, args, message):
     out = tmp_path / "out.csv"
-    result = cli(*args, "--model", model_file, *(["--html", tmp_path / "v.html"] if args[0] == "view" else ["--csv", out]))
+    result = cli_here(*args, "--model", model_file, *(["--html", tmp_path / "v.html"] if args[0] == "view" else ["--csv", out]))
     assert message in result.assert_bad_input()
     assert not out.exists() and not (tmp_path / "v.html").exists()
 
 
-@pytest.mark.slow
-def test_malformed_variants_file_leaves_nothing(cli, model_file, tmp_path):
+def test_malformed_variants_file_leaves_nothing(cli_here, model_file, tmp_path):
     variants = tmp_path / "v.json"
     variants.write_text('{"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [1, "two"]}}')
     out = tmp_path / "out.csv"
-    result = cli("clearance", "--model", model_file, "--pairs", "needle:hook", "--variants", variants, "--csv", out)
+    result = cli_here("clearance", "--model", model_file, "--pairs", "needle:hook", "--variants", variants, "--csv", out)
     assert "finite number" in result.assert_bad_input()
     assert not out.exists()

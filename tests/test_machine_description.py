@@ -198,13 +198,13 @@ BAD = [
 
 
 @pytest.mark.parametrize("case", BAD, ids=[c[0] for c in BAD])
-def test_bad_descriptions_are_one_error_line_and_nothing_written(case, cli, tmp_path):
+def test_bad_descriptions_are_one_error_line_and_nothing_written(case, cli_here, tmp_path):
     _, edit, expected = case
     text = TOY_MACHINE.read_text().replace('model = "toy_sewing_machine.xml"', f'model = "{TOY_MACHINE.with_suffix(".xml")}"')
     bad = tmp_path / "bad.toml"
     bad.write_text(edit(text))
     out = tmp_path / "run.csv"
-    line = cli("simulate", "--machine", bad, "--voltage", "5", "--duration", "0.1", "--csv", out).assert_bad_input()
+    line = cli_here("simulate", "--machine", bad, "--voltage", "5", "--duration", "0.1", "--csv", out).assert_bad_input()
     assert str(bad) in line
     if expected:
         assert expected in line

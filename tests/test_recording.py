@@ -81,18 +81,17 @@ def test_constant_voltage_is_not_identifiable_and_steps_are():
     assert check_excitation(steps).identifiable
 
 
-@pytest.mark.slow
-def test_cli_bad_recordings_exit_2_with_one_error_line(tmp_path, cli):
+def test_cli_bad_recordings_exit_2_with_one_error_line(tmp_path, cli_here):
     bad = write(tmp_path / "bad.csv", "time,voltage,arm_angle\n0,1,0\n0.001,1,0\n0.001,1,0\n")
     out = tmp_path / "d.json"
     for verb in ("identify", "diagnose"):
-        line = cli(verb, bad, "--json", out).assert_bad_input()
+        line = cli_here(verb, bad, "--json", out).assert_bad_input()
         assert "duplicated" in line
     assert not out.exists()
     short = write(tmp_path / "short.csv", ramp_csv(seconds=1.0))
-    assert "at least 2 s" in cli("diagnose", short, "--json", out).assert_bad_input()
+    assert "at least 2 s" in cli_here("diagnose", short, "--json", out).assert_bad_input()
     missing = write(tmp_path / "missing.csv", "time,voltage\n0,1\n")
-    assert "arm_angle" in cli("diagnose", missing, "--json", out).assert_bad_input()
+    assert "arm_angle" in cli_here("diagnose", missing, "--json", out).assert_bad_input()
     assert not out.exists()
 
 

@@ -249,15 +249,14 @@ def test_bad_maps_are_one_line(tmp_path, text, fragment):
     assert fragment in str(info.value) and "\n" not in str(info.value)
 
 
-@pytest.mark.slow
-def test_a_gap_is_refused_naming_its_time_and_inspect_lists_it(tmp_path, cli, truth):
+def test_a_gap_is_refused_naming_its_time_and_inspect_lists_it(tmp_path, cli_here, truth):
     keep = (truth["time"] < 1.5) | (truth["time"] > 1.8)
     part = {k: v[keep] for k, v in truth.items()}
     path = tmp_path / "gap.csv"
     path.write_text(csv_text(part))
     with pytest.raises(UserError, match=r"after t = 1\.499 s"):
         read_recording(path)
-    result = cli("inspect-recording", path, "--json", tmp_path / "i.json")
+    result = cli_here("inspect-recording", path, "--json", tmp_path / "i.json")
     assert "after t = 1.499 s" in result.assert_bad_input()
     data = json.loads((tmp_path / "i.json").read_text())
     assert data["gaps"][0]["after_s"] == pytest.approx(1.499) and data["gaps"][0]["length_s"] == pytest.approx(0.302)
@@ -363,30 +362,28 @@ def _truncated(tmp_path, truth, name):
     return path
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("name", ["r.csv.gz", "r.mat", "r.parquet", "r.tdms", "r.zip", "r.json"])
-def test_truncated_files_are_one_error_line(tmp_path, cli, truth, name):
+def test_truncated_files_are_one_error_line(tmp_path, cli_here, truth, name):
     path = _truncated(tmp_path, truth, name)
-    line = cli("inspect-recording", path).assert_bad_input()
+    line = cli_here("inspect-recording", path).assert_bad_input()
     assert any(word in line for word in ("truncated", "not a readable", "not valid", "corrupt")), line
 
 
-@pytest.mark.slow
-def test_wrong_types_are_one_error_line(tmp_path, cli, truth):
+def test_wrong_types_are_one_error_line(tmp_path, cli_here, truth):
     pa = pytest.importorskip("pyarrow")
     import pyarrow.parquet as pq
 
     pq.write_table(pa.table({"time": ["soon"] * 10, "voltage": [1.0] * 10, "arm_angle": [0.0] * 10}), tmp_path / "r.parquet")
-    assert "not a number" in cli("inspect-recording", tmp_path / "r.parquet").assert_bad_input()
+    assert "not a number" in cli_here("inspect-recording", tmp_path / "r.parquet").assert_bad_input()
     (tmp_path / "r.json").write_text(json.dumps({"entries": [1, 2, 3]}))
-    assert "record 1" in cli("inspect-recording", tmp_path / "r.json", "--recording-map",
+    assert "record 1" in cli_here("inspect-recording", tmp_path / "r.json", "--recording-map",
                              map_file(tmp_path, 'records = "entries"\n')).assert_bad_input()
     import scipy.io
 
     scipy.io.savemat(tmp_path / "r.mat", {"time": "a string", "voltage": np.ones(5)})
-    assert "missing required column(s) time" in cli("inspect-recording", tmp_path / "r.mat").assert_bad_input()
+    assert "missing required column(s) time" in cli_here("inspect-recording", tmp_path / "r.mat").assert_bad_input()
     (tmp_path / "r.csv.gz").write_bytes(b"not gzip at all")
-    assert ".gz" in cli("inspect-recording", tmp_path / "r.csv.gz").assert_bad_input()
+    assert ".gz" in cli_here("inspect-recording", tmp_path / "r.csv.gz").assert_bad_input()
 
 
 @pytest.mark.slow

@@ -295,23 +295,22 @@ def test_needle_cli_writes_the_table_and_the_plot(tmp_path, cli):
     assert png.stat().st_size > 10_000
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("args", [
     ("--samples", "5"),
     ("--speed", "-100"),
     ("--speed", "nan"),
     ("--model", "no/such/model.xml"),
 ])
-def test_needle_cli_bad_input(tmp_path, cli, args):
+def test_needle_cli_bad_input(tmp_path, cli_here, args):
     csv = tmp_path / "needle.csv"
-    cli("needle", "--csv", csv, *args).assert_bad_input()
+    cli_here("needle", "--csv", csv, *args).assert_bad_input()
     assert not csv.exists()
 
 
-def test_needle_cli_model_without_a_needle(tmp_path, cli):
+def test_needle_cli_model_without_a_needle(tmp_path, cli_here):
     model = tmp_path / "pendulum.xml"
     model.write_text('<mujoco><worldbody><body><joint name="arm_shaft"/><geom size="0.1"/></body></worldbody></mujoco>')
-    line = cli("needle", "--model", model, "--csv", tmp_path / "n.csv").assert_bad_input()
+    line = cli_here("needle", "--model", model, "--csv", tmp_path / "n.csv").assert_bad_input()
     assert "motor_joint" in line and "close matches: arm_shaft" in line  # the shipped roles do not fit it
 
 

@@ -33,7 +33,6 @@ def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
     assert "lost steps 0" in result.stdout and "overshoot" in result.stdout
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize(
     "args",
     [
@@ -45,17 +44,16 @@ def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
         ["--sweep", "3000:1000:100"],
     ],
 )
-def test_bad_input_is_one_error_line(cli, tmp_path, args):
+def test_bad_input_is_one_error_line(cli_here, tmp_path, args):
     out = tmp_path / "out.csv"
-    cli("stepper", *args, "--csv", out).assert_bad_input()
+    cli_here("stepper", *args, "--csv", out).assert_bad_input()
     assert not out.exists()
 
 
-@pytest.mark.slow
-def test_malformed_sequence_file(cli, tmp_path):
+def test_malformed_sequence_file(cli_here, tmp_path):
     bad = tmp_path / "seq.csv"
     bad.write_text("time_s,rate_steps_s\n0,100\n0.1,fast\n")
-    line = cli("stepper", "--sequence", bad, "--csv", tmp_path / "out.csv").assert_bad_input()
+    line = cli_here("stepper", "--sequence", bad, "--csv", tmp_path / "out.csv").assert_bad_input()
     assert "seq.csv" in line and "line 3" in line
     assert not (tmp_path / "out.csv").exists()
 

@@ -170,7 +170,6 @@ def test_cli_sweep_killed_and_resumed_writes_the_same_csv(cli, tmp_path):
     assert not journal.exists()
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("document,message", [
     ({"parameters": {"fly": "inertia:arm_shat_kgm2"}, "sweep": {"fly": [0, 1e-4]}}, "arm_shaft"),
     ({"parameters": {"hook_timing_dg": None}, "sweep": {"hook_timing_dg": [0, 10]}}, "hook_timing_deg"),
@@ -185,11 +184,11 @@ def test_cli_sweep_killed_and_resumed_writes_the_same_csv(cli, tmp_path):
       "sweep": {"a": {"start": 1, "stop": 12, "num": 400}, "b": {"start": 0, "stop": 0.1, "num": 400}}}, "--yes"),
     ({"parameters": {"R": "motor:resistance_ohm"}, "sweep": {"R": [0, -5]}}, "resistance_ohm"),
 ])
-def test_bad_variant_files_are_one_error_line_and_write_nothing(cli, tmp_path, document, message):
+def test_bad_variant_files_are_one_error_line_and_write_nothing(cli_here, tmp_path, document, message):
     path = tmp_path / "v.json"
     path.write_text(json.dumps(document))
     out = tmp_path / "out.csv"
-    result = cli("sweep", "--variants", str(path), "--csv", str(out), "--plot", str(tmp_path / "p.png"))
+    result = cli_here("sweep", "--variants", str(path), "--csv", str(out), "--plot", str(tmp_path / "p.png"))
     line = result.assert_bad_input()
     assert message in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["v.json"]

@@ -462,21 +462,20 @@ def test_cli_lists_the_vocabulary_and_writes_a_recording(cli, tmp_path):
     assert len(read_table(tmp_path / "r.csv", required=["time", "voltage", "arm_angle"])) == 3000
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("args, fragment", [
     (["--effect", "belt"], "unknown effect 'belt'"),
     (["--effect", "none", "--duration", "0"], "duration"),
     (["--effect", "none"], "needs --effect"),
 ])
-def test_cli_bad_input_is_one_error_line(cli, tmp_path, args, fragment):
+def test_cli_bad_input_is_one_error_line(cli_here, tmp_path, args, fragment):
     target = tmp_path / "r.csv"
-    result = cli("testbench", *args, *(["-o", target] if "--duration" in args or "belt" in args else []))
+    result = cli_here("testbench", *args, *(["-o", target] if "--duration" in args or "belt" in args else []))
     assert fragment in result.assert_bad_input()
     assert list(tmp_path.iterdir()) == []
 
 
-def test_cli_refuses_a_name_without_csv_suffix_and_writes_nothing(cli, tmp_path):
-    result = cli("testbench", "--effect", "none", "-o", tmp_path / "r.txt")
+def test_cli_refuses_a_name_without_csv_suffix_and_writes_nothing(cli_here, tmp_path):
+    result = cli_here("testbench", "--effect", "none", "-o", tmp_path / "r.txt")
     assert "must end in .csv" in result.assert_bad_input()
     assert list(tmp_path.iterdir()) == []
 
