@@ -47,7 +47,7 @@ def test_every_mjcf_in_assets_loads_and_steps_in_stock_mujoco_where_it_lies(path
 def test_each_shipped_machine_has_its_mjcf_scene_and_provenance_in_assets_mjcf():
     folder = ASSETS / "mjcf"
     expected = {shipped_model(name).name for name in shipped_machines()}
-    expected |= {f"{name}_scene.xml" for name in shipped_machines()} | {f"{name}.md" for name in shipped_machines()}
+    expected |= {shipped_scene(name).name for name in shipped_machines()} | {f"{name}.md" for name in shipped_machines()}
     assert {p.name for p in folder.iterdir()} == expected  # one place each, nothing else
 
 
