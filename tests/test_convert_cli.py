@@ -136,8 +136,8 @@ def test_summary_lists_bodies_joints_loops_mass_and_warnings(tmp_path, cli):
     assert (tmp_path / "out" / "bars.xml").exists() and (tmp_path / "out" / "meshes" / "crank.stl").exists()
 
 
-def test_help_explains_options_and_units(cli):
-    result = cli("convert", "--help")
+def test_help_explains_options_and_units(cli_here):
+    result = cli_here("convert", "--help")
     assert result.returncode == 0
     text = " ".join(result.stdout.split())
     for fragment in ("--out", "--name", "--mesh-dir", "--up", "metres", "couplings.json", "m/s^2"):

@@ -216,10 +216,10 @@ def test_effects_that_pay_off_only_together_are_kept(bench):
     assert len(result.effect_names) <= 4
 
 
-def test_diagnose_help_names_every_effect_of_the_library_and_its_thresholds(cli):
+def test_diagnose_help_names_every_effect_of_the_library_and_its_thresholds(cli_here):
     from mechanism.sysid.diagnosis import KEEP_GAIN_JOINT, MIN_RELATIVE_GAIN
     from mechanism.sysid.effects import EFFECTS
 
-    text = " ".join(cli("diagnose", "--help").stdout.split())
+    text = " ".join(cli_here("diagnose", "--help").stdout.split())
     assert all(name in text for name in EFFECTS)
     assert f"{MIN_RELATIVE_GAIN:.0%}" in text and f"{KEEP_GAIN_JOINT:.0%}" in text and "{effects}" not in text

@@ -89,10 +89,9 @@ def test_reference_copy_is_identical_to_the_shared_file():
     assert thesis() == json.loads((shared / "reference" / "tegsten2008.json").read_text())
 
 
-@pytest.mark.slow
-def test_unknown_verb_and_bad_option_give_one_error_line(cli):
-    cli("no-such-verb").assert_bad_input()
-    result = cli()
+def test_unknown_verb_and_bad_option_give_one_error_line(cli_here):
+    cli_here("no-such-verb").assert_bad_input()
+    result = cli_here()
     assert result.returncode == 2
 
 
