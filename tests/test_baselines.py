@@ -126,3 +126,24 @@ def test_gearbox_friction_is_a_candidate_only_for_a_gearbox(pendulum):
     from support.nominal import SAPPHIRE
 
     assert "gear_load_friction" in library(pendulum) and "gear_load_friction" not in library(SAPPHIRE)
+
+
+def test_each_models_baseline_gets_its_own_gravity_table_on_shared_signals(pendulum):
+    """Baselines of several models on the same signals (a published model replayed beside the
+    fitted one) each use their own model's gravity: the signals' cached table is never one of
+    a model already gone whose memory the next one took over."""
+    import dataclasses
+    import gc
+
+    from mechanism.dynamics.lumped import Signals
+    from mechanism.sysid.lumped_baseline import LumpedBaseline
+
+    t = np.arange(400) * 0.005
+    signals = Signals(t, np.zeros_like(t), 0.8 * np.sin(t), 0.8 * np.cos(t), 0.005, ratio=pendulum.ratio)
+    truth = pendulum.linkage.at("gravity_torque_Nm", signals.drive_angle_rad)
+    for scale in (1.0, 2.0, 3.0, 0.5):
+        tables = dataclasses.replace(pendulum.linkage, gravity_torque_Nm=scale * pendulum.linkage.gravity_torque_Nm)
+        baseline = LumpedBaseline(dataclasses.replace(pendulum, linkage=tables), gravity=True)
+        assert np.allclose(baseline.shaft_torque({"gravity_scale": 1.0}, signals), scale * truth)
+        del tables, baseline
+        gc.collect()
