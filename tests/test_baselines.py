@@ -126,3 +126,51 @@ def test_gearbox_friction_is_a_candidate_only_for_a_gearbox(pendulum):
     from support.nominal import SAPPHIRE
 
     assert "gear_load_friction" in library(pendulum) and "gear_load_friction" not in library(SAPPHIRE)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("resistance", [1.2, 2.0])
+def test_a_servo_stronger_than_described_gets_its_torque_per_volt_from_the_known_gravity(pendulum, resistance):
+    """The pendulum's servo drawn with 0.6x the described winding resistance (1.7x the torque
+    per volt, as a servo's driver can give): the model's gravity, a known load, weighs the
+    torque per volt, so the baseline fits the effective resistance and nothing else is named
+    (with the described motor the search from it named linkage_dynamics). With the described
+    motor, the described resistance stays (or is fitted back to it) and nothing is named."""
+    import dataclasses
+
+    from mechanism.sysid.diagnosis import diagnose
+
+    servo = dataclasses.replace(PENDULUM_SERVO, resistance_ohm=resistance)
+    result = diagnose(record(servo, seed=3, fs=1000.0, duration_s=10.0), nominal=pendulum)
+    assert result.effect_names == []
+    fitted = result.baseline.values.get("motor_resistance_ohm", PENDULUM_SERVO.resistance_ohm)
+    assert fitted == pytest.approx(resistance, rel=0.05)
+    assert result.final.rmse_val < 0.1 * record_scale(result)
+    if "motor_resistance_ohm" in result.baseline.values:
+        assert any("effective resistance" in note for note in result.to_json()["baseline"]["notes"])
+
+
+def record_scale(result) -> float:
+    """The rms measured velocity of the recording (rad/s)."""
+    return float(np.sqrt(np.mean(result.recording.velocity_rad_s ** 2)))
+
+
+def test_each_models_baseline_gets_its_own_gravity_table_on_shared_signals(pendulum):
+    """Baselines of several models on the same signals (a published model replayed beside the
+    fitted one) each use their own model's gravity: the signals' cached table is never one of
+    a model already gone whose memory the next one took over."""
+    import dataclasses
+    import gc
+
+    from mechanism.dynamics.lumped import Signals
+    from mechanism.sysid.lumped_baseline import LumpedBaseline
+
+    t = np.arange(400) * 0.005
+    signals = Signals(t, np.zeros_like(t), 0.8 * np.sin(t), 0.8 * np.cos(t), 0.005, ratio=pendulum.ratio)
+    truth = pendulum.linkage.at("gravity_torque_Nm", signals.drive_angle_rad)
+    for scale in (1.0, 2.0, 3.0, 0.5):
+        tables = dataclasses.replace(pendulum.linkage, gravity_torque_Nm=scale * pendulum.linkage.gravity_torque_Nm)
+        baseline = LumpedBaseline(dataclasses.replace(pendulum, linkage=tables), gravity=True)
+        assert np.allclose(baseline.shaft_torque({"gravity_scale": 1.0}, signals), scale * truth)
+        del tables, baseline
+        gc.collect()

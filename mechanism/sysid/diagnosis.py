@@ -263,10 +263,16 @@ class Diagnosis:
             r = self.problem.nominal.motor.resistance_ohm
             notes.append(f"winding lag L/R fitted {1e3 * lag:.3g} ms (L = {1e3 * lag * r:.3g} mH at {r:g} ohm): a small DC motor's is "
                          f"0.2-2 ms; a lag this long more likely is a delay elsewhere (the angle or voltage logged late)")
+        sheet = self.problem.nominal.motor
+        r_fit = self.baseline.values.get("motor_resistance_ohm")
+        if r_fit is not None:
+            notes.append(f"the drive's effective resistance fitted ({r_fit:.4g} ohm instead of the described "
+                         f"{sheet.resistance_ohm:g}: {sheet.resistance_ohm / r_fit:.2g}x the described torque per volt and "
+                         f"back-emf damping): the model's gravity, a known load, weighs the torque per volt, and the "
+                         f"search from this baseline ended lower on the validation segments")
         ke = self.baseline.values.get("motor_back_emf_V_s_per_rad")
         if ke is None:
             return notes
-        sheet = self.problem.nominal.motor
         return notes + [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
                 f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
                 f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"]
@@ -442,31 +448,23 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
         freed = fit_baseline(problem, baseline, free=("Ke",), model_path=model_path)
         if freed.rmse_val < base.rmse_val:
             base = freed
-    where = locate(problem, base)
-    located = where.located()
-    lib = effect_library(nominal, candidates)
-    findings, current, rounds = _select(problem, base, base, lib, located, tick, workers)
     floor = noise_floor(recording)
     shafts = nominal.shafts()
-    description = ""
-    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
-        # the library leaves a structured error: model it anyway, with families that name nothing
-        tick("characterising the residual")
-        sig = signature(recording, locate(problem, current).residual, shafts)
-        description = describe(sig, shafts)
-        generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
-        more, current, more_rounds = _select(problem, base, current, generic, located, tick, workers, backward=False,
-                                             step_gain=GENERIC_GAIN, keep_gain=GENERIC_GAIN)
-        findings += more
-        rounds += more_rounds
-        findings, current = _prefer_library(problem, base, findings, current, lib, located, tick, workers)
-        if not all(f.effect.generic for f in more):
-            # library physics took a generic's place: what else of the library now passes on top
-            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
-            again, current, again_rounds = _select(problem, base, current, rest, located, tick, workers, backward=False,
-                                                   step_gain=MIN_RELATIVE_GAIN)
-            findings += again
-            rounds += again_rounds
+    lib = effect_library(nominal, candidates)
+    bases = [base]
+    if _calibrated_by_gravity(base):
+        # a known load (the model's gravity) weighs the drive's torque per volt: the described
+        # motor may be off (a servo's driver and PWM chain, the datasheet's tolerance; two
+        # identifications of one servo differ 2x in R). Fit the effective resistance too, and
+        # keep the baseline whose search ends lower on the validation segments.
+        tick("baseline with the drive's torque per volt free")
+        freed = fit_baseline(problem, baseline, free=(*base.structure.baseline.free, "R"), model_path=model_path)
+        if freed.rmse_val < base.rmse_val:
+            bases.append(freed)
+    searches = [_search(problem, b, lib, floor, shafts, tick, workers) for b in bases]
+    # the lower final validation rmse, ranked as candidates are (near-ties go to fewer parameters)
+    pick = int(_rank({str(i): search[2] for i, search in enumerate(searches)}, bases[0]))
+    base, (where, findings, current, rounds, description) = bases[pick], searches[pick]
     previous, loc_previous = base, where
     for finding in findings:
         loc = locate(problem, finding.fit)
@@ -488,6 +486,42 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
     result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted,
                            ratio=nominal.ratio, zero_meaning=nominal.zero_meaning)
     return result
+
+
+def _calibrated_by_gravity(base: FitResult) -> bool:
+    """The baseline carries the model's gravity torque (a known load) and the motor's
+    resistance is still the described one."""
+    model = base.structure.baseline
+    return bool(getattr(model, "terms", {}).get("model_gravity_torque")) and "R" not in getattr(model, "free", ("R",))
+
+
+def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
+    """From a fitted baseline: locate, select library effects, then generic ones where the
+    library leaves a structured error. Returns (localisation, findings, final fit, rounds, residual description)."""
+    where = locate(problem, base)
+    located = where.located()
+    nominal, recording = problem.nominal, problem.recording
+    findings, current, rounds = _select(problem, base, base, lib, located, tick, workers)
+    description = ""
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
+        # the library leaves a structured error: model it anyway, with families that name nothing
+        tick("characterising the residual")
+        sig = signature(recording, locate(problem, current).residual, shafts)
+        description = describe(sig, shafts)
+        generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
+        more, current, more_rounds = _select(problem, base, current, generic, located, tick, workers, backward=False,
+                                             step_gain=GENERIC_GAIN, keep_gain=GENERIC_GAIN)
+        findings += more
+        rounds += more_rounds
+        findings, current = _prefer_library(problem, base, findings, current, lib, located, tick, workers)
+        if not all(f.effect.generic for f in more):
+            # library physics took a generic's place: what else of the library now passes on top
+            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
+            again, current, again_rounds = _select(problem, base, current, rest, located, tick, workers, backward=False,
+                                                   step_gain=MIN_RELATIVE_GAIN)
+            findings += again
+            rounds += again_rounds
+    return where, findings, current, rounds, description
 
 
 def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect], located: Located, tick, workers,

@@ -99,7 +99,12 @@ class LumpedBaseline:
         torque = None
         if self.gravity:
             linkage = self.nominal.linkage  # one table per model: baselines of two models may share the signals
-            table = signals.memo("model_gravity_Nm", id(linkage), lambda: linkage.at("gravity_torque_Nm", signals.drive_angle_rad))
+            # the entry holds the linkage itself: while it is cached its id cannot be reused by
+            # another model's linkage (an id alone outlives a collected object)
+            held, table = signals.memo("model_gravity_Nm", id(linkage),
+                                       lambda: (linkage, linkage.at("gravity_torque_Nm", signals.drive_angle_rad)))
+            if held is not linkage:
+                table = linkage.at("gravity_torque_Nm", signals.drive_angle_rad)
             torque = values["gravity_scale"] * table
         if self.offset:
             torque = values["offset_torque_arm_Nm"] + (torque if torque is not None else np.zeros(len(signals)))
