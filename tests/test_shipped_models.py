@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mechanism
-from mechanism.machine.models import ASSETS, shipped_machines, shipped_model
+from mechanism.machine.models import ASSETS, shipped_machines, shipped_model, shipped_scene
 
 MACHINES = mechanism.shipped_machines()
 
