@@ -6,7 +6,7 @@ second, so the bench moves it the way a test rig does: point to point inside its
 Each move picks a target in the middle of the travel (:data:`SAFE_MARGIN` of it clear of
 each stop) and a crossing speed, applies the voltage the described drive needs for that
 speed (its datasheet, friction scale and reflected damping) with the sign towards the
-target, raises it while the shaft does not break away, and drops to 0 V when the shaft
+target, raises it by steps while the shaft does not break away, and drops to 0 V when the shaft
 passes the target; a rest of 0.2-1.2 s follows. A bench controller checks the shaft every
 :data:`CONTROL_PERIOD_S`. The logged voltage is what it commanded, so the recording keeps the
 bench CSV contract and every reader takes it.
@@ -27,10 +27,10 @@ from mechanism.errors import UserError
 CONTROL_PERIOD_S = 0.01  # the bench's position check (100 Hz)
 SAFE_MARGIN = 0.15  # targets stay this share of the travel clear of each stop
 MIN_MOVE = 0.25  # a move covers at least this share of the safe band
-CROSSING_S = (0.15, 2.5)  # a move crosses the safe band in this time at its target speed (log-uniform)
+CROSSING_S = (0.6, 4.0)  # a move crosses the safe band in this time at its target speed (log-uniform)
 REST_S = (0.2, 1.2)  # the rest at 0 V after each move
-BREAKAWAY_WAIT_S = 0.2  # a shaft slower than a tenth of its target speed this long after a move starts ...
-BREAKAWAY_STEP = 1.1  # ... gets 10 % more voltage every control period (up to the supply)
+BREAKAWAY_WAIT_S = 0.3  # a shaft slower than a tenth of its target speed this long after a move starts ...
+BREAKAWAY_STEP = 1.15  # ... gets 15 % more voltage, again after as long (up to the supply): few voltage steps
 VOLTAGE_RESOLUTION_V = 0.01
 
 # Effects whose physics needs a shaft or motor that turns whole revolutions (or the sewing
@@ -114,6 +114,7 @@ def run(step, n: int, rate: float, state: dict, rng, nominal, supply_V: float):
             mode, volts, rest_until = "rest", 0.0, t + float(rng.uniform(*REST_S))
         elif mode == "move" and t - move_start > BREAKAWAY_WAIT_S and abs(omega) < 0.1 * speed:
             volts = direction * min(abs(volts) * BREAKAWAY_STEP, supply_V)
+            move_start = t
         if mode == "rest" and (t >= rest_until or not lo <= theta <= hi):
             for _ in range(100):
                 target = float(rng.uniform(lo, hi))
