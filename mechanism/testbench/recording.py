@@ -170,15 +170,35 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_
     return p, derived
 
 
-def _rocking_truth(params: dict, nominal) -> np.ndarray | None:
+def _rocking_truth(params: dict, nominal, derived: dict) -> np.ndarray | None:
     """Stops at the ends of the travel and the machine's linkage table (its angle-dependent
-    inertia and gravity torque) into the integrator's parameters; returns the table."""
+    inertia and gravity torque) into the integrator's parameters; returns the table.
+
+    With a belt (or backlash), the rotor's share of the inertia is taken of the machine's
+    lowest inertia over the travel, not of its mean: the arm side keeps the CAD's variation
+    on top of what is left, and must stay positive at every angle (a rocker's inertia can
+    vary several-fold over its travel). Resonance and damping ratio are kept."""
     lo, hi = nominal.travel_rad
     params.update(stop_on=1.0, stop_lo=float(lo), stop_hi=float(hi))
     found = rocking.linkage_table(nominal)
     if found is None:
         return None
     params.update(tb_n=float(len(found[2])), tb_lo=found[0], tb_hi=found[1])
+    if params["belt"]:
+        n = params["ratio"]
+        rotor, arm = n * n * params["J_motor"], params["J_arm0"]
+        share, total = rotor / (rotor + arm), rotor + arm
+        omega2 = params["belt_k"] * (1.0 / rotor + 1.0 / arm)
+        zeta = params["belt_c"] / (2.0 * math.sqrt(params["belt_k"] * rotor * arm / (rotor + arm)))
+        rotor = share * (total + float(found[2][:, 0].min()))
+        arm = total - rotor
+        stiffness = omega2 / (1.0 / rotor + 1.0 / arm)
+        params.update(J_motor=rotor / (n * n), J_arm0=arm, belt_k=stiffness,
+                      belt_c=2.0 * zeta * math.sqrt(stiffness * rotor * arm / (rotor + arm)))
+        for values in derived.values():
+            if "stiffness_arm_side_Nm_per_rad" in values:
+                values.update(stiffness_arm_side_Nm_per_rad=stiffness, damping_arm_side_Nm_s_per_rad=params["belt_c"],
+                              rotor_inertia_arm_side_kgm2=rotor, arm_inertia_kgm2=arm)
     return found[2]
 
 
@@ -299,12 +319,12 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     substeps_per_ms = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
     substeps = max(1, int(round(substeps_per_ms * 1000.0 / rate)))
     params, derived = _model_parameters(base, effect_params, substeps, rate)
+    table = _rocking_truth(params, nominal, derived) if rocks else None
     for name, values in derived.items():
         effect_params[name].update(values)
 
     n = int(round(duration_s * rate))
     time = np.arange(n) / rate
-    table = _rocking_truth(params, nominal) if rocks else None
     plateaus = options.get("voltage_plateaus") or ([] if rocks else draw_plateaus(seed, duration_s))
     plateaus = [(float(d), float(v)) for d, v in plateaus]
     if any(d <= 0 or not math.isfinite(v) or (v < 0 and not rocks) for d, v in plateaus):
