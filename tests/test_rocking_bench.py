@@ -155,7 +155,10 @@ def test_a_rocking_bench_refuses_effects_that_need_whole_turns(rocker, cli, tmp_
     for effect in ("needle_penetration", "encoder_eccentricity", "linkage_dynamics"):
         with pytest.raises(UserError, match=f"{effect} does not apply to a shaft that rocks"):
             make_recording(effect, duration_s=0.1, nominal=nominal)
-    # and the diagnosis does not offer them
+    # a switch distortion anchored at 4.5 and 12 V means nothing for a drive the bench moves with ~1.6 V
+    with pytest.raises(UserError, match="anchored at 4.5 and 12 V"):
+        make_recording("voltage_nonlinearity", duration_s=0.1, nominal=nominal)
+    # and the diagnosis does not offer those that need whole turns
     offered = set(library(nominal))
     assert not offered & {"torque_ripple", "needle_penetration", "encoder_eccentricity", "linkage_dynamics"}
     assert {"position_friction", "stribeck"} <= offered

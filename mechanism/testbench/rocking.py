@@ -47,12 +47,18 @@ NEEDS_MOTOR_TURNS = {
 
 def refuse_effects(names, nominal) -> None:
     """UserError naming the first effect that makes no sense on this rocking drive."""
+    from mechanism.testbench.truth import PWM_ANCHORS_V
+
     lo, hi = nominal.travel_rad
     motor_span = abs(nominal.ratio) * (hi - lo)
+    low, top = working_voltages(nominal)
     for name in names:
         why = NEEDS_TURNING.get(name)
         if why is None and name in NEEDS_MOTOR_TURNS and (name == "encoder_eccentricity" or motor_span < 2 * math.pi):
             why = NEEDS_MOTOR_TURNS[name]
+        if name == "voltage_nonlinearity" and top < PWM_ANCHORS_V[0]:
+            why = (f"its switch distortion is anchored at {PWM_ANCHORS_V[0]:g} and {PWM_ANCHORS_V[1]:g} V, and the bench "
+                   f"moves this drive with {low:.2g}-{top:.2g} V, where the extrapolated loss would swallow most of the voltage")
         if why:
             raise UserError(f"effect {name} does not apply to a shaft that rocks between "
                             f"{math.degrees(lo):.4g} and {math.degrees(hi):.4g} deg: {why}")
@@ -81,6 +87,12 @@ def safe_band(nominal) -> tuple[float, float]:
     lo, hi = nominal.travel_rad
     margin = SAFE_MARGIN * (hi - lo)
     return lo + margin, hi - margin
+
+
+def working_voltages(nominal) -> tuple[float, float]:
+    """The bench's move voltages for the described drive: slowest and fastest crossing [V]."""
+    lo, hi = safe_band(nominal)
+    return tuple(voltage_for_speed(nominal, (hi - lo) / crossing) for crossing in sorted(CROSSING_S, reverse=True))  # type: ignore[return-value]
 
 
 def voltage_for_speed(nominal, speed: float) -> float:
