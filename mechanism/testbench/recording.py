@@ -296,6 +296,10 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
       ``start_angle_rad``, ``current_noise_A`` (sensor standard deviation),
       ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build),
       ``sample_rate_hz`` (100-10000), ``encoder_counts_per_rev`` (default 20000).
+
+    A drive whose shaft rocks (``nominal.travel_rad``) is moved point to point inside its travel
+    (:mod:`mechanism.testbench.rocking`) instead of the 4-20 V plateaus, with its linkage table
+    and stops in the truth; given ``voltage_plateaus`` (of either sign) it is driven open loop.
     """
     names = parse_effects(effects)
     seed = int(seed)
