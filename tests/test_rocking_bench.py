@@ -179,6 +179,7 @@ def _diagnosis(nominal, effect, tmp_path, seed=0, duration_s=20.0):
     return diagnose(read_recording(csv), baseline, nominal=nominal, workers=1).to_json()
 
 
+@pytest.mark.slow
 def test_a_rocking_machine_is_diagnosed_with_its_multibody_baseline_by_default(rocker):
     from types import SimpleNamespace
 
