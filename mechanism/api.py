@@ -201,7 +201,7 @@ def drive_nominal(machine: Machine | None):
                         coulomb_shaft_Nm=lumped["coulomb_shaft_Nm"],
                         viscous_shaft_Nm_s_per_rad=lumped["viscous_motor_side_Nm_s_per_rad"] * n**2,
                         joint_ratios=machine_drive_nominal(shipped).joint_ratios,
-                        supply_V=description.section("supply")["voltage_V"])
+                        supply_V=description.section("supply")["voltage_V"], zero_meaning="needle top dead centre")
 
 
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:

@@ -42,4 +42,6 @@ GRAVITY_SIGNIFICANT = 0.05  # rms gravity torque over the recording, relative to
 CAD_GRAVITY_TOLERANCE = 0.10  # 1-sigma, relative: a CAD export's masses and centres of mass (gravity is a prior)
 CAD_INERTIA_TOLERANCE = 0.25  # 1-sigma, relative: the CAD's angle-dependent inertia (moving parts' masses)
 CAD_MEAN_INERTIA_TOLERANCE = 0.5  # 1-sigma, in log: a described machine's total inertia (parts the CAD lacks, rotor)
+MOTOR_DATASHEET_TOLERANCE = 0.05  # 1-sigma, in log: a DC motor's torque per volt (Kt / R) against its datasheet
+#   (resistance and torque constant each within a few % at 20 C); fitted only where the data fixes the torque scale
 PRIOR_BOUND_SIGMAS = 3.0  # a prior's hard bounds lie this many of its sigmas from the described value

@@ -65,7 +65,7 @@ def run(args) -> int:
 
     from mechanism.cli._batch import check_batch_arguments
     from mechanism.cli._nominal import drive_nominal
-    from mechanism.cli.identify import progress_bar, write_outputs
+    from mechanism.cli.identify import progress_bar, resolve_baseline, write_outputs
     from mechanism.sysid.diagnosis import diagnose, not_identifiable_json
     from mechanism.sysid.effects import effect
     from mechanism.sysid.identification import NotIdentifiable
@@ -82,7 +82,8 @@ def run(args) -> int:
     try:
         bar, tick = progress_bar("diagnose")
         with bar:
-            result = diagnose(rec, args.baseline, candidates, progress=tick, model_path=args.model, nominal=drive_nominal(args))
+            nominal = drive_nominal(args)
+            result = diagnose(rec, resolve_baseline(args, nominal), candidates, progress=tick, model_path=args.model, nominal=nominal)
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
         write_outputs(args, not_identifiable_json(rec.source, str(exc), rec.reading))
@@ -116,9 +117,12 @@ def run_fleet(args, candidates) -> int:
         raise UserError("several recordings need --out DIR (one JSON per recording and a summary)")
     if args.json or args.report:
         raise UserError("--json and --report are for one recording; a fleet writes them per recording into --out")
+    from mechanism.cli.identify import resolve_baseline
+
+    nominal = drive_nominal(args)
     result = diagnose_fleet(args.recording, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                            progress=sys.stderr.isatty(), baseline=args.baseline, candidates=candidates, model_path=args.model,
-                            nominal=drive_nominal(args), recording_map=recording_map_from_args(args))
+                            progress=sys.stderr.isatty(), baseline=resolve_baseline(args, nominal), candidates=candidates,
+                            model_path=args.model, nominal=nominal, recording_map=recording_map_from_args(args))
     for row in result.rows:
         if row["status"] == "ok":
             print(f"{row['recording']}: effects {row['effects'] or 'none'}, rmse {row['baseline_rmse_rad_s']:.4g} -> "

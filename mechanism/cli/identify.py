@@ -14,10 +14,11 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
                              "unwrapped, 0 = the described zero], optional current [A]; leading '#' lines are metadata; "
                              "also .csv.gz/.bz2/.xz/.zip, .tsv, .mat, .parquet, .feather, .tdms, .json/.jsonl, other "
                              "columns and units through --recording-map")
-    parser.add_argument("--baseline", choices=["lumped", "multibody"], default="lumped",
+    parser.add_argument("--baseline", choices=["lumped", "multibody"], default=None,
                         help="lumped: thesis eq. 15-16 (constant inertia, viscous + Coulomb friction, DC motor through "
                              "the belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
-                             "and gravity) with fitted friction (default lumped)")
+                             "and gravity) with fitted friction (default lumped; multibody for a --machine whose shaft "
+                             "rocks between stops, where the angle-dependent terms are the machine)")
     parser.add_argument("--machine", metavar="FILE.toml",
                         help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
                              "scales from (default: the shipped Sapphire 870's thesis-identified numbers)")
@@ -25,6 +26,16 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
     add_recording_map_argument(parser)
     parser.add_argument("--json", metavar="OUT.json", help=f"write the {what} as JSON (rmse in rad/s of arm velocity)")
     parser.add_argument("--report", metavar="DIR", help="write an HTML report with plots to DIR (DIR/index.html)")
+
+
+def resolve_baseline(args, nominal) -> str:
+    """The baseline asked for, else multibody for a described machine whose shaft rocks (its
+    inertia and gravity vary over the travel), else lumped."""
+    if args.baseline:
+        return args.baseline
+    rocks = getattr(nominal, "travel_rad", None) is not None and getattr(nominal, "linkage", None) is not None
+    args.baseline = "multibody" if rocks else "lumped"
+    return args.baseline
 
 
 def register(subparsers) -> None:
@@ -95,7 +106,8 @@ def run(args) -> int:
     rec = read_recording_from_args(args, args.recording)
     bar, tick = progress_bar("identify")
     with bar:
-        result = identify(rec, args.baseline, free, progress=lambda: tick(), model_path=args.model, nominal=drive_nominal(args))
+        nominal = drive_nominal(args)
+        result = identify(rec, resolve_baseline(args, nominal), free, progress=lambda: tick(), model_path=args.model, nominal=nominal)
     from mechanism.sysid.report import identification_report
 
     write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))

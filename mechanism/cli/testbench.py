@@ -16,7 +16,10 @@ def register(subparsers) -> None:
             "CSV format (time [s], voltage [V], arm_angle [rad], current [A], 1 kHz): 4-20 V plateaus "
             "and 0 V stops in a per-seed random order, 5000-line encoder quantisation, current noise. "
             "The truth model is the thesis's lumped machine (parameters scattered per seed) plus the "
-            "named effects; what is concealed goes to REC.truth.json next to the CSV, never into it."
+            "named effects; what is concealed goes to REC.truth.json next to the CSV, never into it. A --machine "
+            "whose shaft rocks between stops is moved point to point inside its travel instead (voltages of both "
+            "signs, 0 V rests), its truth carrying the CAD model's inertia and gravity over the travel and the stops; "
+            "effects that need whole turns are refused."
         ),
     )
     parser.add_argument("--effect", metavar="NAME[,NAME]",

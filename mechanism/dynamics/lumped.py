@@ -77,6 +77,9 @@ class DriveNominal:
     supply_V: float | None = None
     tool_in_fabric: bool = True  # the machine has a tool that works in fabric (a needle-penetration load can exist)
     zero_meaning: str = "needle top"  # what shaft angle 0 is, for reports
+    # The shaft's travel when it rocks between stops (shaft angles [rad], lower first); None
+    # for a shaft that turns whole revolutions.
+    travel_rad: tuple[float, float] | None = None
     # What the machine's model knows beyond the lumped numbers (None for a drive given by its
     # lumped numbers alone): the linkage tables over a shaft turn (J(theta), J'(theta), the
     # gravity torque G(theta), arm side; mechanism.kinematics.linkage.LinkageTables) and the

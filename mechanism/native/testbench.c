@@ -24,6 +24,8 @@ typedef struct {
     double nd_force_per_m, nd_fabric, nd_point, nd_sliding, nd_depth_bdc;
     double belt_k, belt_c;
     double bl_gap;   /* backlash: half the free play of the belt/gear, arm-side angle [rad] */
+    double stop_on, stop_lo, stop_hi;   /* hard stops on the arm (shaft) angle [rad]: inelastic */
+    double tb_n, tb_lo, tb_hi;   /* linkage table over [tb_lo, tb_hi] (shaft angle): tb_n rows of J_var, J'/2, G */
 } tb_params;
 
 static const double TWO_PI = 6.283185307179586;
@@ -86,6 +88,21 @@ static double ripple(const tb_params *p, double thm) {
     return p->rp_a1 * sin(thm + p->rp_p1) + p->rp_ac * sin(p->rp_nc * thm + p->rp_pc);
 }
 
+/* The linkage table at shaft angle th (linear, held at the ends): the inertia's variation
+ * about J_arm0, half its derivative and the gravity torque (positive resisting). */
+static void linkage_table(const tb_params *p, const double *table, double th, double *jv, double *hdj, double *g) {
+    int n = (int)p->tb_n;
+    double x = (th - p->tb_lo) / (p->tb_hi - p->tb_lo) * (n - 1);
+    if (x <= 0.0) x = 0.0;
+    if (x >= n - 1) x = n - 1;
+    int i = (int)x;
+    if (i > n - 2) i = n - 2;
+    double f = x - i;
+    *jv = table[3 * i] + f * (table[3 * i + 3] - table[3 * i]);
+    *hdj = table[3 * i + 1] + f * (table[3 * i + 4] - table[3 * i + 1]);
+    *g = table[3 * i + 2] + f * (table[3 * i + 5] - table[3 * i + 2]);
+}
+
 /* Exact implicit step of M dv/dt = tau - c v - f, f in F sgn(v): returns v(t+h). */
 static double friction_step(double M, double v, double h, double tau, double c, double kinetic, double stat) {
     double level = v == 0.0 ? stat : kinetic;
@@ -95,10 +112,11 @@ static double friction_step(double M, double v, double h, double tau, double c, 
 }
 
 /* state: theta_arm, omega_arm, theta_motor, omega_motor, current, warmth (updated in place).
- * u[k]: applied voltage over [t_k, t_k + dt). Outputs: the state at t_k, k = 0..n-1. */
+ * u[k]: applied voltage over [t_k, t_k + dt). Outputs: the state at t_k, k = 0..n-1.
+ * table: tb_n rows (J_var, J'/2, G) when tb_n > 0, else unused (may be NULL). */
 int tb_simulate(const tb_params *p, int n, const double *u, double *state,
                 double *out_theta_a, double *out_omega_a, double *out_theta_m,
-                double *out_omega_m, double *out_current, double *out_warmth) {
+                double *out_omega_m, double *out_current, double *out_warmth, const double *table) {
     double tha = state[0], wa = state[1], thm = state[2], wm = state[3], cur = state[4], x = state[5];
     int n_sub = (int)p->n_sub;
     double h = p->dt / n_sub, N = p->ratio;
@@ -112,6 +130,12 @@ int tb_simulate(const tb_params *p, int n, const double *u, double *state,
             slider(p, tha, &z, &dz, &ddz);
             double M_arm = p->J_arm0 + p->lk_mass * dz * dz;
             double tau_link = -p->lk_mass * dz * ddz * wa * wa - p->lk_mass * p->gravity * dz;
+            if (p->tb_n > 0.0) {
+                double jv, hdj, g;
+                linkage_table(p, table, tha, &jv, &hdj, &g);
+                M_arm += jv;
+                tau_link += -hdj * wa * wa - g;
+            }
             double d = p->d_motor * (1.0 - p->th_viscous_drop * x);
             double kin, sta;
             friction_levels(p, tha, fabs(wa), x, &kin, &sta);
@@ -136,6 +160,11 @@ int tb_simulate(const tb_params *p, int n, const double *u, double *state,
             }
             tha += h * wa;
             thm += h * wm;
+            if (p->stop_on != 0.0 && (tha > p->stop_hi || tha < p->stop_lo)) {
+                tha = tha > p->stop_hi ? p->stop_hi : p->stop_lo;   /* inelastic: the arm stops at the stop */
+                if ((tha == p->stop_hi && wa > 0.0) || (tha == p->stop_lo && wa < 0.0)) wa = 0.0;
+                if (p->belt == 0.0) { thm = N * tha; wm = N * wa; }
+            }
             if (p->L <= 0.0) cur = (uk - p->Ke * wm) / p->R;
             if (p->th_tau_warm > 0.0) {
                 if (wa != 0.0) x += h * (1.0 - x) / p->th_tau_warm;

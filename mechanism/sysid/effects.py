@@ -123,12 +123,28 @@ def _harmonic_pair(prefix: str, unit: str, bound: float, what: str, scale: float
     )
 
 
+def motor_turns(nominal: DriveNominal) -> bool:
+    """Does the motor turn at least one whole revolution (a shaft that turns, or one that rocks
+    through a travel the ratio makes a motor revolution or more)?"""
+    travel = getattr(nominal, "travel_rad", None)
+    return travel is None or abs(nominal.ratio) * (travel[1] - travel[0]) >= 2 * math.pi
+
+
+def shaft_turns(nominal: DriveNominal) -> bool:
+    """Does the described shaft turn whole revolutions (not rock between stops)?"""
+    return getattr(nominal, "travel_rad", None) is None
+
+
 class TorqueRipple(Effect):
     name = "torque_ripple"
     meaning = "motor-angle-periodic torque: shaft distortion (once and twice per motor revolution) and cogging of the 12-pole motor (12 and 24 per revolution)"
     enters = "torque"
     MOTOR_ORDERS = (1, 2, 12, 24)  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
     linear = "all"
+
+    @classmethod
+    def applies(cls, nominal: DriveNominal) -> bool:
+        return motor_turns(nominal)  # a ripple periodic in the motor angle needs the motor to turn
 
     def make_parameters(self, nominal):
         motor_side = nominal.torque_scale_Nm / nominal.ratio  # the Coulomb level seen at the motor
@@ -160,6 +176,10 @@ class LinkageDynamics(Effect):
                "G(theta) = m g x', and the 1/2 J'(theta) w^2 torque")
     enters = "torque"
     linear = ("needle_bar_mass_kg",)
+
+    @classmethod
+    def applies(cls, nominal: DriveNominal) -> bool:
+        return shaft_turns(nominal)  # a slider-crank over whole revolutions; a rocker's linkage is its multibody baseline
 
     def make_parameters(self, nominal):
         # at most a mass whose inertia on the largest crank is 1.7x the machine's whole inertia
@@ -223,8 +243,8 @@ class PositionFriction(Effect):
         return tuple(p for k in self.ORDERS for p in _harmonic_pair(
             f"coulomb_order{k}", "Nm", 25 / 9 * t, f"{k}x-per-revolution variation of the Coulomb level", t / 9))
     feature = "arm_profile"
-    sentence = ("a Coulomb friction that varies by +-{amp_Nm:.2g} Nm over the arm revolution, highest {peak_deg:.0f} deg "
-                "after needle top and the same at every speed, explains the residual that is periodic in the arm angle")
+    sentence = ("a Coulomb friction that varies by +-{amp_Nm:.2g} Nm {over}, highest {peak_deg:.0f} deg "
+                "{after} and the same at every speed, explains the residual that {follows}")
 
     def variation(self, v, theta):
         return sum(v[f"coulomb_order{k}_cos_Nm"] * np.cos(k * theta) + v[f"coulomb_order{k}_sin_Nm"] * np.sin(k * theta)
@@ -236,9 +256,19 @@ class PositionFriction(Effect):
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
 
     def summary(self, v, s=None):
-        theta = np.linspace(0, 2 * PI, 720, endpoint=False)
+        travel = getattr(self.nominal, "travel_rad", None)
+        if travel is None:
+            theta = np.linspace(0, 2 * PI, 720, endpoint=False)
+            words = {"over": "over the arm revolution", "after": "after needle top",
+                     "follows": "is periodic in the arm angle"}
+            if self.nominal.zero_meaning != "needle top":
+                words["after"] = f"after {self.nominal.zero_meaning}"
+        else:  # a shaft that rocks: the variation over its travel, from the described zero
+            theta = np.linspace(travel[0], travel[1], 720)
+            words = {"over": "over the shaft's travel", "after": f"from {self.nominal.zero_meaning}",
+                     "follows": "follows the shaft angle"}
         shape = self.variation(v, theta)
-        return {"amp_Nm": 0.5 * float(np.ptp(shape)), "peak_deg": math.degrees(theta[int(np.argmax(shape))])}
+        return {"amp_Nm": 0.5 * float(np.ptp(shape)), "peak_deg": math.degrees(theta[int(np.argmax(shape))]), **words}
 
 
 class Stribeck(Effect):
@@ -508,6 +538,11 @@ class EncoderEccentricity(Effect):
     name = "encoder_eccentricity"
     meaning = "the encoder (adapter) is eccentric: it reports theta + e cos(theta - psi); a measurement error, not a torque"
     enters = "measurement"
+
+    @classmethod
+    def applies(cls, nominal: DriveNominal) -> bool:
+        return shaft_turns(nominal)  # once per revolution: over part of one it is an angle-dependent torque's twin
+
     def make_parameters(self, nominal):
         return _harmonic_pair("encoder_order1", "rad", 0.05, "once-per-revolution angle error of the sensor", 0.002)
 

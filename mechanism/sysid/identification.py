@@ -42,6 +42,7 @@ from mechanism.sysid.parameters import (Parameter, internal_bounds, internal_der
 from mechanism.sysid.recording import Recording, at_fitting_rate, smoothed_velocity, velocity_coefficients
 
 REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
+DIVERGED_RAD_S = 1e6  # a simulated speed beyond this has diverged (its square would overflow the residual)
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
 #                   residual piecewise smooth, so derivatives need steps well above round-off
 
@@ -140,7 +141,7 @@ class Problem:
         w0 = self.signals.velocity_rad_s[seg.starts]
         w0 = np.where(np.abs(w0) < REST_SPEED_RAD_S, 0.0, w0)
         w = simulate(drive, motor, seg, w0, self.dt)
-        if not np.all(np.isfinite(w)):
+        if not np.all(np.isfinite(w)) or np.max(np.abs(w), initial=0.0) > DIVERGED_RAD_S:
             return np.full(len(self.measured[part]), 1e3)
         # integrate to an angle from the measured start angle, pass it through the sensor
         # model, and differentiate it like the measurement (the same Savitzky-Golay weights,

@@ -125,9 +125,18 @@ class LumpedBaseline:
         return drive
 
     def finish(self, values: dict[str, float], signals: Signals, drive: Drive) -> None:
-        """After the effects: the winding lag acts on the voltage the motor finally sees."""
+        """After the effects: the winding lag acts on what drives the current, the voltage the
+        motor finally sees and the back-emf (L di/dt = V - R i - Ke w: the current lags both).
+        The back-emf's lag is taken on the measured speed, as a torque: the kernel's own
+        back-emf damping acts on the simulated speed unlagged, and the difference, Ke (w_lag - w)
+        in torque, is what the winding holds back (it matters where the mechanical time
+        constant is not much longer than L/R: a light, fast rocker)."""
         tau = values["electrical_time_constant_s"]
         if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
             drive.voltage_V = signals.memo("lagged", tau, lambda: lagged_voltage(drive.voltage_V, tau, signals.dt))
         else:
             drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)
+        if tau > 0.02 * signals.dt:
+            speed = signals.velocity_rad_s
+            lag = signals.memo("lagged_speed", tau, lambda: lagged_voltage(speed, tau, signals.dt) - speed)
+            drive.tau_motor_Nm = drive.tau_motor_Nm + self.motor(values).emf_damping_arm * lag

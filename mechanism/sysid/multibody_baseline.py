@@ -21,7 +21,7 @@ from __future__ import annotations
 from mechanism.dynamics.lumped import Drive, Signals
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter
-from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_INERTIA_TOLERANCE, PRIOR_BOUND_SIGMAS
+from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_INERTIA_TOLERANCE, MOTOR_DATASHEET_TOLERANCE, PRIOR_BOUND_SIGMAS
 
 
 class MultibodyBaseline(LumpedBaseline):
@@ -51,6 +51,19 @@ class MultibodyBaseline(LumpedBaseline):
                       f"factor on the CAD's gravity torque (prior 1 +/- {g:.0%})", scale=1.0, prior_sd=g),
             *[p for p in self.parameters if p.name.startswith("motor_") or p.name == "offset_torque_arm_Nm"],
         )
+        kt = "motor_torque_constant_Nm_per_A"
+        if getattr(nominal, "travel_rad", None) is not None and kt not in {p.name for p in self.parameters}:
+            # A shaft that rocks spends its time accelerating, stopping and holding against
+            # gravity: the CAD's inertia and gravity fix the torque scale, so the motor's torque
+            # per volt is seen (on a turning machine's steady speeds only its ratio to friction
+            # is). It is fitted within the datasheet's tolerance (3 sigma; as a soft prior it held
+            # the fit off the optimum on the bench's rocker recordings).
+            value, bound = nominal.motor.torque_constant_Nm_per_A, PRIOR_BOUND_SIGMAS * MOTOR_DATASHEET_TOLERANCE
+            self.parameters += (Parameter(kt, value, value * (1.0 - bound), value * (1.0 + bound),
+                                          f"motor Kt (datasheet {value:g}, within +/- {bound:.0%}: the shaft rocks, so the "
+                                          f"CAD's inertia and gravity fix the torque per volt)", log=True),)
+            self.notes = (*self.notes, "the motor's torque constant is fitted within the datasheet's tolerance: the shaft "
+                                       "rocks, so the CAD's inertia and gravity fix the torque scale")
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         n = signals.ratio

@@ -39,5 +39,5 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
         zero = f"{machine.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
     return DriveNominal(constants, inertia_kgm2=tables.mean_inertia_kgm2, coulomb_shaft_Nm=coulomb,
                         viscous_shaft_Nm_s_per_rad=viscous, joint_ratios=tuple(others.items()), supply_V=supply,
-                        tool_in_fabric=machine.fabric_capable, zero_meaning=zero,
+                        tool_in_fabric=machine.fabric_capable, zero_meaning=zero, travel_rad=machine.shaft_span_rad,
                         linkage=tables, roles=(machine.shaft_joint, machine.zero_site))

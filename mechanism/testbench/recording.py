@@ -12,6 +12,7 @@ import numpy as np
 from mechanism import __version__
 from mechanism.errors import UserError, close_matches
 from mechanism.files.outputs import atomic_file, transaction
+from mechanism.testbench import rocking
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
     ENCODER_COUNTS_PER_REV,
@@ -28,6 +29,7 @@ from mechanism.testbench.truth import (
 SAMPLE_RATE_HZ = 1000
 TRUTH_FORMAT = "mechanism-testbench-truth/1"
 CURRENT_RESOLUTION_A = 1e-3
+ZERO_MEANING = "needle top dead centre"  # shaft angle 0 of the shipped machine's recordings (no description given)
 VOLTAGE_BANDS_V = ((4.0, 7.0), (7.0, 11.0), (11.0, 15.0), (15.0, 20.0))
 
 
@@ -46,6 +48,7 @@ class Recording:
     current: np.ndarray
     truth: dict
     traces: dict[str, np.ndarray] = field(default_factory=dict)
+    zero_meaning: str = ZERO_MEANING  # what shaft angle 0 is (the header says it)
 
     @property
     def effects(self) -> list[str]:
@@ -89,17 +92,19 @@ def voltage_samples(plateaus, n: int, rate_hz: float = SAMPLE_RATE_HZ) -> np.nda
 
 
 def applied_voltage(logged: np.ndarray, params: dict | None) -> np.ndarray:
-    """The voltage the motor gets: the logged one, or through the PWM switch's distortion."""
+    """The voltage the motor gets: the logged one, or through the PWM switch's distortion
+    (odd in the voltage: a negative voltage is distorted as its magnitude)."""
     logged = np.asarray(logged, dtype=float)
     if params is None:
         return logged.copy()
-    duty = np.clip(logged / params["supply_V"], 0.0, 1.0)
+    magnitude = np.abs(logged)  # an H-bridge distorts both polarities alike
+    duty = np.clip(magnitude / params["supply_V"], 0.0, 1.0)
     distorted = (
-        logged
+        magnitude
         + params["mid_duty_gain_V"] * duty * (1.0 - duty)
         - params["low_duty_loss_V"] * (1.0 - duty) ** params["low_duty_loss_exponent"]
     )
-    return np.where(logged > 0.0, np.maximum(distorted, 0.0), 0.0)
+    return np.sign(logged) * np.where(magnitude > 0.0, np.maximum(distorted, 0.0), 0.0)
 
 
 # --- truth model assembly ------------------------------------------------------------------
@@ -165,10 +170,65 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_
     return p, derived
 
 
+def _rocking_truth(params: dict, nominal, derived: dict) -> np.ndarray | None:
+    """Stops at the ends of the travel and the machine's linkage table (its angle-dependent
+    inertia and gravity torque) into the integrator's parameters; returns the table.
+
+    With a belt (or backlash), the rotor's share of the inertia is taken of the machine's
+    lowest inertia over the travel, not of its mean: the arm side keeps the CAD's variation
+    on top of what is left, and must stay positive at every angle (a rocker's inertia can
+    vary several-fold over its travel). Resonance and damping ratio are kept."""
+    lo, hi = nominal.travel_rad
+    params.update(stop_on=1.0, stop_lo=float(lo), stop_hi=float(hi))
+    found = rocking.linkage_table(nominal)
+    if found is None:
+        return None
+    params.update(tb_n=float(len(found[2])), tb_lo=found[0], tb_hi=found[1])
+    if params["belt"]:
+        n = params["ratio"]
+        rotor, arm = n * n * params["J_motor"], params["J_arm0"]
+        share, total = rotor / (rotor + arm), rotor + arm
+        omega2 = params["belt_k"] * (1.0 / rotor + 1.0 / arm)
+        zeta = params["belt_c"] / (2.0 * math.sqrt(params["belt_k"] * rotor * arm / (rotor + arm)))
+        rotor = share * (total + float(found[2][:, 0].min()))
+        arm = total - rotor
+        stiffness = omega2 / (1.0 / rotor + 1.0 / arm)
+        params.update(J_motor=rotor / (n * n), J_arm0=arm, belt_k=stiffness,
+                      belt_c=2.0 * zeta * math.sqrt(stiffness * rotor * arm / (rotor + arm)))
+        for values in derived.values():
+            if "stiffness_arm_side_Nm_per_rad" in values:
+                values.update(stiffness_arm_side_Nm_per_rad=stiffness, damping_arm_side_Nm_s_per_rad=params["belt_c"],
+                              rotor_inertia_arm_side_kgm2=rotor, arm_inertia_kgm2=arm)
+    return found[2]
+
+
+def _chunk_stepper(params: dict, solver_name: str, table, nonlinearity: dict | None, heat: dict | None, rate: float):
+    """step(logged voltage chunk, state, end) for the rocking bench's controller: the truth over
+    one control period (the winding's resistance held over it when it heats)."""
+    kelvin = [0.0]
+
+    def step(logged: np.ndarray, state: dict, end: dict) -> dict:
+        applied = applied_voltage(logged, nonlinearity)
+        chunk = params
+        if heat is not None:
+            chunk = {**params, "R": params["R"] * (1.0 + heat["copper_coefficient_per_K"] * kelvin[0])}
+        out = sim.simulate(chunk, applied, state, prefer=solver_name, table=table, end=end)
+        if heat is not None:
+            power = float(np.mean(out["current_A"] ** 2)) * chunk["R"]
+            decay = math.exp(-len(logged) / rate / heat["thermal_time_constant_s"])
+            kelvin[0] = kelvin[0] * decay + power * heat["thermal_resistance_K_per_W"] * (1.0 - decay)
+            out["winding_resistance_ohm"] = np.full(len(logged), chunk["R"])
+        out["applied_voltage_V"] = applied
+        return out
+
+    return step
+
+
 HEATING_CHUNK_S = 0.1  # the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
 
 
-def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_name: str, heat: dict, rate: float) -> dict:
+def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_name: str, heat: dict, rate: float,
+                      table: np.ndarray | None = None) -> dict:
     """The truth model with the winding's resistance following its copper temperature:
     dT/dt = (I^2 R - T / R_th) / C_th, R = R0 (1 + alpha T), integrated chunk by chunk (the
     resistance held over each 0.1 s chunk, the temperature updated from the chunk's I^2 R)."""
@@ -183,7 +243,7 @@ def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_nam
         r = r0 * (1.0 + alpha * kelvin)
         # one sample more than the chunk: its first trace row is the state the next chunk starts from
         u = voltage[k0:k1 + 1]
-        out = sim.simulate({**params, "R": r}, u, state, prefer=solver_name)
+        out = sim.simulate({**params, "R": r}, u, state, prefer=solver_name, table=table)
         if k1 < n:
             state = {name: float(out[trace][k1 - k0]) for name, trace in zip(sim.STATE_FIELDS, sim.TRACE_NAMES)}
         parts.append({key: value[: k1 - k0] for key, value in out.items()})
@@ -236,6 +296,10 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
       ``start_angle_rad``, ``current_noise_A`` (sensor standard deviation),
       ``substeps_per_ms`` (integrator, default 20), ``integrator="python"`` (skip the C build),
       ``sample_rate_hz`` (100-10000), ``encoder_counts_per_rev`` (default 20000).
+
+    A drive whose shaft rocks (``nominal.travel_rad``) is moved point to point inside its travel
+    (:mod:`mechanism.testbench.rocking`) instead of the 4-20 V plateaus, with its linkage table
+    and stops in the truth; given ``voltage_plateaus`` (of either sign) it is driven open loop.
     """
     names = parse_effects(effects)
     seed = int(seed)
@@ -243,6 +307,9 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     if not math.isfinite(duration_s) or not 0.01 <= duration_s <= 3600:
         raise UserError(f"duration must be between 0.01 and 3600 s, not {duration_s}")
     randomize = bool(overrides.pop("randomize_baseline", True))
+    rocks = getattr(nominal, "travel_rad", None) is not None
+    if rocks:
+        rocking.refuse_effects(names, nominal)
     base = draw_baseline(seed, nominal, randomize=randomize)
     effect_params = draw_effects(seed, names, base)
     options = _apply_overrides(effect_params, base, overrides)
@@ -256,27 +323,40 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     substeps_per_ms = int(options.get("substeps_per_ms", sim.SUBSTEPS_PER_MS))
     substeps = max(1, int(round(substeps_per_ms * 1000.0 / rate)))
     params, derived = _model_parameters(base, effect_params, substeps, rate)
+    table = _rocking_truth(params, nominal, derived) if rocks else None
     for name, values in derived.items():
         effect_params[name].update(values)
 
     n = int(round(duration_s * rate))
     time = np.arange(n) / rate
-    plateaus = options.get("voltage_plateaus") or draw_plateaus(seed, duration_s)
+    plateaus = options.get("voltage_plateaus") or ([] if rocks else draw_plateaus(seed, duration_s))
     plateaus = [(float(d), float(v)) for d, v in plateaus]
-    if any(d <= 0 or not math.isfinite(v) or v < 0 for d, v in plateaus):
-        raise UserError("voltage plateaus need positive durations and non-negative voltages")
-    logged_voltage = voltage_samples(plateaus, n, rate)
-    motor_voltage = applied_voltage(logged_voltage, effect_params.get("voltage_nonlinearity"))
+    if any(d <= 0 or not math.isfinite(v) or (v < 0 and not rocks) for d, v in plateaus):
+        raise UserError("voltage plateaus need positive durations and non-negative voltages"
+                        + ("" if rocks else " (a shaft that turns whole revolutions runs forward)"))
 
     sensors = stream(seed, "sensors")
-    start = float(options.get("start_angle_rad", sensors.uniform(0.0, TWO_PI)))
+    if rocks:
+        start = float(options.get("start_angle_rad", rocking.start_angle(nominal, sensors)))
+    else:
+        start = float(options.get("start_angle_rad", sensors.uniform(0.0, TWO_PI)))
     noise = float(options.get("current_noise_A", sensors.uniform(0.01, 0.03)))
     state = dict(theta_arm=start, omega_arm=0.0, theta_motor=base["belt_ratio"] * start, omega_motor=0.0, current=0.0, warmth=0.0)
     solver_name = options.get("integrator", "native")
-    if "winding_heating" in effect_params:
-        traces = _simulate_heating(params, motor_voltage, state, solver_name, effect_params["winding_heating"], rate)
+    nonlinearity = effect_params.get("voltage_nonlinearity")
+    moves: list[dict] = []
+    if rocks and not plateaus:
+        stepper = _chunk_stepper(params, solver_name, table, nonlinearity, effect_params.get("winding_heating"), rate)
+        logged_voltage, chunks, moves = rocking.run(stepper, n, rate, state, stream(seed, "profile"), nominal, base["supply_V"])
+        traces = {key: np.concatenate([c[key] for c in chunks]) for key in chunks[0]}
+        motor_voltage = traces.pop("applied_voltage_V")
     else:
-        traces = sim.simulate(params, motor_voltage, state, prefer=solver_name)
+        logged_voltage = voltage_samples(plateaus, n, rate)
+        motor_voltage = applied_voltage(logged_voltage, nonlinearity)
+        if "winding_heating" in effect_params:
+            traces = _simulate_heating(params, motor_voltage, state, solver_name, effect_params["winding_heating"], rate, table)
+        else:
+            traces = sim.simulate(params, motor_voltage, state, prefer=solver_name, table=table)
     traces["applied_voltage_V"] = motor_voltage
 
     true_angle = traces["arm_angle_rad"]
@@ -311,7 +391,12 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
         },
         "integrator": {"substeps_per_ms": substeps_per_ms, "solver": sim.solver(solver_name).name},
     }
-    return Recording(time, logged_voltage, arm_angle, current, truth, traces)
+    if rocks:
+        lo, hi = nominal.travel_rad
+        truth["rocking"] = {"stops_rad": [lo, hi], "safe_band_rad": list(rocking.safe_band(nominal)),
+                            "linkage_table": table is not None, "moves": moves}
+    return Recording(time, logged_voltage, arm_angle, current, truth, traces,
+                     zero_meaning=getattr(nominal, "zero_meaning", ZERO_MEANING))
 
 
 RECORDING_ENDINGS = {".csv": "csv", ".csv.gz": "csv.gz", ".parquet": "parquet", ".mat": "mat"}
@@ -348,7 +433,7 @@ def write_recording(recording: Recording, csv_path: str | Path, fmt: str | None 
     counts = recording.truth["sensors"]["encoder_counts_per_rev"]
     comments = [
         f"mechanism virtual test bench recording ({recording.truth['sample_rate_Hz']:g} Hz); what is concealed in it is in {truth_path.name}",
-        "columns: time [s], voltage [V, commanded], arm_angle [rad, unwrapped, 0 = needle top dead centre, "
+        f"columns: time [s], voltage [V, commanded], arm_angle [rad, unwrapped, 0 = {recording.zero_meaning}, "
         f"{counts} counts/rev], current [A]",
         f"counts_per_rev: {counts}",
     ]

@@ -30,6 +30,8 @@ PARAM_FIELDS = (
     "nd_force_per_m", "nd_fabric", "nd_point", "nd_sliding", "nd_depth_bdc",
     "belt_k", "belt_c",
     "bl_gap",
+    "stop_on", "stop_lo", "stop_hi",
+    "tb_n", "tb_lo", "tb_hi",
 )
 STATE_FIELDS = ("theta_arm", "omega_arm", "theta_motor", "omega_motor", "current", "warmth")
 TRACE_NAMES = ("arm_angle_rad", "arm_velocity_rad_s", "motor_angle_rad", "motor_velocity_rad_s", "current_A", "warmth")
@@ -65,17 +67,20 @@ def solver(prefer: str = "native") -> Solver:
         else:
             function = library.tb_simulate
             pointer = ctypes.POINTER(ctypes.c_double)
-            function.argtypes = [ctypes.POINTER(_Params), ctypes.c_int, pointer, pointer] + [pointer] * 6
+            function.argtypes = [ctypes.POINTER(_Params), ctypes.c_int, pointer, pointer] + [pointer] * 7
             function.restype = ctypes.c_int
             _SOLVER = Solver("native", function)
     return _SOLVER
 
 
-def simulate(params: dict[str, float], applied_voltage: np.ndarray, state: dict[str, float], prefer: str = "native") -> dict[str, np.ndarray]:
+def simulate(params: dict[str, float], applied_voltage: np.ndarray, state: dict[str, float], prefer: str = "native",
+             table: np.ndarray | None = None, end: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     """Integrate from ``state`` with ``applied_voltage[k]`` held over sample k.
 
     ``params`` holds every name in PARAM_FIELDS. Returns the state at each sample time
-    (before that sample's voltage acts) as arrays named in TRACE_NAMES.
+    (before that sample's voltage acts) as arrays named in TRACE_NAMES. ``table``: the
+    linkage table (``tb_n`` rows of J_var, J'/2, G over ``tb_lo``..``tb_hi``) when ``tb_n`` > 0.
+    ``end``: filled with the state after the last sample (where the next call starts).
     """
     missing = [name for name in PARAM_FIELDS if name not in params]
     if missing:
@@ -84,16 +89,22 @@ def simulate(params: dict[str, float], applied_voltage: np.ndarray, state: dict[
     n = len(u)
     outputs = [np.zeros(n) for _ in TRACE_NAMES]
     state_array = np.array([float(state[name]) for name in STATE_FIELDS])
+    rows = int(params["tb_n"])
+    if rows > 0 and (table is None or np.shape(table) != (rows, 3) or rows < 2):
+        raise ValueError(f"the linkage table needs {rows} rows of 3 values (at least 2)")
+    flat = np.ascontiguousarray(table if rows > 0 else np.zeros((1, 3)), dtype=float).ravel()
     chosen = solver(prefer)
     if chosen.name == "native":
         struct = _Params(**{name: float(params[name]) for name in PARAM_FIELDS})
         pointer = ctypes.POINTER(ctypes.c_double)
         chosen.function(
             ctypes.byref(struct), n, u.ctypes.data_as(pointer), state_array.ctypes.data_as(pointer),
-            *(array.ctypes.data_as(pointer) for array in outputs),
+            *(array.ctypes.data_as(pointer) for array in outputs), flat.ctypes.data_as(pointer),
         )
     else:
-        _simulate_python(params, u, state_array, outputs)
+        _simulate_python(params, u, state_array, outputs, flat)
+    if end is not None:
+        end.update(zip(STATE_FIELDS, (float(v) for v in state_array)))
     return dict(zip(TRACE_NAMES, outputs))
 
 
@@ -157,6 +168,16 @@ def _ripple(p, thm):
     return p["rp_a1"] * math.sin(thm + p["rp_p1"]) + p["rp_ac"] * math.sin(p["rp_nc"] * thm + p["rp_pc"])
 
 
+def _linkage_table(p, table, th):
+    n = int(p["tb_n"])
+    x = (th - p["tb_lo"]) / (p["tb_hi"] - p["tb_lo"]) * (n - 1)
+    x = min(max(x, 0.0), float(n - 1))
+    i = min(int(x), n - 2)
+    f = x - i
+    row, nxt = table[3 * i: 3 * i + 3], table[3 * i + 3: 3 * i + 6]
+    return tuple(float(a + f * (b - a)) for a, b in zip(row, nxt))
+
+
 def _friction_step(inertia, v, h, tau, c, kinetic, static):
     level = static if v == 0.0 else kinetic
     impulse = inertia * v / h + tau
@@ -165,7 +186,7 @@ def _friction_step(inertia, v, h, tau, c, kinetic, static):
     return (impulse - math.copysign(level, impulse)) / (inertia / h + c)
 
 
-def _simulate_python(p, u, state, outputs):
+def _simulate_python(p, u, state, outputs, table=None):
     tha, wa, thm, wm, cur, x = (float(v) for v in state)
     n_sub = int(p["n_sub"])
     h = p["dt"] / n_sub
@@ -184,6 +205,10 @@ def _simulate_python(p, u, state, outputs):
                 tau_link = -mass * dz * ddz * wa * wa - mass * p["gravity"] * dz
             else:
                 inertia, tau_link = p["J_arm0"], 0.0
+            if p["tb_n"] > 0.0:
+                jv, hdj, g = _linkage_table(p, table, tha)
+                inertia += jv
+                tau_link += -hdj * wa * wa - g
             d = p["d_motor"] * (1.0 - p["th_viscous_drop"] * x)
             kinetic, static = _friction_levels(p, tha, abs(wa), x)
             if p["L"] > 0.0:
@@ -202,6 +227,12 @@ def _simulate_python(p, u, state, outputs):
                 wa = _friction_step(inertia, wa, h, belt + tau_link, 0.0, kinetic, static)
             tha += h * wa
             thm += h * wm
+            if p["stop_on"] != 0.0 and (tha > p["stop_hi"] or tha < p["stop_lo"]):
+                tha = p["stop_hi"] if tha > p["stop_hi"] else p["stop_lo"]  # inelastic: the arm stops at the stop
+                if (tha == p["stop_hi"] and wa > 0.0) or (tha == p["stop_lo"] and wa < 0.0):
+                    wa = 0.0
+                if p["belt"] == 0.0:
+                    thm, wm = ratio * tha, ratio * wa
             if p["L"] <= 0.0:
                 cur = (uk - p["Ke"] * wm) / p["R"]
             if p["th_tau_warm"] > 0.0:

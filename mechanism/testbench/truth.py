@@ -177,7 +177,7 @@ def _belt_compliance(u, rng, base):
 
 
 # Table 2's PWM conversion error is anchored at two duties: error at 4.5 V and at 12 V.
-_PWM_ANCHORS_V = (4.5, 12.0)
+PWM_ANCHORS_V = (4.5, 12.0)
 
 
 def _voltage_nonlinearity(u, rng, base):
@@ -185,9 +185,9 @@ def _voltage_nonlinearity(u, rng, base):
     exponent = u("low_duty_loss_exponent")
     errors = (u("error_at_4.5V_fraction"), u("error_at_12V_fraction"))
     # applied - logged = gain x (1 - x) - loss (1 - x)^exponent, x = duty; solved for both anchors
-    duty = np.array(_PWM_ANCHORS_V) / supply
+    duty = np.array(PWM_ANCHORS_V) / supply
     matrix = np.column_stack([duty * (1 - duty), -((1 - duty) ** exponent)])
-    gain, loss = np.linalg.solve(matrix, np.array(_PWM_ANCHORS_V) * np.array(errors))
+    gain, loss = np.linalg.solve(matrix, np.array(PWM_ANCHORS_V) * np.array(errors))
     return {"supply_V": supply, "mid_duty_gain_V": float(gain), "low_duty_loss_V": float(loss),
             "low_duty_loss_exponent": exponent, "error_at_4.5V_fraction": errors[0], "error_at_12V_fraction": errors[1]}
 
