@@ -38,33 +38,87 @@ static double friction_level(double fk, double fx, double w, double ws, double d
 
 /* Rigid belt: one velocity state. Exponential midpoint rule: the linear damping exactly,
  * the velocity-dependent rest (1/2 J' w^2, Stribeck) at a half-step prediction. */
-static void run_rigid(const drive_params *p, const double *u, const double *tm, const double *ta,
-                      const double *fk, const double *fx, const double *cv, const double *jt,
-                      const double *q, int start, int length, double w0, double *out) {
+typedef struct {
+    const double *u, *tm, *ta, *fk, *fx, *cv, *jt, *q;
+} coefficients;
+
+/* the decays depend on the damping and the inertia only, which are constant over long
+ * stretches (often the whole recording): computed again only when either changes */
+typedef struct {
+    double c, j, decay, decay_half;
+} decays;
+
+static inline double rigid_step(const drive_params *p, const coefficients *a, int k, double w, double h, decays *d) {
+    double c = p->c_emf + a->cv[k];
+    if (c != d->c || a->jt[k] != d->j) {
+        d->c = c;
+        d->j = a->jt[k];
+        d->decay = exp(-c * h / a->jt[k]);
+        d->decay_half = exp(-0.5 * c * h / a->jt[k]);
+    }
+    double decay = d->decay, decay_half = d->decay_half;
+    double drive = p->gain * a->u[k] - a->tm[k] - a->ta[k];
+    double fk = a->fk[k], fx = a->fx[k], q = a->q[k];
+    for (int s = 0; s < p->substeps; s++) {
+        double f = drive - q * w * w;
+        double dir = sgn(w);
+        if (w == 0.0) {
+            if (fabs(f) <= fk + fx) continue;   /* stuck */
+            dir = sgn(f);
+        }
+        double wss = (f - friction_level(fk, fx, w, p->ws, p->delta) * dir) / c;
+        double wh = wss + (w - wss) * decay_half;
+        if (sgn(wh) == -dir) wh = 0.0;
+        f = drive - q * wh * wh - friction_level(fk, fx, wh, p->ws, p->delta) * dir;
+        wss = f / c;
+        double wn = wss + (w - wss) * decay;
+        if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
+        w = wn;
+    }
+    return w;
+}
+
+static void run_rigid(const drive_params *p, const coefficients *a, int start, int length, double w0, double *out) {
     double w = w0;
     double h = p->dt / p->substeps;
+    decays d = {NAN, NAN, 0.0, 0.0};
     for (int i = 0; i < length; i++) {
-        int k = start + i;
         out[i] = w;
-        double c = p->c_emf + cv[k];
-        double decay = exp(-c * h / jt[k]);
-        double decay_half = exp(-0.5 * c * h / jt[k]);
-        double drive = p->gain * u[k] - tm[k] - ta[k];
-        for (int s = 0; s < p->substeps; s++) {
-            double f = drive - q[k] * w * w;
-            double dir = sgn(w);
-            if (w == 0.0) {
-                if (fabs(f) <= fk[k] + fx[k]) continue;   /* stuck */
-                dir = sgn(f);
+        w = rigid_step(p, a, start + i, w, h, &d);
+    }
+}
+
+/* Four segments of one length side by side: the same steps (the same numbers) as one at a
+ * time, but four independent chains of dependent arithmetic keep the processor busy. */
+#define LANES 4
+static void run_rigid_lanes(const drive_params *p, const coefficients *a, const int *starts, int length,
+                            const double *w0, double *const *out, int lanes) {
+    double w[LANES];
+    decays d[LANES];
+    double h = p->dt / p->substeps;
+    if (lanes < LANES) {
+        for (int i = 0; i < length; i++)
+            for (int l = 0; l < lanes; l++) {
+                if (i == 0) {
+                    w[l] = w0[l];
+                    d[l].c = d[l].j = NAN;
+                    d[l].decay = d[l].decay_half = 0.0;
+                }
+                out[l][i] = w[l];
+                w[l] = rigid_step(p, a, starts[l] + i, w[l], h, &d[l]);
             }
-            double wss = (f - friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir) / c;
-            double wh = wss + (w - wss) * decay_half;
-            if (sgn(wh) == -dir) wh = 0.0;
-            f = drive - q[k] * wh * wh - friction_level(fk[k], fx[k], wh, p->ws, p->delta) * dir;
-            wss = f / c;
-            double wn = wss + (w - wss) * decay;
-            if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
-            w = wn;
+        return;
+    }
+    for (int l = 0; l < LANES; l++) {
+        w[l] = w0[l];
+        d[l].c = NAN;
+        d[l].j = NAN;
+        d[l].decay = d[l].decay_half = 0.0;
+    }
+    for (int i = 0; i < length; i++) {
+        for (int l = 0; l < LANES; l++) {
+            out[l][i] = w[l];
+            w[l] = rigid_step(p, a, starts[l] + i, w[l], h, &d[l]);
         }
     }
 }
@@ -126,10 +180,24 @@ void simulate_segments(const drive_params *p, const double *u, const double *tm,
                        const double *fk, const double *fx, const double *cv, const double *jt,
                        const double *q, int n_seg, const int *starts, const int *lengths,
                        const int *offsets, const double *w0, double *out) {
-    for (int j = 0; j < n_seg; j++) {
+    coefficients a = {u, tm, ta, fk, fx, cv, jt, q};
+    int j = 0;
+    if (p->k_belt <= 0.0) {
+        while (j + 1 < n_seg) {
+            int lanes = n_seg - j < LANES ? n_seg - j : LANES;
+            int same = 1;
+            for (int l = 1; l < lanes; l++) same &= lengths[j + l] == lengths[j];
+            if (!same) break;
+            double *o[LANES];
+            for (int l = 0; l < lanes; l++) o[l] = out + offsets[j + l];
+            run_rigid_lanes(p, &a, starts + j, lengths[j], w0 + j, o, lanes);
+            j += lanes;
+        }
+    }
+    for (; j < n_seg; j++) {
         if (p->k_belt > 0.0)
             run_belt(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
         else
-            run_rigid(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
+            run_rigid(p, &a, starts[j], lengths[j], w0[j], out + offsets[j]);
     }
 }
