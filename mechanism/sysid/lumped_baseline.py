@@ -123,6 +123,6 @@ class LumpedBaseline:
         """After the effects: the winding lag acts on the voltage the motor finally sees."""
         tau = values["electrical_time_constant_s"]
         if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
-            drive.voltage_V = signals.memo("lagged", tau, lambda: lagged_voltage(drive.voltage_V, tau, signals.dt))
+            drive.voltage_V = signals.lagged(tau)
         else:
             drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)
