@@ -126,52 +126,92 @@ static void run_rigid_lanes(const drive_params *p, const coefficients *a, const 
 /* Elastic belt: motor velocity wm, arm velocity w, belt twist x (arm units). Motor torque,
  * back-emf and motor-angle-periodic torque act on the motor; friction, viscous, position
  * loads and the linkage on the arm. Semi-implicit Euler with enough substeps. */
-static void run_belt(const drive_params *p, const double *u, const double *tm, const double *ta,
-                     const double *fk, const double *fx, const double *cv, const double *jt,
-                     const double *q, int start, int length, double w0, double *out) {
+typedef struct {
+    double w, wm, x;
+    int nsub;
+    double h;
+} belt_state;
+
+static belt_state belt_start(const drive_params *p, const coefficients *a, int start, double w0) {
     double jm = p->j_motor;
-    double kb = p->k_belt, cb = p->c_belt;
+    double kb = p->k_belt;
     int k0 = start;
-    double w = w0, wm = w0;
-    double ja0 = jt[k0] - jm;
+    belt_state b;
+    double w = w0;
+    b.w = w0;
+    b.wm = w0;
+    double ja0 = a->jt[k0] - jm;
     double wr = sqrt(kb * (1.0 / jm + 1.0 / ja0));
     int nsub = p->substeps;
     int need = (int)ceil(wr * p->dt / 0.25);
     if (need > nsub) nsub = need;
-    double h = p->dt / nsub;
+    b.nsub = nsub;
+    b.h = p->dt / nsub;
     /* quasi-static initial twist: the belt carries the arm's load */
-    double load = cv[k0] * w + ta[k0] + q[k0] * w * w + (w != 0.0 ? fk[k0] * sgn(w) : 0.0);
+    double load = a->cv[k0] * w + a->ta[k0] + a->q[k0] * w * w + (w != 0.0 ? a->fk[k0] * sgn(w) : 0.0);
     if (w == 0.0) {
-        double drive = p->gain * u[k0] - tm[k0];
-        double lim = fk[k0] + fx[k0];
+        double drive = p->gain * a->u[k0] - a->tm[k0];
+        double lim = a->fk[k0] + a->fx[k0];
         load = drive > lim ? lim : (drive < -lim ? -lim : drive);
     }
-    double x = load / kb + (load > 0 ? p->gap : (load < 0 ? -p->gap : 0.0));
-    for (int i = 0; i < length; i++) {
-        int k = start + i;
-        out[i] = w;
-        double ja = jt[k] - jm;
-        for (int s = 0; s < nsub; s++) {
-            double fb = x > p->gap ? kb * (x - p->gap) + cb * (wm - w)
-                      : (x < -p->gap ? kb * (x + p->gap) + cb * (wm - w) : 0.0);   /* free play: no torque */
-            double fm = p->gain * u[k] - p->c_emf * wm - tm[k] - fb;
-            wm += h * fm / jm;
-            double f = fb - cv[k] * w - ta[k] - q[k] * w * w;
-            double dir = sgn(w);
-            int stuck = 0;
-            if (w == 0.0) {
-                if (fabs(f) <= fk[k] + fx[k]) stuck = 1;
-                else dir = sgn(f);
-            }
-            if (!stuck) {
-                f -= friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir;
-                double wn = w + h * f / ja;
-                if (sgn(wn) == -dir) wn = 0.0;
-                w = wn;
-            }
-            x += h * (wm - w);
+    b.x = load / kb + (load > 0 ? p->gap : (load < 0 ? -p->gap : 0.0));
+    return b;
+}
+
+static inline void belt_step(const drive_params *p, const coefficients *a, int k, belt_state *b) {
+    double jm = p->j_motor;
+    double kb = p->k_belt, cb = p->c_belt;
+    double w = b->w, wm = b->wm, x = b->x, h = b->h;
+    double ja = a->jt[k] - jm;
+    for (int s = 0; s < b->nsub; s++) {
+        double fb = x > p->gap ? kb * (x - p->gap) + cb * (wm - w)
+                  : (x < -p->gap ? kb * (x + p->gap) + cb * (wm - w) : 0.0);   /* free play: no torque */
+        double fm = p->gain * a->u[k] - p->c_emf * wm - a->tm[k] - fb;
+        wm += h * fm / jm;
+        double f = fb - a->cv[k] * w - a->ta[k] - a->q[k] * w * w;
+        double dir = sgn(w);
+        int stuck = 0;
+        if (w == 0.0) {
+            if (fabs(f) <= a->fk[k] + a->fx[k]) stuck = 1;
+            else dir = sgn(f);
         }
+        if (!stuck) {
+            f -= friction_level(a->fk[k], a->fx[k], w, p->ws, p->delta) * dir;
+            double wn = w + h * f / ja;
+            if (sgn(wn) == -dir) wn = 0.0;
+            w = wn;
+        }
+        x += h * (wm - w);
     }
+    b->w = w;
+    b->wm = wm;
+    b->x = x;
+}
+
+static void run_belt(const drive_params *p, const coefficients *a, int start, int length, double w0, double *out) {
+    belt_state b = belt_start(p, a, start, w0);
+    for (int i = 0; i < length; i++) {
+        out[i] = b.w;
+        belt_step(p, a, start + i, &b);
+    }
+}
+
+/* Up to LANES segments of one length and one substep count side by side (as the rigid
+ * lanes: the same numbers as one at a time). Returns 0, having done nothing, when the
+ * segments need different substep counts. */
+static int run_belt_lanes(const drive_params *p, const coefficients *a, const int *starts, int length,
+                          const double *w0, double *const *out, int lanes) {
+    belt_state b[LANES];
+    for (int l = 0; l < lanes; l++) {
+        b[l] = belt_start(p, a, starts[l], w0[l]);
+        if (b[l].nsub != b[0].nsub) return 0;
+    }
+    for (int i = 0; i < length; i++)
+        for (int l = 0; l < lanes; l++) {
+            out[l][i] = b[l].w;
+            belt_step(p, a, starts[l] + i, &b[l]);
+        }
+    return 1;
 }
 
 /* Simulate n_seg segments; segment j starts at sample starts[j] with velocity w0[j] and
@@ -181,22 +221,25 @@ void simulate_segments(const drive_params *p, const double *u, const double *tm,
                        const double *q, int n_seg, const int *starts, const int *lengths,
                        const int *offsets, const double *w0, double *out) {
     coefficients a = {u, tm, ta, fk, fx, cv, jt, q};
+    int belt = p->k_belt > 0.0;
     int j = 0;
-    if (p->k_belt <= 0.0) {
-        while (j + 1 < n_seg) {
-            int lanes = n_seg - j < LANES ? n_seg - j : LANES;
-            int same = 1;
-            for (int l = 1; l < lanes; l++) same &= lengths[j + l] == lengths[j];
-            if (!same) break;
-            double *o[LANES];
-            for (int l = 0; l < lanes; l++) o[l] = out + offsets[j + l];
+    while (j + 1 < n_seg) {
+        int lanes = n_seg - j < LANES ? n_seg - j : LANES;
+        int same = 1;
+        for (int l = 1; l < lanes; l++) same &= lengths[j + l] == lengths[j];
+        if (!same) break;
+        double *o[LANES];
+        for (int l = 0; l < lanes; l++) o[l] = out + offsets[j + l];
+        if (belt) {
+            if (!run_belt_lanes(p, &a, starts + j, lengths[j], w0 + j, o, lanes)) break;
+        } else {
             run_rigid_lanes(p, &a, starts + j, lengths[j], w0 + j, o, lanes);
-            j += lanes;
         }
+        j += lanes;
     }
     for (; j < n_seg; j++) {
-        if (p->k_belt > 0.0)
-            run_belt(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
+        if (belt)
+            run_belt(p, &a, starts[j], lengths[j], w0[j], out + offsets[j]);
         else
             run_rigid(p, &a, starts[j], lengths[j], w0[j], out + offsets[j]);
     }

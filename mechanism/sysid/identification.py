@@ -136,7 +136,9 @@ class Problem:
                 rows.append(np.full(len(offsets), i))
                 cols.append(offsets)
             rows, cols = np.concatenate(rows), np.concatenate(cols)
-            self._gather[name] = (rows, cols - self.pad)
+            # the differentiator's support of every scored sample, as flat indices into the part's windows
+            self._gather[name] = ((rows * seg.length + cols - self.pad)[:, None]
+                                  + np.arange(len(self.coefficients), dtype=np.int64)[None, :])
             self.scored[name] = original[name].starts[rows] + cols
             self.measured[name] = rec.velocity_rad_s[self.scored[name]]
         # each part runs on its own windows laid end to end (the screening part on a quarter of
@@ -156,17 +158,22 @@ class Problem:
         w0 = signals.velocity_rad_s[seg.starts]
         w0 = np.where(np.abs(w0) < REST_SPEED_RAD_S, 0.0, w0)
         w = simulate(drive, motor, seg, w0, self.dt)
-        if not np.all(np.isfinite(w)):
+        if not np.isfinite(w.sum()) and not np.all(np.isfinite(w)):
             return np.full(len(self.measured[part]), 1e3)
-        # integrate to an angle from the measured start angle, pass it through the sensor
-        # model, and differentiate it like the measurement (the same Savitzky-Golay weights,
-        # evaluated only where they are needed)
-        angle = signals.arm_angle_rad[seg.starts][:, None] + self.dt * np.concatenate(
-            [np.zeros((len(seg), 1)), np.cumsum(0.5 * (w[:, 1:] + w[:, :-1]), axis=1)], axis=1)
+        # integrate to an angle from the measured start angle (trapezoids), pass it through the
+        # sensor model, and differentiate it like the measurement (the same Savitzky-Golay
+        # weights, evaluated only where they are needed); in place, in the order
+        # a0 + dt * cumsum(0.5 * (w[1:] + w[:-1]))
+        angle = np.empty_like(w)
+        angle[:, 0] = 0.0
+        steps = angle[:, 1:]
+        np.add(w[:, 1:], w[:, :-1], out=steps)
+        steps *= 0.5
+        np.cumsum(steps, axis=1, out=steps)
+        angle *= self.dt
+        angle += signals.arm_angle_rad[seg.starts][:, None]
         angle = structure.measured_angle(values, signals, angle)
-        windows = np.lib.stride_tricks.sliding_window_view(angle, len(self.coefficients), axis=1)
-        rows, cols = self._gather[part]
-        return windows[rows, cols] @ self.coefficients
+        return angle.ravel()[self._gather[part]] @ self.coefficients
 
     def residual(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
         return self.measured[part] - self.simulate(structure, values, part)
