@@ -46,7 +46,27 @@ typedef struct {
  * stretches (often the whole recording): computed again only when either changes */
 typedef struct {
     double c, j, decay, decay_half;
+    double fk, fx, fade;   /* Stribeck: above the speed ratio ``fade`` the excess no longer changes fk + fx e^... */
 } decays;
+
+/* The speed ratio |w|/ws above which fk + fx exp(-(|w|/ws)^delta) rounds to fk exactly: the
+ * excess is then below a quarter of fk's last bit (a factor e to spare, and 1e-9 for the
+ * rounding of pow and log). Infinite where no such ratio is safe (fk 0, fx not positive). */
+static double fade_ratio(double fk, double fx, double delta) {
+    if (!(fx > 0.0) || fk == 0.0 || !isfinite(fk)) return INFINITY;
+    int e;
+    frexp(fabs(fk), &e);                       /* |fk| in [2^(e-1), 2^e): its last bit is 2^(e-53) */
+    double x = log(fx / ldexp(1.0, e - 55)) + 1.0;
+    if (!(x > 1.0)) x = 1.0;
+    return pow(x, 1.0 / delta) * (1.0 + 1e-9);
+}
+
+static inline double friction_faded(double fk, double fx, double w, double ws, double delta, double fade) {
+    if (fx == 0.0) return fk;
+    double r = fabs(w) / ws;
+    if (r > fade) return fk;                   /* what the formula below rounds to */
+    return fk + fx * exp(-pow(r, delta));
+}
 
 static inline double rigid_step(const drive_params *p, const coefficients *a, int k, double w, double h, decays *d) {
     double c = p->c_emf + a->cv[k];
@@ -59,6 +79,11 @@ static inline double rigid_step(const drive_params *p, const coefficients *a, in
     double decay = d->decay, decay_half = d->decay_half;
     double drive = p->gain * a->u[k] - a->tm[k] - a->ta[k];
     double fk = a->fk[k], fx = a->fx[k], q = a->q[k];
+    if (fx != 0.0 && (fk != d->fk || fx != d->fx)) {
+        d->fk = fk;
+        d->fx = fx;
+        d->fade = fade_ratio(fk, fx, p->delta);
+    }
     for (int s = 0; s < p->substeps; s++) {
         double f = drive - q * w * w;
         double dir = sgn(w);
@@ -66,10 +91,10 @@ static inline double rigid_step(const drive_params *p, const coefficients *a, in
             if (fabs(f) <= fk + fx) continue;   /* stuck */
             dir = sgn(f);
         }
-        double wss = (f - friction_level(fk, fx, w, p->ws, p->delta) * dir) / c;
+        double wss = (f - friction_faded(fk, fx, w, p->ws, p->delta, d->fade) * dir) / c;
         double wh = wss + (w - wss) * decay_half;
         if (sgn(wh) == -dir) wh = 0.0;
-        f = drive - q * wh * wh - friction_level(fk, fx, wh, p->ws, p->delta) * dir;
+        f = drive - q * wh * wh - friction_faded(fk, fx, wh, p->ws, p->delta, d->fade) * dir;
         wss = f / c;
         double wn = wss + (w - wss) * decay;
         if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
@@ -81,7 +106,7 @@ static inline double rigid_step(const drive_params *p, const coefficients *a, in
 static void run_rigid(const drive_params *p, const coefficients *a, int start, int length, double w0, double *out) {
     double w = w0;
     double h = p->dt / p->substeps;
-    decays d = {NAN, NAN, 0.0, 0.0};
+    decays d = {NAN, NAN, 0.0, 0.0, NAN, NAN, INFINITY};
     for (int i = 0; i < length; i++) {
         out[i] = w;
         w = rigid_step(p, a, start + i, w, h, &d);
@@ -103,6 +128,8 @@ static void run_rigid_lanes(const drive_params *p, const coefficients *a, const 
                     w[l] = w0[l];
                     d[l].c = d[l].j = NAN;
                     d[l].decay = d[l].decay_half = 0.0;
+                    d[l].fk = d[l].fx = NAN;
+                    d[l].fade = INFINITY;
                 }
                 out[l][i] = w[l];
                 w[l] = rigid_step(p, a, starts[l] + i, w[l], h, &d[l]);
@@ -114,6 +141,8 @@ static void run_rigid_lanes(const drive_params *p, const coefficients *a, const 
         d[l].c = NAN;
         d[l].j = NAN;
         d[l].decay = d[l].decay_half = 0.0;
+        d[l].fk = d[l].fx = NAN;
+        d[l].fade = INFINITY;
     }
     for (int i = 0; i < length; i++) {
         for (int l = 0; l < LANES; l++) {
