@@ -149,6 +149,8 @@ class Signals:
     ratio: float
     source_index: np.ndarray | None = None  # windows of a long recording: their samples in it
     whole: "Signals | None" = None  # ... and the whole recording's signals
+    parent: "Signals | None" = None  # a subset (see :meth:`subset`): the signals it was taken from ...
+    parent_index: np.ndarray | None = None  # ... and its samples there
     _cache: dict = field(default_factory=dict, repr=False)
     _memos: dict = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -172,9 +174,31 @@ class Signals:
     def __len__(self) -> int:
         return len(self.time_s)
 
+    def subset(self, index: np.ndarray) -> "Signals":
+        """These signals at ``index`` only (the windows one part of the segments simulates, laid
+        end to end): per-sample work on them shrinks with the part. Everything read from them is
+        what these signals give at the same samples: the mid-sample angle, the quantities that
+        integrate over the past (:meth:`history`) and the lagged voltage (:meth:`lagged`) come
+        from the parent."""
+        index = np.asarray(index, dtype=np.int64)
+        whole = self.whole if self.whole is not None else self
+        source = self.source_index[index] if self.source_index is not None else index
+        sub = Signals(self.time_s[index], self.voltage_V[index], self.arm_angle_rad[index], self.velocity_rad_s[index],
+                      self.dt, ratio=self.ratio, source_index=source, whole=whole, parent=self, parent_index=index)
+        sub._cache["mid"] = self.drive_angle_rad[index]
+        return sub
+
+    def lagged(self, tau_s: float) -> np.ndarray:
+        """The logged voltage behind the winding lag ``tau_s`` (:func:`lagged_voltage`), remembered per time constant."""
+        if self.parent is not None:
+            return self.memo("lagged", tau_s, lambda: self.parent.lagged(tau_s)[self.parent_index])
+        return self.memo("lagged", tau_s, lambda: lagged_voltage(self.voltage_V, tau_s, self.dt))
+
     def history(self, kind: str, key, compute):
         """A quantity that integrates over the recording's past (warmth, copper temperature):
         ``compute(signals)`` on the whole recording, read at these samples."""
+        if self.parent is not None:
+            return self.memo(kind, key, lambda: self.parent.history(kind, key, compute)[self.parent_index])
         if self.whole is None:
             return self.memo(kind, key, lambda: compute(self))
         return self.memo(kind, key, lambda: compute(self.whole)[self.source_index])

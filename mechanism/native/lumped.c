@@ -38,33 +38,116 @@ static double friction_level(double fk, double fx, double w, double ws, double d
 
 /* Rigid belt: one velocity state. Exponential midpoint rule: the linear damping exactly,
  * the velocity-dependent rest (1/2 J' w^2, Stribeck) at a half-step prediction. */
-static void run_rigid(const drive_params *p, const double *u, const double *tm, const double *ta,
-                      const double *fk, const double *fx, const double *cv, const double *jt,
-                      const double *q, int start, int length, double w0, double *out) {
+typedef struct {
+    const double *u, *tm, *ta, *fk, *fx, *cv, *jt, *q;
+} coefficients;
+
+/* the decays depend on the damping and the inertia only, which are constant over long
+ * stretches (often the whole recording): computed again only when either changes */
+typedef struct {
+    double c, j, decay, decay_half;
+    double fk, fx, fade;   /* Stribeck: above the speed ratio ``fade`` the excess no longer changes fk + fx e^... */
+} decays;
+
+/* The speed ratio |w|/ws above which fk + fx exp(-(|w|/ws)^delta) rounds to fk exactly: the
+ * excess is then below a quarter of fk's last bit (a factor e to spare, and 1e-9 for the
+ * rounding of pow and log). Infinite where no such ratio is safe (fk 0, fx not positive). */
+static double fade_ratio(double fk, double fx, double delta) {
+    if (!(fx > 0.0) || fk == 0.0 || !isfinite(fk)) return INFINITY;
+    int e;
+    frexp(fabs(fk), &e);                       /* |fk| in [2^(e-1), 2^e): its last bit is 2^(e-53) */
+    double x = log(fx / ldexp(1.0, e - 55)) + 1.0;
+    if (!(x > 1.0)) x = 1.0;
+    return pow(x, 1.0 / delta) * (1.0 + 1e-9);
+}
+
+static inline double friction_faded(double fk, double fx, double w, double ws, double delta, double fade) {
+    if (fx == 0.0) return fk;
+    double r = fabs(w) / ws;
+    if (r > fade) return fk;                   /* what the formula below rounds to */
+    return fk + fx * exp(-pow(r, delta));
+}
+
+static inline double rigid_step(const drive_params *p, const coefficients *a, int k, double w, double h, decays *d) {
+    double c = p->c_emf + a->cv[k];
+    if (c != d->c || a->jt[k] != d->j) {
+        d->c = c;
+        d->j = a->jt[k];
+        d->decay = exp(-c * h / a->jt[k]);
+        d->decay_half = exp(-0.5 * c * h / a->jt[k]);
+    }
+    double decay = d->decay, decay_half = d->decay_half;
+    double drive = p->gain * a->u[k] - a->tm[k] - a->ta[k];
+    double fk = a->fk[k], fx = a->fx[k], q = a->q[k];
+    if (fx != 0.0 && (fk != d->fk || fx != d->fx)) {
+        d->fk = fk;
+        d->fx = fx;
+        d->fade = fade_ratio(fk, fx, p->delta);
+    }
+    for (int s = 0; s < p->substeps; s++) {
+        double f = drive - q * w * w;
+        double dir = sgn(w);
+        if (w == 0.0) {
+            if (fabs(f) <= fk + fx) continue;   /* stuck */
+            dir = sgn(f);
+        }
+        double wss = (f - friction_faded(fk, fx, w, p->ws, p->delta, d->fade) * dir) / c;
+        double wh = wss + (w - wss) * decay_half;
+        if (sgn(wh) == -dir) wh = 0.0;
+        f = drive - q * wh * wh - friction_faded(fk, fx, wh, p->ws, p->delta, d->fade) * dir;
+        wss = f / c;
+        double wn = wss + (w - wss) * decay;
+        if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
+        w = wn;
+    }
+    return w;
+}
+
+static void run_rigid(const drive_params *p, const coefficients *a, int start, int length, double w0, double *out) {
     double w = w0;
     double h = p->dt / p->substeps;
+    decays d = {NAN, NAN, 0.0, 0.0, NAN, NAN, INFINITY};
     for (int i = 0; i < length; i++) {
-        int k = start + i;
         out[i] = w;
-        double c = p->c_emf + cv[k];
-        double decay = exp(-c * h / jt[k]);
-        double decay_half = exp(-0.5 * c * h / jt[k]);
-        double drive = p->gain * u[k] - tm[k] - ta[k];
-        for (int s = 0; s < p->substeps; s++) {
-            double f = drive - q[k] * w * w;
-            double dir = sgn(w);
-            if (w == 0.0) {
-                if (fabs(f) <= fk[k] + fx[k]) continue;   /* stuck */
-                dir = sgn(f);
+        w = rigid_step(p, a, start + i, w, h, &d);
+    }
+}
+
+/* Four segments of one length side by side: the same steps (the same numbers) as one at a
+ * time, but four independent chains of dependent arithmetic keep the processor busy. */
+#define LANES 4
+static void run_rigid_lanes(const drive_params *p, const coefficients *a, const int *starts, int length,
+                            const double *w0, double *const *out, int lanes) {
+    double w[LANES];
+    decays d[LANES];
+    double h = p->dt / p->substeps;
+    if (lanes < LANES) {
+        for (int i = 0; i < length; i++)
+            for (int l = 0; l < lanes; l++) {
+                if (i == 0) {
+                    w[l] = w0[l];
+                    d[l].c = d[l].j = NAN;
+                    d[l].decay = d[l].decay_half = 0.0;
+                    d[l].fk = d[l].fx = NAN;
+                    d[l].fade = INFINITY;
+                }
+                out[l][i] = w[l];
+                w[l] = rigid_step(p, a, starts[l] + i, w[l], h, &d[l]);
             }
-            double wss = (f - friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir) / c;
-            double wh = wss + (w - wss) * decay_half;
-            if (sgn(wh) == -dir) wh = 0.0;
-            f = drive - q[k] * wh * wh - friction_level(fk[k], fx[k], wh, p->ws, p->delta) * dir;
-            wss = f / c;
-            double wn = wss + (w - wss) * decay;
-            if (sgn(wn) == -dir) wn = 0.0;              /* stops within the step */
-            w = wn;
+        return;
+    }
+    for (int l = 0; l < LANES; l++) {
+        w[l] = w0[l];
+        d[l].c = NAN;
+        d[l].j = NAN;
+        d[l].decay = d[l].decay_half = 0.0;
+        d[l].fk = d[l].fx = NAN;
+        d[l].fade = INFINITY;
+    }
+    for (int i = 0; i < length; i++) {
+        for (int l = 0; l < LANES; l++) {
+            out[l][i] = w[l];
+            w[l] = rigid_step(p, a, starts[l] + i, w[l], h, &d[l]);
         }
     }
 }
@@ -72,52 +155,92 @@ static void run_rigid(const drive_params *p, const double *u, const double *tm, 
 /* Elastic belt: motor velocity wm, arm velocity w, belt twist x (arm units). Motor torque,
  * back-emf and motor-angle-periodic torque act on the motor; friction, viscous, position
  * loads and the linkage on the arm. Semi-implicit Euler with enough substeps. */
-static void run_belt(const drive_params *p, const double *u, const double *tm, const double *ta,
-                     const double *fk, const double *fx, const double *cv, const double *jt,
-                     const double *q, int start, int length, double w0, double *out) {
+typedef struct {
+    double w, wm, x;
+    int nsub;
+    double h;
+} belt_state;
+
+static belt_state belt_start(const drive_params *p, const coefficients *a, int start, double w0) {
     double jm = p->j_motor;
-    double kb = p->k_belt, cb = p->c_belt;
+    double kb = p->k_belt;
     int k0 = start;
-    double w = w0, wm = w0;
-    double ja0 = jt[k0] - jm;
+    belt_state b;
+    double w = w0;
+    b.w = w0;
+    b.wm = w0;
+    double ja0 = a->jt[k0] - jm;
     double wr = sqrt(kb * (1.0 / jm + 1.0 / ja0));
     int nsub = p->substeps;
     int need = (int)ceil(wr * p->dt / 0.25);
     if (need > nsub) nsub = need;
-    double h = p->dt / nsub;
+    b.nsub = nsub;
+    b.h = p->dt / nsub;
     /* quasi-static initial twist: the belt carries the arm's load */
-    double load = cv[k0] * w + ta[k0] + q[k0] * w * w + (w != 0.0 ? fk[k0] * sgn(w) : 0.0);
+    double load = a->cv[k0] * w + a->ta[k0] + a->q[k0] * w * w + (w != 0.0 ? a->fk[k0] * sgn(w) : 0.0);
     if (w == 0.0) {
-        double drive = p->gain * u[k0] - tm[k0];
-        double lim = fk[k0] + fx[k0];
+        double drive = p->gain * a->u[k0] - a->tm[k0];
+        double lim = a->fk[k0] + a->fx[k0];
         load = drive > lim ? lim : (drive < -lim ? -lim : drive);
     }
-    double x = load / kb + (load > 0 ? p->gap : (load < 0 ? -p->gap : 0.0));
-    for (int i = 0; i < length; i++) {
-        int k = start + i;
-        out[i] = w;
-        double ja = jt[k] - jm;
-        for (int s = 0; s < nsub; s++) {
-            double fb = x > p->gap ? kb * (x - p->gap) + cb * (wm - w)
-                      : (x < -p->gap ? kb * (x + p->gap) + cb * (wm - w) : 0.0);   /* free play: no torque */
-            double fm = p->gain * u[k] - p->c_emf * wm - tm[k] - fb;
-            wm += h * fm / jm;
-            double f = fb - cv[k] * w - ta[k] - q[k] * w * w;
-            double dir = sgn(w);
-            int stuck = 0;
-            if (w == 0.0) {
-                if (fabs(f) <= fk[k] + fx[k]) stuck = 1;
-                else dir = sgn(f);
-            }
-            if (!stuck) {
-                f -= friction_level(fk[k], fx[k], w, p->ws, p->delta) * dir;
-                double wn = w + h * f / ja;
-                if (sgn(wn) == -dir) wn = 0.0;
-                w = wn;
-            }
-            x += h * (wm - w);
+    b.x = load / kb + (load > 0 ? p->gap : (load < 0 ? -p->gap : 0.0));
+    return b;
+}
+
+static inline void belt_step(const drive_params *p, const coefficients *a, int k, belt_state *b) {
+    double jm = p->j_motor;
+    double kb = p->k_belt, cb = p->c_belt;
+    double w = b->w, wm = b->wm, x = b->x, h = b->h;
+    double ja = a->jt[k] - jm;
+    for (int s = 0; s < b->nsub; s++) {
+        double fb = x > p->gap ? kb * (x - p->gap) + cb * (wm - w)
+                  : (x < -p->gap ? kb * (x + p->gap) + cb * (wm - w) : 0.0);   /* free play: no torque */
+        double fm = p->gain * a->u[k] - p->c_emf * wm - a->tm[k] - fb;
+        wm += h * fm / jm;
+        double f = fb - a->cv[k] * w - a->ta[k] - a->q[k] * w * w;
+        double dir = sgn(w);
+        int stuck = 0;
+        if (w == 0.0) {
+            if (fabs(f) <= a->fk[k] + a->fx[k]) stuck = 1;
+            else dir = sgn(f);
         }
+        if (!stuck) {
+            f -= friction_level(a->fk[k], a->fx[k], w, p->ws, p->delta) * dir;
+            double wn = w + h * f / ja;
+            if (sgn(wn) == -dir) wn = 0.0;
+            w = wn;
+        }
+        x += h * (wm - w);
     }
+    b->w = w;
+    b->wm = wm;
+    b->x = x;
+}
+
+static void run_belt(const drive_params *p, const coefficients *a, int start, int length, double w0, double *out) {
+    belt_state b = belt_start(p, a, start, w0);
+    for (int i = 0; i < length; i++) {
+        out[i] = b.w;
+        belt_step(p, a, start + i, &b);
+    }
+}
+
+/* Up to LANES segments of one length and one substep count side by side (as the rigid
+ * lanes: the same numbers as one at a time). Returns 0, having done nothing, when the
+ * segments need different substep counts. */
+static int run_belt_lanes(const drive_params *p, const coefficients *a, const int *starts, int length,
+                          const double *w0, double *const *out, int lanes) {
+    belt_state b[LANES];
+    for (int l = 0; l < lanes; l++) {
+        b[l] = belt_start(p, a, starts[l], w0[l]);
+        if (b[l].nsub != b[0].nsub) return 0;
+    }
+    for (int i = 0; i < length; i++)
+        for (int l = 0; l < lanes; l++) {
+            out[l][i] = b[l].w;
+            belt_step(p, a, starts[l] + i, &b[l]);
+        }
+    return 1;
 }
 
 /* Simulate n_seg segments; segment j starts at sample starts[j] with velocity w0[j] and
@@ -126,10 +249,27 @@ void simulate_segments(const drive_params *p, const double *u, const double *tm,
                        const double *fk, const double *fx, const double *cv, const double *jt,
                        const double *q, int n_seg, const int *starts, const int *lengths,
                        const int *offsets, const double *w0, double *out) {
-    for (int j = 0; j < n_seg; j++) {
-        if (p->k_belt > 0.0)
-            run_belt(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
+    coefficients a = {u, tm, ta, fk, fx, cv, jt, q};
+    int belt = p->k_belt > 0.0;
+    int j = 0;
+    while (j + 1 < n_seg) {
+        int lanes = n_seg - j < LANES ? n_seg - j : LANES;
+        int same = 1;
+        for (int l = 1; l < lanes; l++) same &= lengths[j + l] == lengths[j];
+        if (!same) break;
+        double *o[LANES];
+        for (int l = 0; l < lanes; l++) o[l] = out + offsets[j + l];
+        if (belt) {
+            if (!run_belt_lanes(p, &a, starts + j, lengths[j], w0 + j, o, lanes)) break;
+        } else {
+            run_rigid_lanes(p, &a, starts + j, lengths[j], w0 + j, o, lanes);
+        }
+        j += lanes;
+    }
+    for (; j < n_seg; j++) {
+        if (belt)
+            run_belt(p, &a, starts[j], lengths[j], w0[j], out + offsets[j]);
         else
-            run_rigid(p, u, tm, ta, fk, fx, cv, jt, q, starts[j], lengths[j], w0[j], out + offsets[j]);
+            run_rigid(p, &a, starts[j], lengths[j], w0[j], out + offsets[j]);
     }
 }

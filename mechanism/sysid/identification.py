@@ -76,6 +76,14 @@ class ModelStructure:
         self.baseline.finish(values, signals, drive)
         return drive
 
+    @property
+    def per_sample(self) -> bool:
+        """Whether the drive at a sample depends only on the signals at that sample (and on the
+        past through :meth:`~mechanism.dynamics.lumped.Signals.history`), so that a part's windows
+        alone give it exactly. Not with a belt (sized by the median inertia over the samples) nor
+        with a changed voltage (the winding lag filters it over the samples before)."""
+        return all(e.enters not in ("voltage", "belt") for e in self.effects)
+
     def measured_angle(self, values: dict[str, float], signals: Signals, angle: np.ndarray) -> np.ndarray:
         for e in self.effects:
             if e.is_measurement:
@@ -129,29 +137,44 @@ class Problem:
                 rows.append(np.full(len(offsets), i))
                 cols.append(offsets)
             rows, cols = np.concatenate(rows), np.concatenate(cols)
-            self._gather[name] = (rows, cols - self.pad)
+            # the differentiator's support of every scored sample, as flat indices into the part's windows
+            self._gather[name] = ((rows * seg.length + cols - self.pad)[:, None]
+                                  + np.arange(len(self.coefficients), dtype=np.int64)[None, :])
             self.scored[name] = original[name].starts[rows] + cols
             self.measured[name] = rec.velocity_rad_s[self.scored[name]]
+        # each part runs on its own windows laid end to end (the screening part on a quarter of
+        # the samples): the model's per-sample work shrinks with the part (same values)
+        self._runs = {}
+        for name, seg in self.parts.items():
+            if len(seg) * seg.length < len(self.signals):
+                ends = np.arange(len(seg), dtype=np.int64) * seg.length
+                self._runs[name] = (self.signals.subset(seg.window_indices().ravel()),
+                                    Segments(ends, seg.length, seg.score_begin, seg.score_end, seg.is_fit))
 
     def simulate(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
         """Simulated arm velocity (by the tool's velocity definition) at the part's scored samples."""
-        seg = self.parts[part]
-        drive = structure.drive(values, self.signals)
+        signals, seg = (structure.per_sample and self._runs.get(part)) or (self.signals, self.parts[part])
+        drive = structure.drive(values, signals)
         motor = structure.baseline.motor(values)
-        w0 = self.signals.velocity_rad_s[seg.starts]
+        w0 = signals.velocity_rad_s[seg.starts]
         w0 = np.where(np.abs(w0) < REST_SPEED_RAD_S, 0.0, w0)
         w = simulate(drive, motor, seg, w0, self.dt)
         if not np.all(np.isfinite(w)) or np.max(np.abs(w), initial=0.0) > DIVERGED_RAD_S:
             return np.full(len(self.measured[part]), 1e3)
-        # integrate to an angle from the measured start angle, pass it through the sensor
-        # model, and differentiate it like the measurement (the same Savitzky-Golay weights,
-        # evaluated only where they are needed)
-        angle = self.signals.arm_angle_rad[seg.starts][:, None] + self.dt * np.concatenate(
-            [np.zeros((len(seg), 1)), np.cumsum(0.5 * (w[:, 1:] + w[:, :-1]), axis=1)], axis=1)
-        angle = structure.measured_angle(values, self.signals, angle)
-        windows = np.lib.stride_tricks.sliding_window_view(angle, len(self.coefficients), axis=1)
-        rows, cols = self._gather[part]
-        return windows[rows, cols] @ self.coefficients
+        # integrate to an angle from the measured start angle (trapezoids), pass it through the
+        # sensor model, and differentiate it like the measurement (the same Savitzky-Golay
+        # weights, evaluated only where they are needed); in place, in the order
+        # a0 + dt * cumsum(0.5 * (w[1:] + w[:-1]))
+        angle = np.empty_like(w)
+        angle[:, 0] = 0.0
+        steps = angle[:, 1:]
+        np.add(w[:, 1:], w[:, :-1], out=steps)
+        steps *= 0.5
+        np.cumsum(steps, axis=1, out=steps)
+        angle *= self.dt
+        angle += signals.arm_angle_rad[seg.starts][:, None]
+        angle = structure.measured_angle(values, signals, angle)
+        return angle.ravel()[self._gather[part]] @ self.coefficients
 
     def residual(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
         return self.measured[part] - self.simulate(structure, values, part)
@@ -323,16 +346,21 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
         w = s.velocity_rad_s
         acc = smoothed_velocity(w, s.dt)
         moving = np.flatnonzero(np.abs(w) > 1.0)[::2]
-        s._cache["eq_error"] = (w[moving], acc[moving], moving)
-    w, acc, sel = s._cache["eq_error"]
+        s._cache["eq_error"] = (w[moving], acc[moving], moving, s.subset(moving))
+    w, acc, sel, at_sel = s._cache["eq_error"]
     if len(sel) < 100:
         return dict(values), math.inf
     motor = structure.baseline.motor(values)
     by_name = {p.name: p for p in structure.parameters}
-    acc_full = s._cache.setdefault("acc_full", smoothed_velocity(s.velocity_rad_s, s.dt))
 
-    def missing(v):
-        return torque_balance(structure.drive(v, s), motor, s.velocity_rad_s, acc_full)[sel]
+    if structure.per_sample:  # the drive at the chosen samples alone (the same values)
+        def missing(v):
+            return torque_balance(structure.drive(v, at_sel), motor, w, acc)
+    else:
+        acc_full = s._cache.setdefault("acc_full", smoothed_velocity(s.velocity_rad_s, s.dt))
+
+        def missing(v):
+            return torque_balance(structure.drive(v, s), motor, s.velocity_rad_s, acc_full)[sel]
 
     def column(v0, b0, name):
         step = by_name[name].typical

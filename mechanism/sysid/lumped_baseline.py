@@ -133,10 +133,11 @@ class LumpedBaseline:
         constant is not much longer than L/R: a light, fast rocker)."""
         tau = values["electrical_time_constant_s"]
         if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
-            drive.voltage_V = signals.memo("lagged", tau, lambda: lagged_voltage(drive.voltage_V, tau, signals.dt))
+            drive.voltage_V = signals.lagged(tau)
         else:
             drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)
         if tau > 0.02 * signals.dt:
-            speed = signals.velocity_rad_s
-            lag = signals.memo("lagged_speed", tau, lambda: lagged_voltage(speed, tau, signals.dt) - speed)
+            # a filter over the past: on the whole recording, read at these samples
+            lag = signals.history("lagged_speed", tau,
+                                  lambda whole: lagged_voltage(whole.velocity_rad_s, tau, whole.dt) - whole.velocity_rad_s)
             drive.tau_motor_Nm = drive.tau_motor_Nm + self.motor(values).emf_damping_arm * lag
