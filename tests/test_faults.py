@@ -397,8 +397,9 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path):
     sent = time.monotonic()
     proc.send_signal(signal.SIGTERM)
     _, stderr = proc.communicate(timeout=120)
-    assert proc.returncode == 143, stderr
+    assert proc.returncode == 143, stderr  # SIGTERM's, also when Ray turns it into a KeyboardInterrupt
     assert "error: interrupted" in stderr.splitlines(), stderr
+    assert "WARNING" not in stderr, stderr  # none of Ray's own log lines reach the user
     assert time.monotonic() - sent < INTERRUPT_MARGIN_S
     # Ray's workers end when their raylet has gone: allow them a few seconds after the driver
     deadline = time.monotonic() + 10
@@ -408,3 +409,15 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path):
     assert alive == {}, alive
     assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before  # the journal: for --resume
     assert hidden(out) == []
+
+
+def test_a_signal_a_library_turned_into_keyboardinterrupt_keeps_its_exit_status(monkeypatch):
+    """Ray raises a plain KeyboardInterrupt when SIGTERM arrives inside ``ray.wait``: the exit
+    status is still SIGTERM's 143, not Ctrl-C's 130."""
+    from mechanism.files import interrupts
+
+    monkeypatch.setitem(interrupts._state, "interrupted", signal.SIGTERM)
+    assert interrupts.exit_status(KeyboardInterrupt()) == 143
+    assert interrupts.exit_status(interrupts.Interrupted(signal.SIGINT)) == 130  # the exception's own signal first
+    monkeypatch.setitem(interrupts._state, "interrupted", None)
+    assert interrupts.exit_status(KeyboardInterrupt()) == 130  # a Ctrl-C Python raised itself

@@ -218,7 +218,8 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
     if ray.is_initialized():  # the caller's own session: use it as it is
         return False
     address = ray_address_from(ray_address)
-    quiet = {"logging_level": logging.WARNING, "log_to_driver": False}
+    # Ray's own warnings (token set-up, resources) would reach the terminal as raw text
+    quiet = {"logging_level": logging.ERROR, "log_to_driver": False}
     if address:
         _check_reachable(address)
         try:

@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv)
     except KeyboardInterrupt as exc:  # before the verb started
         sys.stderr.write("\nerror: interrupted\n")
-        return getattr(exc, "exit_status", 130)
+        return interrupts.exit_status(exc)
     finally:
         interrupts.finish()  # a late second Ctrl-C is ignored until the process exits
         if argv is not None:  # called in-process (tests, scripts): their handlers back
@@ -121,7 +121,7 @@ def _run(args: argparse.Namespace) -> int:
         interrupts.finish()
         stderr.end_line()
         sys.stderr.write("error: interrupted\n")
-        return getattr(exc, "exit_status", 130)
+        return interrupts.exit_status(exc)
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 - the one place every failure becomes one line

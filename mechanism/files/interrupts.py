@@ -100,6 +100,16 @@ def interrupted() -> bool:
     return bool(_state["interrupted"])
 
 
+def exit_status(exc: BaseException) -> int:
+    """The exit status of a run that ``exc`` ended: the signal's (130 for SIGINT, 143 for
+    SIGTERM). A library may turn the signal into a plain KeyboardInterrupt (Ray does, when it
+    arrives inside ``ray.wait``): the signal that was received still decides."""
+    status = getattr(exc, "exit_status", None)
+    if status is None and _state["interrupted"]:
+        status = EXIT_STATUS.get(_state["interrupted"])
+    return status if status is not None else 130
+
+
 @contextlib.contextmanager
 def deferred():
     """A block that a signal does not cut in two: the signal takes effect when it ends."""
