@@ -176,7 +176,7 @@ def _running(pid):
         return False
 
 
-def _stop_the_processes_of(temp_dir, grace_s=10.0):
+def _stop_the_processes_of(temp_dir, grace_s=2.0):
     """This cluster's processes (each names its folder) and what they started; not `ray stop`,
     which stops every Ray instance on the machine, another worker's or another user's too."""
     import signal
