@@ -110,6 +110,7 @@ def test_up_axis_sets_gravity_against_it(tmp_path, cli):
     assert mujoco.MjModel.from_xml_path(str(tmp_path / "down" / "fourbar.xml")).opt.gravity == pytest.approx([0, 0, 9.81])
 
 
+@pytest.mark.slow
 def test_failed_conversion_leaves_an_existing_output_folder_untouched(tmp_path, cli):
     out = tmp_path / "out"
     out.mkdir()

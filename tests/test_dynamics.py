@@ -70,6 +70,7 @@ def test_break_away_spans_the_thesis_range_and_duty_cycles(bare):
     assert simulate(PWM(15), 1.0, machine=bare, start_angle_rad=highest).arm_angle_rad[-1] - highest > 0.5
 
 
+@pytest.mark.slow
 def test_speed_ripple_falls_with_speed_as_measured(bare):
     low = ripple(simulate(7.2, 6.0, machine=bare))
     high = ripple(simulate(19.8, 6.0, machine=bare))

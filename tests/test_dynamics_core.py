@@ -62,6 +62,7 @@ def test_dcmotor_keeps_kt_and_ke_distinct():
     assert data.actuator_force[0] == pytest.approx(KT / R * 10.0, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_machine_sticks_below_break_away_and_starts_above():
     no_gravity = Machine(TOY_MACHINE, MachineConfig(friction={"arm_shaft": FrictionLaw(coulomb=0.18, static=0.24)}))
     no_gravity.model.opt.gravity[:] = 0

@@ -25,6 +25,7 @@ def model():
     return load_model()
 
 
+@pytest.mark.slow
 def test_needle_tip_probe_reproduces_the_needle_inspection(needle):
     from mechanism.machine.machine import plate_top
     from mechanism.machine.models import load_spec
@@ -72,6 +73,7 @@ def test_shipped_machine_passes_at_nominal_dimensions(model):
     assert plate.min_distance_mm > 0.1
 
 
+@pytest.mark.slow
 def test_mistimed_hook_collides_with_the_needle(model):
     from mechanism.inspection.clearance import Pair
     from mechanism.inspection.variants import VariantSet, parameter, run_variants

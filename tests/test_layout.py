@@ -77,11 +77,13 @@ def graph() -> nx.DiGraph:
     return g
 
 
+@pytest.mark.slow
 def test_every_room_has_a_layer():
     rooms = {room(m) for m in graph().nodes}
     assert rooms <= set(LAYERS), f"give these a layer in this test and docs/architecture.md: {sorted(rooms - set(LAYERS))}"
 
 
+@pytest.mark.slow
 def test_imports_only_go_down():
     wrong = []
     for source, target in graph().edges:

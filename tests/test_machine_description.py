@@ -133,6 +133,7 @@ def test_a_renamed_reexport_with_its_shaft_flipped_and_zeroed_elsewhere_gives_th
         assert ours == pytest.approx(mechanism.simulate(shipped, voltage_V=voltage, duration_s=3.0).mean_speed_rpm, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_a_renamed_reexport_keeps_the_needle_hook_clearance(reexport):
     renamed = mechanism.load_machine(reexport)
     pair = f"{cad_name('needle')}:{cad_name('hook')}"
@@ -153,6 +154,7 @@ def test_table_2_all_eighteen_points_within_five_percent():
             assert rpm == pytest.approx(row[column], rel=0.05), (row[1], warm_s)
 
 
+@pytest.mark.slow
 def test_supply_limit_follows_the_motor_equation_with_the_series_resistance():
     """At full supply voltage the motor sees V_s - R_s I: the steady speed is the lumped
     equation's with R + R_s (and unchanged well below the supply voltage)."""
@@ -221,6 +223,7 @@ def test_docs_list_every_key_of_the_schema():
     assert docs.split(marker, 1)[1] == schema_markdown(), "regenerate the key tables of docs/machine.md from schema_markdown()"
 
 
+@pytest.mark.slow
 def test_supply_limit_python_twin_matches_the_compiled_callback():
     from mechanism.machine import machine as machine_module
     from mechanism.physics.motor import python_supply_limit

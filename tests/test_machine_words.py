@@ -4,6 +4,7 @@ tool works in fabric, and the reports fold the motor angle at the machine's own 
 import pytest
 
 
+@pytest.mark.slow
 def test_the_press_is_offered_no_fabric_penetration_and_folds_at_its_ratio():
     import mechanism
     from mechanism.errors import UserError

@@ -49,6 +49,7 @@ def test_html_is_self_contained(model_file, tmp_path):
     assert "needle:hook: min 0.100 mm at 195.0 deg" in text
 
 
+@pytest.mark.slow
 def test_html_renders_in_headless_chromium_with_the_requested_frames(model_file, tmp_path):
     chromium = _chromium()
     html = tmp_path / "machine.html"
@@ -95,6 +96,7 @@ def test_cycle_and_colours(model_file):
     assert _color(model, 0) == (0xFF8000, 0.25)
 
 
+@pytest.mark.slow
 def test_serve_starts_a_local_meshcat_server(model_file):
     import urllib.request
 

@@ -85,6 +85,7 @@ def test_bad_needle_input(tmp_path):
         zigzag.machine_needle_profile(model_path=tmp_path / "missing.xml")
 
 
+@pytest.mark.slow
 def test_shipped_machine_needle_table_feeds_the_zigzag_check():
     # The shipped machine's needle rises 23.1 mm above the plate and goes 9.9 mm below it
     # (33 mm stroke): its table must say so, and at 1000 stitches/min a full-width move at
