@@ -157,19 +157,31 @@ def test_a_servo_holding_a_pendulum_is_diagnosed_at_or_below_the_published_best_
         assert numbers["rmse"] == pytest.approx(final) and numbers["times_noise_floor"] > 1, numbers
 
 
+def emps_described_wrongly() -> DriveNominal:
+    """EMPS described 1.5x too heavy, with half the Coulomb and twice the viscous friction; a
+    current-controlled drive: no back-emf damping."""
+    r = EMPS["radius"]
+    motor = MotorConstants(1.0, EMPS["gtau"] * r, 1e-6, 1.0)
+    return DriveNominal(motor, inertia_kgm2=1.5 * EMPS["M"] * r**2, coulomb_shaft_Nm=0.5 * EMPS["Fc"] * r,
+                        viscous_shaft_Nm_s_per_rad=2 * EMPS["Fv"] * r**2)
+
+
+def emps_published_rmse(problem, described: DriveNominal) -> float:
+    """The benchmark's IDIM-LS model (Coulomb, viscous, offset) replayed by the tool's protocol."""
+    r = EMPS["radius"]
+    values = {"inertia_motor_side_kgm2": EMPS["M"] * r**2, "viscous_motor_side_Nm_s_per_rad": EMPS["Fv"] * r**2,
+              "coulomb_arm_Nm": EMPS["Fc"] * r, "electrical_time_constant_s": 1e-5, "offset_torque_arm_Nm": EMPS["OF"] * r}
+    return problem.rmse(ModelStructure(LumpedBaseline(described, offset=True)), values, "val")
+
+
 def test_a_positioning_axis_baseline_matches_the_published_model_with_its_offset():
     """EMPS, described 1.5x too heavy, with half the Coulomb and twice the viscous friction:
     the baseline (which carries a constant offset force: the axis moves both ways) lands on the
     benchmark's model and its held-out error."""
     r = EMPS["radius"]
-    motor = MotorConstants(1.0, EMPS["gtau"] * r, 1e-6, 1.0)  # a current-controlled drive: no back-emf damping
-    described = DriveNominal(motor, inertia_kgm2=1.5 * EMPS["M"] * r**2, coulomb_shaft_Nm=0.5 * EMPS["Fc"] * r,
-                             viscous_shaft_Nm_s_per_rad=2 * EMPS["Fv"] * r**2)
+    described = emps_described_wrongly()
     result = identify(read_recording(REAL / "emps.csv"), nominal=described)
-    published_values = {"inertia_motor_side_kgm2": EMPS["M"] * r**2, "viscous_motor_side_Nm_s_per_rad": EMPS["Fv"] * r**2,
-                        "coulomb_arm_Nm": EMPS["Fc"] * r, "electrical_time_constant_s": 1e-5,
-                        "offset_torque_arm_Nm": EMPS["OF"] * r}
-    published = result.problem.rmse(ModelStructure(LumpedBaseline(described, offset=True)), published_values, "val")
+    published = emps_published_rmse(result.problem, described)
     assert result.rmse <= WITHIN * published, (result.rmse, published)
     p = result.params
     assert p["inertia_motor_side_kgm2"] == pytest.approx(EMPS["M"] * r**2, rel=0.15)
@@ -185,15 +197,9 @@ def test_a_positioning_axis_is_diagnosed_at_or_below_the_published_model():
     same wrong description as above, ends at or below its held-out error."""
     from mechanism.sysid.diagnosis import diagnose as diagnose_recording
 
-    r = EMPS["radius"]
-    motor = MotorConstants(1.0, EMPS["gtau"] * r, 1e-6, 1.0)
-    described = DriveNominal(motor, inertia_kgm2=1.5 * EMPS["M"] * r**2, coulomb_shaft_Nm=0.5 * EMPS["Fc"] * r,
-                             viscous_shaft_Nm_s_per_rad=2 * EMPS["Fv"] * r**2)
+    described = emps_described_wrongly()
     result = diagnose_recording(read_recording(REAL / "emps.csv"), nominal=described)
-    published_values = {"inertia_motor_side_kgm2": EMPS["M"] * r**2, "viscous_motor_side_Nm_s_per_rad": EMPS["Fv"] * r**2,
-                        "coulomb_arm_Nm": EMPS["Fc"] * r, "electrical_time_constant_s": 1e-5,
-                        "offset_torque_arm_Nm": EMPS["OF"] * r}
-    published = result.problem.rmse(ModelStructure(LumpedBaseline(described, offset=True)), published_values, "val")
+    published = emps_published_rmse(result.problem, described)
     final = result.final.rmse_val
     print(f"EMPS: baseline {result.baseline.rmse_val:.4f}, final {final:.4f} rad/s {result.effect_names}; "
           f"published IDIM-LS {published:.4f} rad/s")
