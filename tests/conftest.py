@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -19,7 +20,9 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 # tests at once. The controller sees only node ids, so the name carries the group to it.
 
 def _is_ray_test(nodeid: str) -> bool:
-    return "ray" in nodeid.rpartition("::")[2].partition("[")[0].lower()
+    """The test's name has the word "ray" (or "rays") between underscores; "array" does not count."""
+    name = nodeid.rpartition("::")[2].partition("[")[0].lower()
+    return bool(re.search(r"(^|_)rays?(_|$)", name))
 
 
 def pytest_runtest_setup(item):

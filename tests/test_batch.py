@@ -318,3 +318,13 @@ def test_rays_temporary_folder_stays_short_whatever_the_systems(monkeypatch, tmp
     assert ray_temp_dir() == "/tmp/ray"
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / ("deep/" * 20)))
     assert ray_temp_dir() == f"/tmp/ray-{os.getuid()}"
+
+
+def test_the_scheduler_keeps_the_tests_named_ray_together_and_no_others():
+    from conftest import _is_ray_test
+
+    together = ["tests/test_batch.py::test_ray_backend", "tests/test_x.py::test_a_kill_stops_the_ray_instance[2-130]",
+                "tests/test_batch.py::test_rays_temporary_folder", "tests/test_batch.py::test_bad_options_and_missing_ray"]
+    apart = ["tests/test_x.py::test_array_shape", "tests/test_x.py::test_a_parameter_named[ray]",
+             "tests/test_ray_module.py::test_local_pool", "tests/test_x.py::test_xray_image"]
+    assert all(_is_ray_test(n) for n in together) and not any(_is_ray_test(n) for n in apart)
