@@ -234,7 +234,8 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
         try:
-            ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
+            with _our_sigterm_handler_kept(ray):
+                ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
         except BaseException:  # Ctrl-C while it starts: stop what it started (Ray may not know it yet)
             from mechanism.files.interrupts import deferred
 
@@ -247,6 +248,25 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
 
     reclaim()  # ray.init sets its own SIGTERM handler (sys.exit(15)): a kill must still clean up
     return True
+
+
+@contextlib.contextmanager
+def _our_sigterm_handler_kept(ray):
+    """While ``ray.init`` starts an instance, a SIGTERM still interrupts the run in order:
+    Ray would install handlers that ``sys.exit`` (status 15, or 1 after killing its processes)
+    and so bypass the run's cleanup. Only where the CLI's handlers are installed."""
+    from mechanism.files import interrupts
+
+    utils = getattr(getattr(ray, "_private", None), "utils", None)
+    original = getattr(utils, "set_sigterm_handler", None)
+    if original is None or not interrupts.installed():
+        yield
+        return
+    utils.set_sigterm_handler = lambda handler: None
+    try:
+        yield
+    finally:
+        utils.set_sigterm_handler = original
 
 
 def _descendants(pid: int) -> list[int]:
@@ -353,11 +373,14 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
         from mechanism.files.interrupts import deferred
 
         with deferred():  # a second Ctrl-C must not leave the instance running
-            for ref in pending:
-                with contextlib.suppress(Exception):
-                    ray.cancel(ref, force=True)
-            if started:
+            if started:  # shutdown stops the instance, or ends our job on a cluster: its workers with it
                 ray.shutdown()
+            else:  # the caller's own Ray session goes on: free its workers of our tasks
+                # not force=True: a forced cancel racing a task's reply aborts the driver inside
+                # Ray (task_manager.cc "Check failed: it != submissible_tasks_.end()", exit 1)
+                for ref in pending:
+                    with contextlib.suppress(Exception):
+                        ray.cancel(ref)
 
 
 def _ray_result(ray, ref, chunk):

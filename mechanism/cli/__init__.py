@@ -83,7 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     interrupts.install()  # Ctrl-C and kill end the run in order; a full ulimit -f is an error line
     try:
         return _main(argv)
-    except KeyboardInterrupt as exc:  # before the verb started
+    except BaseException as exc:  # before the verb started
+        # a signal inside an extension module's import surfaces as ImportError("initialization failed")
+        if not (isinstance(exc, KeyboardInterrupt) or interrupts.interrupted()):
+            raise
         sys.stderr.write("\nerror: interrupted\n")
         return interrupts.exit_status(exc)
     finally:
@@ -117,18 +120,19 @@ def _run(args: argparse.Namespace) -> int:
     try:
         check_paths(args)
         return run_verb(args)
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (files.interrupts): cleaned up on the way here
-        interrupts.finish()
-        stderr.end_line()
-        sys.stderr.write("error: interrupted\n")
-        return interrupts.exit_status(exc)
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 - the one place every failure becomes one line
+        # Ctrl-C or SIGTERM (files.interrupts), cleaned up on the way here, or what the signal
+        # broke on its way (an import, a library's state)
+        interrupted = isinstance(exc, KeyboardInterrupt) or interrupts.interrupted()
         interrupts.finish()
-        if debug_enabled():
+        if debug_enabled() and not interrupted:
             raise
         stderr.end_line()
+        if interrupted:
+            sys.stderr.write("error: interrupted\n")
+            return interrupts.exit_status(exc)
         sys.stderr.write(f"error: {describe(exc)}\n")
         return EXIT_BAD_INPUT
     finally:

@@ -62,10 +62,15 @@ def install() -> None:
     _state.update(installed=previous, interrupted=None, depth=0, pending=None)
 
 
+def installed() -> bool:
+    """True while :func:`install`'s handlers are in place (a CLI run, not a notebook)."""
+    return bool(_state["installed"])
+
+
 def reclaim() -> None:
     """Our handlers back after a library replaced them (``ray.init`` sets its own SIGTERM
     handler, which exits without cleaning up)."""
-    if _state["installed"] and threading.current_thread() is threading.main_thread():
+    if installed() and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _handler)
         signal.signal(signal.SIGTERM, _handler)
 
