@@ -100,9 +100,14 @@ def _plots(traces: Traces, folder: Path) -> list[tuple[str, str]]:
 
     fig, ax = plt.subplots(figsize=(11, 3.5))
     dt = float(t[1] - t[0])
-    for k in labels:
-        f, p = welch(np.nan_to_num(residuals[k]), fs=1 / dt, nperseg=min(4096, len(t)))
-        ax.semilogy(f, p, lw=0.8, label=k)
+    spectra = {k: welch(np.nan_to_num(residuals[k]), fs=1 / dt, nperseg=min(4096, len(t))) for k in labels}
+    # an exact fit leaves no power: a log axis would have nothing to show (and matplotlib says so)
+    logarithmic = any(np.any(p > 0) for _, p in spectra.values())
+    for k, (f, p) in spectra.items():
+        if logarithmic:
+            ax.semilogy(f, np.where(p > 0, p, np.nan), lw=0.8, label=k)
+        else:
+            ax.plot(f, p, lw=0.8, label=k)
     ax.set(xlabel="frequency [Hz]", ylabel="PSD [(rad/s)^2/Hz]", title="residual spectrum (resonances, shaft-rate harmonics)")
     ax.legend()
     save_figure(fig, folder / "spectrum.png")
