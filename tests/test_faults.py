@@ -443,3 +443,21 @@ def test_a_signal_a_library_turned_into_keyboardinterrupt_keeps_its_exit_status(
     assert interrupts.exit_status(interrupts.Interrupted(signal.SIGINT)) == 130  # the exception's own signal first
     monkeypatch.setitem(interrupts._state, "interrupted", None)
     assert interrupts.exit_status(KeyboardInterrupt()) == 130  # a Ctrl-C Python raised itself
+
+
+def test_what_a_signal_broke_on_its_way_out_still_ends_as_interrupted(monkeypatch, capsys):
+    """A signal inside an extension module's import surfaces as ``ImportError: initialization
+    failed``, not as the KeyboardInterrupt it was: once a signal was received, any failure ends
+    the run as interrupted (its exit status, one line), not as exit 1 and a traceback."""
+    import mechanism.cli as cli
+    from mechanism.files import interrupts
+
+    def broken_by_a_signal(args):
+        interrupts._state["interrupted"] = signal.SIGTERM  # what the handler notes before it raises
+        raise ImportError("initialization failed")
+
+    monkeypatch.setattr(cli, "run_verb", broken_by_a_signal)
+    monkeypatch.setitem(interrupts._state, "interrupted", None)  # put back after the test
+    assert cli.main(["inspect-recording", str(REPO / "README.md")]) == 143
+    err = capsys.readouterr().err
+    assert err.strip().splitlines()[-1] == "error: interrupted" and "Traceback" not in err, err
