@@ -104,18 +104,18 @@ def run(variants, seeds, effects=None, pairs=True, duration=60.0, cache=None, ou
         found = result.effect_names
         ratio = result.final.rmse_val / result.baseline.rmse_val
         detect = float(z["detect"])
-        if len(effects) > 1:
+        if len(case_effects) > 1:
             # each member must be detectable on top of the other(s)
-            detect = min(_member_detectability(cache, variant, seed, effects, e, truth, duration) for e in effects)
-        exact = set(found) == set(effects) and len(found) == len(effects)
-        ratio_ok = (not effects) or ratio <= 0.7
-        detectable = (not effects) or detect >= DETECTABLE_RAD_S
-        label = ", ".join(f"{e} ({truth['effects'][e]['flavour']})" for e in effects) or "none"
+            detect = min(_member_detectability(cache, variant, seed, case_effects, e, truth, duration) for e in case_effects)
+        exact = set(found) == set(case_effects) and len(found) == len(case_effects)
+        ratio_ok = (not case_effects) or ratio <= 0.7
+        detectable = (not case_effects) or detect >= DETECTABLE_RAD_S
+        label = ", ".join(f"{e} ({truth['effects'][e]['flavour']})" for e in case_effects) or "none"
         mark = "ok " if exact and ratio_ok else ("-- " if not detectable else "NO ")
         print(f"{variant:13s} {seed:4d} {label:58s} {detect:6.2f} {mark + (', '.join(found) or '-'):40s} {ratio:6.2f} {seconds:5.1f}",
               flush=True)
-        rows.append({"variant": variant, "seed": seed, "effects": list(effects),
-                     "flavours": {e: truth["effects"][e]["flavour"] for e in effects}, "found": found,
+        rows.append({"variant": variant, "seed": seed, "effects": list(case_effects),
+                     "flavours": {e: truth["effects"][e]["flavour"] for e in case_effects}, "found": found,
                      "exact": exact, "ratio": ratio, "ratio_ok": ratio_ok, "detectability_rad_s": detect,
                      "detectable": detectable, "seconds": seconds, "baseline_rmse": result.baseline.rmse_val,
                      "rounds": result.rounds, "baseline_params": result.baseline.values})
