@@ -16,12 +16,10 @@ Model: the shipped sewing machine (or ``MECHANISM_BENCH_MODEL``) when it has ``n
 from __future__ import annotations
 
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
 SPEED_RPM = 600.0
 
 
@@ -34,8 +32,7 @@ def _model():
         model = load_model(path)
         if {"needle", "hook"} <= set(part_names(model)):
             return model, f"sewing machine {path.name}", _sewing_timing(model)
-    sys.path.insert(0, str(REPO / "tests"))
-    import mechanisms
+    from tests.helpers import mechanisms
 
     return mechanisms.needle_and_plate().compile(), "test needle/hook mechanism", "coupling:hook_drive:hook_deg"
 

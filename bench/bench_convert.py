@@ -7,7 +7,6 @@ means the converter adds little on top of the libraries it uses.
 
 from __future__ import annotations
 
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -22,8 +21,7 @@ def _seconds(function) -> float:
 
 
 def _exports(scratch: Path):
-    sys.path.insert(0, str(REPO / "tests"))
-    from exports import FourBar  # the hand-written test export
+    from tests.helpers.exports import FourBar  # the hand-written test export
 
     yield "four-bar (gen-1, STL)", FourBar().export(scratch)
     shared = REPO.parent / "shared" / "cad-exports"

@@ -1,7 +1,7 @@
 """Does the diagnosis generalise to truth models it was not tuned on?
 
-Recordings come from ``tests/truth_variants.py``: a third truth model written apart from
-``mechanism.testbench`` and ``tests/synthetic_truth.py``, with other integrators (RK4 + tanh
+Recordings come from ``tests/helpers/truth_variants.py``: a third truth model written apart from
+``mechanism.testbench`` and ``tests/helpers/synthetic_truth.py``, with other integrators (RK4 + tanh
 friction, event stick-slip), motor constants (Kt = Ke), inductances, voltage profiles
 (ramps, staircase, PWM duty, long plateaus), sensors (round/floor, jitter, a late noisy
 voltage log) and other flavours of every effect. Each case is diagnosed like the held-out
@@ -11,7 +11,7 @@ against the same seed's clean recording in its most affected 2 s).
 
     python -m bench bench_diagnosis_generalisation
     MECHANISM_GEN_SEEDS=0,1 MECHANISM_GEN_VARIANTS=rk4_tanh,ramps python -m bench bench_diagnosis_generalisation
-    python bench/bench_diagnosis_generalisation.py --seeds 0 1 2 --json out.json   # more options: --help
+    python -m bench.bench_diagnosis_generalisation --seeds 0 1 2 --json out.json   # more options: --help
 """
 
 from __future__ import annotations
@@ -19,13 +19,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 PAIRS = ("torque_ripple,thermal_drift", "needle_penetration,stribeck", "position_friction,encoder_eccentricity",
          "voltage_nonlinearity,linkage_dynamics", "belt_compliance,thermal_drift")
@@ -33,7 +30,7 @@ DETECTABLE_RAD_S = 0.2  # an effect changing the speed by less than this nowhere
 
 
 def cases(variants, seeds, effects=None, pairs=True):
-    from truth_variants import EFFECT_NAMES, FLAVOURS
+    from tests.helpers.truth_variants import EFFECT_NAMES, FLAVOURS
 
     out = []
     for vi, variant in enumerate(variants):
@@ -52,8 +49,8 @@ def _load_or_make(cache: Path, variant, seed, effects, flavours, duration):
     import zlib
 
     import numpy as np
-    import truth_variants
-    from truth_variants import detectability, make_case
+    from tests.helpers import truth_variants
+    from tests.helpers.truth_variants import detectability, make_case
 
     version = zlib.crc32(Path(truth_variants.__file__).read_bytes()) % 10**6  # a changed truth model makes new files
     key = f"{variant}_{seed}_{'+'.join(effects) or 'none'}_{'_'.join(flavours.get(e, '') for e in effects)}_{int(duration)}_{version}"
@@ -78,7 +75,7 @@ def _window(effect: str) -> float:
 
 def _member_detectability(cache, variant, seed, effects, member, truth, duration):
     """How much ``member`` changes the speed on top of the other effect(s) of a pair."""
-    from truth_variants import detectability
+    from tests.helpers.truth_variants import detectability
 
     others = tuple(e for e in effects if e != member)
     z_pair, _ = _load_or_make(cache, variant, seed, effects, {}, duration)
@@ -107,18 +104,18 @@ def run(variants, seeds, effects=None, pairs=True, duration=60.0, cache=None, ou
         found = result.effect_names
         ratio = result.final.rmse_val / result.baseline.rmse_val
         detect = float(z["detect"])
-        if len(effects) > 1:
+        if len(case_effects) > 1:
             # each member must be detectable on top of the other(s)
-            detect = min(_member_detectability(cache, variant, seed, effects, e, truth, duration) for e in effects)
-        exact = set(found) == set(effects) and len(found) == len(effects)
-        ratio_ok = (not effects) or ratio <= 0.7
-        detectable = (not effects) or detect >= DETECTABLE_RAD_S
-        label = ", ".join(f"{e} ({truth['effects'][e]['flavour']})" for e in effects) or "none"
+            detect = min(_member_detectability(cache, variant, seed, case_effects, e, truth, duration) for e in case_effects)
+        exact = set(found) == set(case_effects) and len(found) == len(case_effects)
+        ratio_ok = (not case_effects) or ratio <= 0.7
+        detectable = (not case_effects) or detect >= DETECTABLE_RAD_S
+        label = ", ".join(f"{e} ({truth['effects'][e]['flavour']})" for e in case_effects) or "none"
         mark = "ok " if exact and ratio_ok else ("-- " if not detectable else "NO ")
         print(f"{variant:13s} {seed:4d} {label:58s} {detect:6.2f} {mark + (', '.join(found) or '-'):40s} {ratio:6.2f} {seconds:5.1f}",
               flush=True)
-        rows.append({"variant": variant, "seed": seed, "effects": list(effects),
-                     "flavours": {e: truth["effects"][e]["flavour"] for e in effects}, "found": found,
+        rows.append({"variant": variant, "seed": seed, "effects": list(case_effects),
+                     "flavours": {e: truth["effects"][e]["flavour"] for e in case_effects}, "found": found,
                      "exact": exact, "ratio": ratio, "ratio_ok": ratio_ok, "detectability_rad_s": detect,
                      "detectable": detectable, "seconds": seconds, "baseline_rmse": result.baseline.rmse_val,
                      "rounds": result.rounds, "baseline_params": result.baseline.values})
@@ -170,7 +167,7 @@ def main(argv=None) -> None:
     parser.add_argument("--cache", help="folder for generated recordings (reused between runs)")
     parser.add_argument("--json", help="write every row to this JSON file")
     args = parser.parse_args(argv if argv is not None else ([] if __name__ != "__main__" else None))
-    from truth_variants import VARIANTS
+    from tests.helpers.truth_variants import VARIANTS
 
     variants = args.variants or [v for v in os.environ.get("MECHANISM_GEN_VARIANTS", "").split(",") if v] or list(VARIANTS)
     seeds = args.seeds or [int(s) for s in os.environ.get("MECHANISM_GEN_SEEDS", "0").split(",")]

@@ -12,7 +12,7 @@ from mechanism.api import drive_nominal
 from mechanism.machine.machine import load_machine
 from mechanism.sysid.identification import identify
 from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, PRIOR_BOUND_SIGMAS
-from support.oscillating import PENDULUM_SERVO, record
+from tests.helpers.oscillating import PENDULUM_SERVO, record
 
 MODELS = Path(__file__).parent / "models"
 PENDULUM = MODELS / "geared_pendulum.toml"
@@ -53,7 +53,7 @@ def test_a_sewing_machine_turning_one_way_gets_no_offset_and_no_gravity(tmp_path
     from mechanism.sysid.identification import baseline_terms
     from mechanism.sysid.recording import read_recording
     from mechanism.testbench import write_recording
-    from support.nominal import SAPPHIRE, bench_recording
+    from tests.helpers.nominal import SAPPHIRE, bench_recording
 
     rec = read_recording(write_recording(bench_recording("none", seed=3, duration_s=12), tmp_path / "c.csv")[0])
     offset, gravity, why = baseline_terms(SAPPHIRE, rec)
@@ -84,7 +84,7 @@ def test_multibody_baseline_uses_the_machine_given(tmp_path, cli, pendulum):
 def test_voltage_evidence_quotes_only_levels_the_recording_has():
     from mechanism.dynamics.lumped import Signals
     from mechanism.sysid.effects import effect
-    from support.nominal import SAPPHIRE
+    from tests.helpers.nominal import SAPPHIRE
 
     t = np.arange(4000) / 1000.0
     u = 4.3 * np.sin(2 * np.pi * 0.5 * t)
@@ -123,7 +123,7 @@ def test_gearbox_friction_that_follows_the_load_is_named_on_a_geared_servo(pendu
 
 def test_gearbox_friction_is_a_candidate_only_for_a_gearbox(pendulum):
     from mechanism.sysid.effects import library
-    from support.nominal import SAPPHIRE
+    from tests.helpers.nominal import SAPPHIRE
 
     assert "gear_load_friction" in library(pendulum) and "gear_load_friction" not in library(SAPPHIRE)
 

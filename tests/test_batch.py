@@ -98,7 +98,7 @@ def test_ray_missing_on_the_command_line_is_one_error_line(cli, tmp_path):
     variants = tmp_path / "v.csv"
     variants.write_text("coupling:hook_drive:hook_deg\n1\n")
     model = tmp_path / "m.xml"
-    import mechanisms as M
+    from tests.helpers import mechanisms as M
 
     model.write_text(M.needle_and_plate().to_xml())
     path = os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")])
@@ -148,7 +148,7 @@ def ray_cluster(tmp_path_factory):
     temp_dir = tempfile.mkdtemp(prefix="rayc-", dir="/tmp")  # short: Ray's socket paths must fit 107 bytes
     ray_cli = _ray_cli()
     driver_env = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token), "RAY_USAGE_STATS_ENABLED": "0"}
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]),
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
                **driver_env)
     env.pop("RAY_ADDRESS", None)
     port = _free_port()
@@ -218,7 +218,7 @@ def on_cluster(ray_cluster, monkeypatch):
 def test_clearance_variants_on_a_ray_cluster_by_address(cli, on_cluster, tmp_path):
     """The CLI connects to the cluster by address (no num_cpus: Ray would refuse) and the
     rows equal the local run's."""
-    import mechanisms as M
+    from tests.helpers import mechanisms as M
 
     model = tmp_path / "m.xml"
     model.write_text(M.needle_and_plate().to_xml())
@@ -321,7 +321,7 @@ def test_rays_temporary_folder_stays_short_whatever_the_systems(monkeypatch, tmp
 
 
 def test_the_scheduler_keeps_the_tests_named_ray_together_and_no_others():
-    from conftest import _is_ray_test
+    from tests.conftest import _is_ray_test
 
     together = ["tests/test_batch.py::test_ray_backend", "tests/test_x.py::test_a_kill_stops_the_ray_instance[2-130]",
                 "tests/test_batch.py::test_rays_temporary_folder", "tests/test_batch.py::test_bad_options_and_missing_ray"]

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from exports import FourBar
+from tests.helpers.exports import FourBar
 from mechanism.files import cache
 from mechanism.machine.models import converted_model
 

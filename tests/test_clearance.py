@@ -4,7 +4,7 @@ import mujoco
 import numpy as np
 import pytest
 
-import mechanisms as M
+from tests.helpers import mechanisms as M
 from mechanism.inspection.clearance import Pair, all_pairs, check_clearance, parse_pairs
 from mechanism.errors import UserError
 from mechanism.kinematics.pose import sweep

@@ -1,7 +1,7 @@
 """Closed kinematic chains: loop closures keep the closing joint's real degrees of freedom.
 
 Checked against analytic kinematics (Freudenstein's four-bar equation, a frictionless slide)
-on exports written by hand in tests/exports.py.
+on exports written by hand in tests/helpers/exports.py.
 """
 
 import math
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from mechanism.converters import convert
-from exports import FourBar, Gen1Export, bar_inertia, rotation
-from quirk_exports import INCH, proe_fourbar
+from tests.helpers.exports import FourBar, Gen1Export, bar_inertia, rotation
+from tests.helpers.quirk_exports import INCH, proe_fourbar
 
 
 def _drive(model_path, joint: str):
@@ -143,7 +143,7 @@ def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
     """Second-generation slider-crank in millimetres: crank r about world z, rod l, slider on a
     prismatic joint along world x (its joint frame's z axis turned onto x). The revolute
     rod--slider closes the loop; x_slider = r cos(q) + sqrt(l^2 - r^2 sin^2(q))."""
-    from exports import gen2_export, gen2_joint, gen2_part, gen2_transform
+    from tests.helpers.exports import gen2_export, gen2_joint, gen2_part, gen2_transform
 
     r, l, q0 = 30.0, 100.0, math.radians(40)
     a = np.array([r * math.cos(q0), r * math.sin(q0), 0.0])

@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from exports import Gen1Export, FourBar
+from tests.helpers.exports import Gen1Export, FourBar
 
 BILLION_LAUGHS = """<?xml version="1.0"?>
 <!DOCTYPE lolz [
@@ -184,7 +184,7 @@ def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
 @pytest.mark.slow
 def test_explain_names_the_mates_behind_each_joint(tmp_path, cli):
     """``--explain``: per joint, the mates (by name) it was found from and what it became."""
-    from quirk_exports import creo_ball_beam_rigid
+    from tests.helpers.quirk_exports import creo_ball_beam_rigid
 
     export = creo_ball_beam_rigid(tmp_path)
     plain = cli("convert", export.path, "-o", tmp_path / "plain")

@@ -10,7 +10,7 @@ import pytest
 
 from mechanism.converters import convert, read
 from mechanism.converters.errors import ExportError
-from exports import (FourBar, Gen1Export, bar_inertia, box_stl, gen2_export, gen2_joint, gen2_part, gen2_transform,
+from tests.helpers.exports import (FourBar, Gen1Export, bar_inertia, box_stl, gen2_export, gen2_joint, gen2_part, gen2_transform,
                      rotation)
 
 LEGS = "cad-exports/legs-creo-firstgen/LEGS_MECHANISM.xml"
@@ -27,7 +27,7 @@ def _xml_masses(path, tag="mass"):
 
 @pytest.fixture(scope="module")
 def legs(tmp_path_factory):
-    from conftest import shared_dir
+    from tests.conftest import shared_dir
 
     shared = shared_dir()
     if shared is None:

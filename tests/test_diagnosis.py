@@ -10,11 +10,11 @@ from mechanism.sysid.identification import FitResult, ModelStructure
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.recording import make_recording, read_recording
 
-from support.nominal import SAPPHIRE, bench_recording, diagnose, effects
+from tests.helpers.nominal import SAPPHIRE, bench_recording, diagnose, effects
 
 EFFECTS = effects()
 
-from synthetic_truth import simulate_truth
+from tests.helpers.synthetic_truth import simulate_truth
 
 SHORT_S = 30.0  # most tests: half the benchmark's length, to keep the suite fast
 
@@ -120,7 +120,7 @@ def test_a_press_is_diagnosed_like_the_sewing_machine(tmp_path, effect):
     """20x the inertia, a 12:1 gear, another motor: the ripple 12 times per shaft turn is
     named, the clean press has no finding."""
     from mechanism.testbench import write_recording
-    from support.nominal import PRESS
+    from tests.helpers.nominal import PRESS
 
     csv = write_recording(bench_recording(effect, seed=5, duration_s=SHORT_S, nominal=PRESS), tmp_path / "p.csv")[0]
     check(diagnose(read_recording(csv), nominal=PRESS), set() if effect == "none" else {effect})

@@ -9,9 +9,9 @@ import pytest
 
 from mechanism.data.reference import thesis
 
-from support.nominal import diagnose, effects
+from tests.helpers.nominal import diagnose, effects
 
-from truth_variants import VARIANTS, draw_machine, make_case, simulate_truth
+from tests.helpers.truth_variants import VARIANTS, draw_machine, make_case, simulate_truth
 
 
 def thesis_machine(variant):

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from exports import FourBar
+from tests.helpers.exports import FourBar
 from mechanism.converters import convert
 from mechanism.machine.roles import guess_roles
 

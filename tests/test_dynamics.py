@@ -12,7 +12,7 @@ ARM = "arm_shaft"
 from mechanism.dynamics.reduced import ReducedModel
 from mechanism.data.reference import thesis
 from mechanism.dynamics.simulation import simulate
-from support.machines import shipped_description
+from tests.helpers.machines import shipped_description
 
 PWM = duty_map_from(shipped_description())
 

@@ -15,8 +15,8 @@ from mechanism.physics.inputs import VoltageProfile
 from mechanism.errors import UserError
 from mechanism.machine.machine import Machine, MachineConfig, duty_map_from
 from mechanism.dynamics.simulation import simulate
-from support.machines import shipped_description
-from support.machines import thesis_motor, velocities_with_passive
+from tests.helpers.machines import shipped_description
+from tests.helpers.machines import thesis_motor, velocities_with_passive
 
 
 PWM = duty_map_from(shipped_description())

@@ -1,5 +1,5 @@
 """What real CAD exporters write (docs/real_exports.md), on hand-built exports that carry the same
-features and quirks (tests/quirk_exports.py): masses, joints found from mates, freedoms, loops
+features and quirks (tests/helpers/quirk_exports.py): masses, joints found from mates, freedoms, loops
 that close and move. Expected numbers come from each design's own geometry."""
 
 import math
@@ -10,8 +10,8 @@ import pytest
 
 from mechanism.converters import convert, read
 from mechanism.converters.names import sanitize
-from exports import rotation
-from quirk_exports import (INCH, X, Y, Z, ball_and_beam, ball_in_groove, circles_meet, conveyor_with_origin_mates, creo_arm,
+from tests.helpers.exports import rotation
+from tests.helpers.quirk_exports import (INCH, X, Y, Z, ball_and_beam, ball_in_groove, circles_meet, conveyor_with_origin_mates, creo_arm,
                            creo_ball_beam_rigid, furuta, hexapod_link, massless_link_tiny_parts, massless_skeleton_moving,
                            onshape_copter, planar_puck, proe_fourbar, robot_shin, scara_printer, simscape_link_gen1)
 

@@ -1,6 +1,6 @@
 """Property-based faults (hypothesis): every verb that writes, a full disk, a quota, a file size
 limit, Ctrl-C or SIGTERM injected at a random write event of its run and its publishing
-(tests/support/faults.py). The contract each time: a disk fault is exit 2 with one ``error:``
+(tests/helpers/faults.py). The contract each time: a disk fault is exit 2 with one ``error:``
 line naming the output folder and the cause, the previous outputs byte for byte; a signal is
 exit 130/143 with one ``error: interrupted`` line, the outputs all old or (a signal that came
 while publishing, which waits for it) all new; never a temporary, a lock or a traceback.
@@ -20,7 +20,7 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
 
 from mechanism.cli import main  # noqa: E402
-from support.faults import FAULTS, injected  # noqa: E402
+from tests.helpers.faults import FAULTS, injected  # noqa: E402
 
 pytestmark = pytest.mark.slow
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from mechanism.cli import main
-from support.faults import injected
+from tests.helpers.faults import injected
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -35,7 +35,7 @@ def own_cache(monkeypatch, cache):
 
 
 def environment(tmp_path: Path, **extra) -> dict[str, str]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")]), "MPLBACKEND": "Agg",
+    env = {**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg",
            "MECHANISM_CACHE": str(tmp_path / "cache"), "PYTHONDONTWRITEBYTECODE": "1", **extra}
     env.pop("MECHANISM_DEBUG", None)
     return env

@@ -11,7 +11,7 @@ from mechanism.files.outputs import atomic_dir, atomic_file
 from mechanism.data.reference import thesis
 from mechanism.files.tables import check_increasing, parse_table, read_table, write_table
 
-from conftest import shared_dir
+from tests.conftest import shared_dir
 
 
 def test_table_reads_comments_header_and_ignores_unknown_columns():

@@ -7,7 +7,7 @@ import textwrap
 
 import numpy as np
 
-from exports import Gen1Export
+from tests.helpers.exports import Gen1Export
 
 
 def _ungrounded(folder):

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import mechanisms as M
-from exports import FourBar
+from tests.helpers import mechanisms as M
+from tests.helpers.exports import FourBar
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -186,13 +186,13 @@ def test_an_unwritable_json_path_leaves_no_csv(cli, tmp_path):
 
 KILL_CLI = textwrap.dedent("""
     import sys
-    from support.killing import kill_before_rename
+    from tests.helpers.killing import kill_before_rename
     from mechanism.cli import main
 
     kill_before_rename(int(sys.argv[1]))
     sys.exit(main(sys.argv[2:]))
 """)
-SUBPROCESS_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")])}
+SUBPROCESS_ENV = {**os.environ, "PYTHONPATH": str(REPO)}
 
 
 def kill_during_publish(args, folder: Path, old, new, cleanup):

@@ -18,7 +18,7 @@ import pytest
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, example, given, settings, strategies as st  # noqa: E402
 
-from exports import FourBar  # noqa: E402
+from tests.helpers.exports import FourBar  # noqa: E402
 from mechanism.cli import main  # noqa: E402
 from mechanism.errors import UserError  # noqa: E402
 

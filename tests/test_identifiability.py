@@ -10,7 +10,7 @@ import pytest
 from mechanism.sysid.identifiability import check_information
 from mechanism.sysid.identification import NotIdentifiable, identify
 from mechanism.sysid.recording import make_recording
-from support.oscillating import AXIS, PENDULUM_SERVO, record
+from tests.helpers.oscillating import AXIS, PENDULUM_SERVO, record
 
 
 def travel(rec) -> float:

@@ -12,14 +12,14 @@ from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_INERTIA_TOLERANCE, P
 from mechanism.sysid.steady_state import fit_steady_state, table2
 from mechanism.data.reference import thesis
 
-from support.nominal import SAPPHIRE, bench_recording, identify
+from tests.helpers.nominal import SAPPHIRE, bench_recording, identify
 
 
 def thesis_table2():
     ref = thesis()
     return table2(ref["steady_state_speed_table_2"], SAPPHIRE.motor, ref["main_motor"]["model_validity_V"][1])
 
-from synthetic_truth import simulate_truth
+from tests.helpers.synthetic_truth import simulate_truth
 
 
 @pytest.fixture(scope="module")
@@ -171,7 +171,7 @@ def test_identify_a_press_as_well_as_the_sewing_machine(tmp_path):
     """A machine of another size (20x the inertia, 12:1, another motor): bounds and starts
     come from its description, and the fit recovers its truth as closely as the Sapphire's."""
     from mechanism.testbench import write_recording
-    from support.nominal import PRESS
+    from tests.helpers.nominal import PRESS
 
     csv, truth_path = write_recording(bench_recording("none", seed=11, duration_s=30, nominal=PRESS), tmp_path / "p.csv")
     truth = json.loads(truth_path.read_text())["baseline"]

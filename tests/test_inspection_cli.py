@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-import mechanisms as M
+from tests.helpers import mechanisms as M
 
 
 @pytest.fixture(scope="module")

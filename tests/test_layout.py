@@ -150,3 +150,14 @@ def test_ci_installs_with_the_home_folder_and_tests_with_an_empty_one():
     script = (REPO / ".ci" / "run").read_text()
     install, test = script.index("make .venv/.installed"), script.index('HOME="$fresh_home" make test')
     assert install < test and "mktemp -d" in script
+
+
+def test_test_helpers_live_in_their_package_and_bench_edits_no_import_path():
+    """Helpers are imported as ``tests.helpers.<module>`` by tests, their subprocesses and bench/
+    alike; a helper loose in tests/ or a ``sys.path`` edit in bench/ works only from some folders."""
+    tests = REPO / "tests"
+    loose = [p.name for p in tests.glob("*.py") if not p.name.startswith("test_") and p.name not in ("conftest.py", "__init__.py")]
+    assert not loose, f"move these helpers into tests/helpers/: {loose}"
+    assert (tests / "__init__.py").is_file() and (tests / "helpers" / "__init__.py").is_file()
+    edits = [str(p.relative_to(REPO)) for p in (REPO / "bench").rglob("*.py") if "sys.path" in p.read_text()]
+    assert not edits, f"bench/ runs as `python -m bench` from the repository root, where tests.helpers imports as is: {edits}"

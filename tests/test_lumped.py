@@ -10,7 +10,7 @@ from mechanism.dynamics.lumped import (Drive, MotorConstants, Segments, Signals,
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.data.reference import thesis
 
-from support.nominal import SAPPHIRE
+from tests.helpers.nominal import SAPPHIRE
 
 DT = 1e-3
 
@@ -149,7 +149,7 @@ def test_baseline_parameters_carry_the_thesis_numbers():
 def test_baseline_bounds_scale_with_the_described_machine():
     """A press of 20x the inertia and a 12:1 gear gets starting values and bounds 20x/144
     the sewing machine's on the motor side: nothing of the sewing machine is left in them."""
-    from support.nominal import PRESS
+    from tests.helpers.nominal import PRESS
 
     small = {p.name: p for p in LumpedBaseline(SAPPHIRE).parameters}
     large = {p.name: p for p in LumpedBaseline(PRESS).parameters}

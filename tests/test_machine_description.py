@@ -10,7 +10,7 @@ import mechanism
 from mechanism.data.reference import thesis
 from mechanism.machine.description import read_description
 from mechanism.machine.models import DEFAULT_DESCRIPTION, DEFAULT_MODEL
-from support.machines import TOY_MACHINE, velocities_with_passive
+from tests.helpers.machines import TOY_MACHINE, velocities_with_passive
 
 CONTRACT = """\
 [machine]

@@ -1,7 +1,7 @@
 """Second-generation exports that carry CAD mates instead of joints (SolidWorks, Creo, Inventor):
 the joints are found from the freedoms the mates leave, as Simscape's smimport does.
 
-Hand-written exports in tests/exports.py style; each mate is written in its part's own frame,
+Hand-written exports in tests/helpers/exports.py style; each mate is written in its part's own frame,
 so a wrong frame convention shows up as a wrong joint.
 """
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mechanism.converters import convert, read
-from exports import (gen2_export, gen2_instance, gen2_mate, gen2_part, gen2_transform, gen2_unknown, mate_side,
+from tests.helpers.exports import (gen2_export, gen2_instance, gen2_mate, gen2_part, gen2_transform, gen2_unknown, mate_side,
                      pin_mates, rotation)
 
 TILT = rotation((1, 1, 0), 0.6)  # the mechanisms' plane, turned away from the world axes
@@ -219,7 +219,7 @@ def test_gear_without_a_ratio_is_reported_not_guessed(tmp_path):
 
 def test_joint_naming_a_missing_instance_is_skipped_with_a_warning(tmp_path):
     """Onshape writes joints of suppressed parts; one such joint must not sink the whole file."""
-    from exports import gen2_joint
+    from tests.helpers.exports import gen2_joint
 
     parts = "".join(gen2_part(n, f"P-{n}", 1.0, (0, 0, 0), (0.01, 0.01, 0.01, 0, 0, 0)) for n in ("base", "arm"))
     instances = gen2_instance("base", "P-base", grounded=True) + gen2_instance("arm", "P-arm", None, (0.1, 0, 0))

@@ -13,7 +13,7 @@ LOCKED = """<mujoco><option timestep="0.0001" integrator="implicitfast"/><worldb
   <joint name="motor" type="hinge" axis="1 0 0"/><inertial pos="0 0 0" mass="1" diaginertia="1e6 1e6 1e6"/>
 </body></worldbody></mujoco>"""  # a rotor that cannot turn in the test's time: locked
 
-from support.machines import thesis_motor
+from tests.helpers.machines import thesis_motor
 
 
 def locked(motor: DCMotor, angle: float = 0.0):

@@ -132,7 +132,7 @@ KILLER = textwrap.dedent("""
     import sys
     from pathlib import Path
     from mechanism.files import outputs
-    from support.killing import kill_before_rename
+    from tests.helpers.killing import kill_before_rename
 
     kill_before_rename(int(sys.argv[1]), exchange=sys.argv[2] == "exchange")
     target = Path(sys.argv[3])
@@ -161,7 +161,7 @@ def test_a_kill_at_any_instant_of_publishing_leaves_the_old_or_the_new_output(tm
         target = tmp_path / f"{mode}{kill_at}"
         old_state(target)
         run = subprocess.run([sys.executable, "-c", KILLER, str(kill_at), mode, str(target)], capture_output=True,
-                             text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")])})
+                             text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
         killed = run.returncode != 0
         outputs.clean_leftovers(target / "folder")  # what the next run does first
         outputs.clean_leftovers(target / "file.txt")

@@ -4,7 +4,7 @@ import mujoco
 import numpy as np
 import pytest
 
-import mechanisms as M
+from tests.helpers import mechanisms as M
 from mechanism.kinematics.cycle import cycle_angles, kinematic_cycle, set_state
 from mechanism.errors import UserError
 from mechanism.inspection.probes import Probe, probe_cycle

@@ -8,7 +8,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from exports import FourBar
+from tests.helpers.exports import FourBar
 
 ROCKER = "rocker--ground"
 

@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from exports import FourBar
+from tests.helpers.exports import FourBar
 
 G = 9.81
 

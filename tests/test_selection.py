@@ -3,7 +3,7 @@ could be behind them, and the joint rule is stricter than the forward step."""
 
 from mechanism.sysid import diagnosis
 from mechanism.sysid.generic import GenericChange, GenericShaftTorque, GenericSpeedFriction, evidence
-from support.nominal import SAPPHIRE
+from tests.helpers.nominal import SAPPHIRE
 
 
 def test_generic_models_name_possible_physics_and_no_mechanism():

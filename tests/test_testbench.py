@@ -19,9 +19,9 @@ from mechanism.data.reference import thesis
 from mechanism.files.tables import check_increasing, read_table
 from mechanism.testbench import ANGLE_STEP_RAD, EFFECTS, write_recording
 
-from support.nominal import bench_recording as make_recording
+from tests.helpers.nominal import bench_recording as make_recording
 
-from conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT
 
 THESIS = thesis()
 RATIO = THESIS["mechanism"]["motor_to_arm_ratio"]

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-import mechanisms as M
+from tests.helpers import mechanisms as M
 from mechanism.inspection.clearance import Pair
 from mechanism.errors import UserError
 from mechanism.kinematics.pose import solve_pose, sweep

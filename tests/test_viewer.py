@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-import mechanisms as M
+from tests.helpers import mechanisms as M
 from mechanism.inspection.viewer import _color, cycle_motion, recording_motion, view
 
 CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")

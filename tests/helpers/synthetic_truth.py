@@ -162,7 +162,7 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
     return t, u_log, angle, truth
 
 
-def write_csv(path, t, u, angle, extra_comment="synthetic truth (tests/synthetic_truth.py)"):
+def write_csv(path, t, u, angle, extra_comment="synthetic truth (tests/helpers/synthetic_truth.py)"):
     with open(path, "w", encoding="utf-8") as f:
         f.write(f"# {extra_comment}\n")
         f.write("time,voltage,arm_angle\n")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exports import (SLASH, FourBar, Inst, gen2_assembly, gen2_export, gen2_joint, gen2_mate, gen2_part, gen2_transform,
+from tests.helpers.exports import (SLASH, FourBar, Inst, gen2_assembly, gen2_export, gen2_joint, gen2_mate, gen2_part, gen2_transform,
                      gen2_unknown, in_frame, instance_path, instance_tree, mate_side, pin_mates, rotation)
 
 X, Y, Z = np.eye(3)

@@ -1,7 +1,7 @@
 """A third truth model for the diagnosis: other reasonable engineering choices.
 
 Test code only (the product never imports it). Written from the thesis and textbook physics,
-independently of ``mechanism.testbench`` and ``tests/synthetic_truth.py``, to ask how the
+independently of ``mechanism.testbench`` and ``tests/helpers/synthetic_truth.py``, to ask how the
 diagnosis behaves when the held-out bench's authors chose differently:
 
 - **equations on the motor shaft** (the arm is a load seen through the 8:1 belt), electrical

@@ -1,1 +1,0 @@
-"""Helpers shared by the tests (fixtures that are not pytest fixtures)."""
