@@ -156,7 +156,7 @@ def test_legs_cli_warns_that_meshes_are_missing(shared, tmp_path, cli):
 @pytest.mark.slow
 def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
     # Two shafts on a 8:1 belt: the arm feels I_arm + 64 I_motor (a hand calculation).
-    from test_converter import _belt, _two_shafts
+    from tests.test_converter import _belt, _two_shafts
 
     export = _two_shafts(tmp_path, _belt(), motor_inertia=2e3, arm_inertia=5e4)
     result = cli("convert", export, "-o", tmp_path / "out")
