@@ -159,5 +159,10 @@ def test_test_helpers_live_in_their_package_and_bench_edits_no_import_path():
     loose = [p.name for p in tests.glob("*.py") if not p.name.startswith("test_") and p.name not in ("conftest.py", "__init__.py")]
     assert not loose, f"move these helpers into tests/helpers/: {loose}"
     assert (tests / "__init__.py").is_file() and (tests / "helpers" / "__init__.py").is_file()
+    import re
+
+    bare = [p.name for p in tests.rglob("*.py")
+            if re.search(r"^\s*(from|import) (test_\w+|conftest|helpers|support)\b", p.read_text(), re.M)]
+    assert not bare, f"import test modules and helpers by their package (tests.<module>), not a bare name: {bare}"
     edits = [str(p.relative_to(REPO)) for p in (REPO / "bench").rglob("*.py") if "sys.path" in p.read_text()]
     assert not edits, f"bench/ runs as `python -m bench` from the repository root, where tests.helpers imports as is: {edits}"
