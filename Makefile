@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/mechanism demo --out out
 
-# ruff (bugs, not taste) and mypy on the public API, then every test
+# ruff (bugs, not taste) and mypy on the whole package, then every test
 lint: $(STAMP)
 	$(VENV)/bin/ruff check mechanism converters tests bench
 	$(VENV)/bin/mypy

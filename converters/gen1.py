@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections import Counter
 from pathlib import Path
+from typing import overload
 
 import numpy as np
 
@@ -45,7 +46,12 @@ PRIMITIVES = {"revolute": [HINGE], "prismatic": [SLIDE], "spherical": [BALL], "w
               "cylindrical": [SLIDE, HINGE]}
 
 
+@overload
+def _text(element, tag: str, default: str) -> str: ...
+@overload
+def _text(element, tag: str, default: None = None) -> str | None: ...
 def _text(element, tag: str, default: str | None = None) -> str | None:
+    """The stripped text of ``element``'s child ``tag``, or ``default`` where it has none."""
     child = element.find(tag)
     if child is None or child.text is None:
         return default
@@ -196,8 +202,8 @@ class _Reader:
             transparency = float(np.clip(_number(_text(material, "transparency", "0"), f"{where}: transparency"), 0, 1))
             color = (*rgb.tolist(), 1.0 - transparency)
 
-        named = [NamedFrame(_text(frame, "displayName"), poses[_frame_name(frame, i)])
-                 for i, frame in enumerate(frames) if _text(frame, "displayName")]
+        named = [NamedFrame(display_name, poses[_frame_name(frame, i)])
+                 for i, frame in enumerate(frames) if (display_name := _text(frame, "displayName"))]
         self.assembly.parts[key] = Part(
             key=key, name=name, mass=mass, com=cg.position, inertia=inertia_world, frame=part_frame,
             geometry=geometry, geometry_name=geometry_name, geometry_scale=scale, color=color,

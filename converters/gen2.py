@@ -197,7 +197,7 @@ class _Reader:
         geometry_element = _child(entity, "GeometryFile")
         geometry_name = (geometry_element.get("name") or "") if geometry_element is not None else ""
         geometry = resolve_inside(self.folder, geometry_name, f"{where}: GeometryFile") if geometry_name else None
-        color = (0.7, 0.7, 0.7, 1.0)
+        color: tuple[float, ...] = (0.7, 0.7, 0.7, 1.0)  # RGBA
         diffuse = _child(_child(entity, "VisualProperties"), "Diffuse")
         if diffuse is not None:
             try:
@@ -278,15 +278,14 @@ class _Reader:
         except ExportError as exc:
             self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
             return None
-        mate = Mate(name=name, tag=tag, first=first, second=second)  # type: ignore[arg-type]
-        if (first is None or second is None) and mate.kind == "weld":
-            return self._weld_mate(element, mate, prefix, where)
-        if first is None or second is None:
-            self.assembly.warn(f"constraint {name} <{tag}> carries no usable geometry: ignored")
-            return None
-        return mate
+        if first is not None and second is not None:
+            return Mate(name=name, tag=tag, first=first, second=second)
+        if mates.mate_kind(tag) == "weld":
+            return self._weld_mate(element, name, tag, prefix, where)
+        self.assembly.warn(f"constraint {name} <{tag}> carries no usable geometry: ignored")
+        return None
 
-    def _weld_mate(self, element, mate: Mate, prefix: str, where: str) -> Mate | None:
+    def _weld_mate(self, element, name: str, tag: str, prefix: str, where: str) -> Mate | None:
         """A weld-like constraint (Creo's ``<Rigid>``, ``Lock``, ``Fixed``) written without constraint
         geometry: a weld needs none, only its two instances. Creo writes their two ``InstancePath``
         elements directly in the constraint; other exporters put each in a geometry-less side."""
@@ -294,20 +293,20 @@ class _Reader:
         if len(paths) != 2:
             paths = [_child(side, "InstancePath") for side in element if _child(side, "InstancePath") is not None]
         if len(paths) != 2:
-            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> names {len(paths)} instance(s), not two: ignored")
+            self.assembly.warn(f"constraint {name} <{tag}> names {len(paths)} instance(s), not two: ignored")
             return None
         try:
             keys = [self._path_key(path, prefix, where) for path in paths]
         except ExportError as exc:
-            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
+            self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
             return None
         first, second = (MateGeometry(part=key, shape="origin", position=self._pose_of(key).position, axis=None)
                          for key in keys)
-        if mate.tag.lower() == "unknownconstraint":
-            self.assembly.warn(f"constraint {mate.name} <{mate.tag}> could not be described by the exporter: it fixes "
+        if tag.lower() == "unknownconstraint":
+            self.assembly.warn(f"constraint {name} <{tag}> could not be described by the exporter: it fixes "
                                f"{' and '.join('the world' if key == GROUND else self.assembly.parts[key].name for key in keys)} together, "
                                "as Simscape's import does")
-        return Mate(name=mate.name, tag=mate.tag, first=first, second=second)
+        return Mate(name=name, tag=tag, first=first, second=second)
 
     def _mate_geometry(self, element, prefix: str, where: str) -> MateGeometry | None:
         key = self._instance_key(element, prefix, where)

@@ -69,12 +69,13 @@ def _load(path: Path, scale: float):
             loaded = trimesh.load(io.BytesIO(path.read_bytes()), file_type=file_type, process=False)
     except Exception as exc:  # noqa: BLE001 - any reader failure means "unusable geometry"
         raise GeometryError(f"cannot be read ({exc.__class__.__name__}: {' '.join(str(exc).split())[:120]})") from None
+    mesh: object = loaded  # a scene's flattening can be a list of geometries: checked below
     if isinstance(loaded, trimesh.Scene):
-        loaded = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded.dump(concatenate=True)
-    if not isinstance(loaded, trimesh.Trimesh):
+        mesh = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded.dump(concatenate=True)
+    if not isinstance(mesh, trimesh.Trimesh):
         raise GeometryError("contains no triangles")
-    vertices = np.asarray(loaded.vertices, dtype=float) * scale
-    faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+    vertices = np.asarray(mesh.vertices, dtype=float) * scale
+    faces = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
     return vertices, faces
 
 
@@ -141,8 +142,8 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
         scale = 1.0 if has_units else _choose_scale(assembly, part, vertices, faces)
         if (part.geometry, scale) not in scaled:
             scaled[(part.geometry, scale)] = _mesh(part, vertices * scale, faces, namer, by_digest)
-        meshes[part.key] = scaled[(part.geometry, scale)]
-        _check_placement(assembly, part, meshes[part.key])
+        mesh = meshes[part.key] = scaled[(part.geometry, scale)]
+        _check_placement(assembly, part, mesh)
     if missing:
         unique = list(dict.fromkeys(missing))
         shown = ", ".join(unique[:8]) + (f" and {len(unique) - 8} more" if len(unique) > 8 else "")

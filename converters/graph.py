@@ -4,7 +4,7 @@ from __future__ import annotations
 
 
 class UnionFind:
-    def __init__(self):
+    def __init__(self) -> None:
         self.parent: dict[str, str] = {}
 
     def find(self, key: str) -> str:

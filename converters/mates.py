@@ -92,7 +92,12 @@ class Mate:
 
     @property
     def kind(self) -> str | None:
-        return MATE_KINDS.get(re.sub(r"[^a-z]", "", self.tag.lower()))
+        return mate_kind(self.tag)
+
+
+def mate_kind(tag: str) -> str | None:
+    """The kind analysed here of a mate element named ``tag``; None for one with no positional meaning."""
+    return MATE_KINDS.get(re.sub(r"[^a-z]", "", tag.lower()))
 
 
 @dataclass
@@ -147,31 +152,34 @@ def residuals(kind: str, a: MateGeometry, b: MateGeometry, scale: float) -> np.n
         return np.cross(da, db) if abs(da @ db) > 1 - 1e-9 else np.array([da @ db])
     a, b = _pair(a, b, (PLANE, AXIS, POINT))
     da, db = _direction(a), _direction(b)
+    if (a.kind != POINT and da is None) or (b.kind != POINT and db is None):
+        return None  # a plane or an axis exported without its direction: it constrains nothing known
+    # from here a direction is None exactly for a point, and a point comes last in the pair's order
     gap = (b.position - a.position) / scale
     if kind in ("coincident", "distance", "tangent"):
         exact = kind == "coincident"
-        if a.kind == PLANE and b.kind == PLANE:
-            return np.concatenate([np.cross(da, db), [gap @ da]])
-        if a.kind == PLANE and b.kind == AXIS:
-            return np.array([da @ db, gap @ da])
+        if da is None:  # two points
+            return gap if exact or np.linalg.norm(gap) < 1e-9 else np.array([np.linalg.norm(gap)])
         if a.kind == PLANE:
-            return np.array([gap @ da])
-        if a.kind == AXIS and b.kind == AXIS:
-            if exact and a.shape in CIRCULAR and b.shape in CIRCULAR:
-                return np.concatenate([np.cross(da, db), gap])
-            return np.concatenate([np.cross(da, db), _off_line(gap, da, exact)])
-        if a.kind == AXIS:
+            if db is None:
+                return np.array([gap @ da])
+            if b.kind == PLANE:
+                return np.concatenate([np.cross(da, db), [gap @ da]])
+            return np.array([da @ db, gap @ da])
+        if db is None:  # an axis and a point
             return _off_line(gap, da, exact)
-        return gap if exact or np.linalg.norm(gap) < 1e-9 else np.array([np.linalg.norm(gap)])
+        if exact and a.shape in CIRCULAR and b.shape in CIRCULAR:
+            return np.concatenate([np.cross(da, db), gap])
+        return np.concatenate([np.cross(da, db), _off_line(gap, da, exact)])
     if kind in ("concentric", "insert"):
         if a.kind == PLANE:
             return None
-        if a.kind == AXIS and b.kind == AXIS:
-            along = gap if kind == "insert" else np.cross(gap, da)
-            return np.concatenate([np.cross(da, db), along])
-        if a.kind == AXIS:
+        if da is None:  # two points
+            return gap
+        if db is None:  # an axis and a point
             return np.cross(gap, da)
-        return gap
+        along = gap if kind == "insert" else np.cross(gap, da)
+        return np.concatenate([np.cross(da, db), along])
     return None
 
 
@@ -213,6 +221,8 @@ def jacobian(mates: list[tuple[str, MateGeometry, MateGeometry]], centre: np.nda
             step[i] = STEP
             plus = residuals(kind, a, _moved(b, step, centre, scale), scale)
             minus = residuals(kind, a, _moved(b, -step, centre, scale), scale)
+            if plus is None or minus is None:  # moving b changes no geometry kind: the mate was never usable
+                raise ValueError(f"a {kind} mate between a {a.kind} and a {b.kind} constrains nothing (see usable())")
             columns.append((plus - minus) / (2 * STEP))
         rows.append(np.array(columns).T)
     return np.vstack(rows) if rows else np.zeros((0, 6))
@@ -350,11 +360,17 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
     units = UnionFind()
     for a, b in rigid_links:
         units.union(a, b)
-    name = lambda key: names.get(key, key)  # noqa: E731
     counts: dict[str, int] = {}
     for label in names.values():
         counts[label] = counts.get(label, 0) + 1
-    shown_name = lambda key: key if counts.get(names.get(key, key), 0) > 1 else name(key)  # noqa: E731  in messages
+
+    def name(key: str) -> str:
+        return names.get(key, key)
+
+    def shown_name(key: str) -> str:
+        """In messages: the key where several parts share the name."""
+        return key if counts.get(name(key), 0) > 1 else name(key)
+
     usable_mates: list[Mate] = []
     unusable: dict[str, list[str]] = {}
     for mate in mates:
@@ -395,9 +411,9 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
         found = _analyse(group, units)
         base, follower = _ends(group)
         label = f"{name(base)}--{name(follower)}"
-        mate_names = ", ".join(m.name for m in group)
+        listed_mates = ", ".join(m.name for m in group)
         if found.kind == "free":
-            result.warnings.append(f"mates {mate_names} between {name(base)} and {name(follower)} leave all six "
+            result.warnings.append(f"mates {listed_mates} between {name(base)} and {name(follower)} leave all six "
                                    f"freedoms: no joint")
             continue
         if found.dof >= ORIGIN_PLACEMENT_DOF and all({m.first.part, m.second.part} & origins for m in group):
@@ -421,7 +437,7 @@ def _pairs(mates: list[Mate], units: UnionFind) -> dict[tuple[str, str], list[Ma
     for mate in mates:
         a, b = units.find(mate.first.part), units.find(mate.second.part)
         if a != b:
-            pairs.setdefault(tuple(sorted((a, b))), []).append(mate)
+            pairs.setdefault((min(a, b), max(a, b)), []).append(mate)
     return pairs
 
 
@@ -438,4 +454,8 @@ def _ends(group: list[Mate]) -> tuple[str, str]:
 
 def _analyse(group: list[Mate], units: UnionFind) -> Freedoms:
     base_unit = units.find(group[0].first.part)
-    return freedoms([(m.kind, *_oriented(m, base_unit, units)) for m in group])
+    oriented: list[tuple[str, MateGeometry, MateGeometry]] = []
+    for mate in group:
+        assert mate.kind is not None, "only usable() mates are grouped, and they have a kind"
+        oriented.append((mate.kind, *_oriented(mate, base_unit, units)))
+    return freedoms(oriented)

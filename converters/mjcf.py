@@ -12,12 +12,13 @@ carry no mass (``inertiafromgeom="false"``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import mujoco
 import numpy as np
 
 from mechanism.converters import inertia as mass_properties
-from mechanism.converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint
+from mechanism.converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Coupling, Joint
 from mechanism.converters.errors import ExportError
 from mechanism.converters.geometry import Mesh
 from mechanism.converters.names import Namer
@@ -425,8 +426,11 @@ class _Writer:
                                    data=_r([coupling.offset, coupling.ratio] + [0.0] * 10))
             self.built.n_couplings += 1
 
-    def _coupled_joint(self, coupling, which: str) -> str:
-        joint = self.assembly.joint(getattr(coupling, which))
+    def _coupled_joint(self, coupling: Coupling, which: Literal["input", "output"]) -> str:
+        joint_name = coupling.input if which == "input" else coupling.output
+        joint = self.assembly.joint(joint_name)
+        if joint is None:  # the side-car's reader checks the names; an assembly built otherwise may not
+            raise ExportError(f"coupling {coupling.name}: {which} joint {joint_name} is not a joint of the assembly")
         names = self.built.joint_names.get(joint.name)
         if names is None:
             raise ExportError(f"coupling {coupling.name}: {which} joint {joint.name} ended up inside one rigid body")

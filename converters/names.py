@@ -4,6 +4,7 @@ become ``_``, runs of ``_`` collapse, and duplicates get ``_2``, ``_3``, ... suf
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 
 _INVALID = re.compile(r"[^A-Za-z0-9_.\-]")
 _RUNS = re.compile(r"_+")
@@ -17,7 +18,7 @@ def sanitize(name: str) -> str:
 class Namer:
     """Hands out unique sanitised names within one MJCF namespace (bodies, geoms, sites...)."""
 
-    def __init__(self, reserved=()):
+    def __init__(self, reserved: Iterable[str] = ()) -> None:
         self._used: set[str] = set(reserved)
 
     def __call__(self, name: str, prefix: str = "") -> str:

@@ -176,6 +176,24 @@ def test_unknown_and_unpositioned_constraints_are_reported(tmp_path):
     assert model.site_bodyid[model.site("part").id] == model.site_bodyid[model.site("ground").id]
 
 
+def test_plane_or_axis_exported_without_its_direction_is_reported_not_a_crash(tmp_path):
+    """A plane or a bore written without its <Axis> constrains nothing this reader can know: the mate
+    is reported and ignored, the others still make their joint (the residuals crossed None with the
+    other side's axis: numpy's 'At least one array has zero dimension' ended the conversion)."""
+    z = np.array([0.0, 0, 1])
+    poses = {"ground": (np.eye(3), np.zeros(3)), "part": (np.eye(3), np.array([0.1, 0, 0]))}
+    pin = pin_mates("pin", "ground", "part", poses, poses["part"][1], z)
+    blind_face = gen2_mate("Coincident", "BlindFace", ("plane", ["ground"], (0.1, 0, 0), None),
+                           ("plane", ["part"], (0, 0, 0), (0, 0, 1)))
+    blind_bore = gen2_mate("Concentric", "BlindBore", ("cylinder", ["ground"], (0.1, 0, 0), (0, 0, 1)),
+                           ("cylinder", ["part"], (0, 0, 0), None))
+    export = _export(tmp_path, poses, {"ground": 1.0, "part": 0.2}, pin + [blind_face, blind_bore])
+    report = convert(export, tmp_path / "out")
+    assert any("BlindFace" in w and "no positional meaning" in w for w in report.warnings)
+    assert any("BlindBore" in w and "no positional meaning" in w for w in report.warnings)
+    assert [j.kind for j in _joints(export).values()] == ["revolute"]
+
+
 def _gear_train(folder, relation):
     """Two shafts on revolutes (mates to the ground) and a gear relation between them."""
     z = np.array([0.0, 0, 1])

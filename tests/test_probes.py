@@ -7,7 +7,7 @@ import pytest
 from tests.helpers import mechanisms as M
 from mechanism.kinematics.cycle import cycle_angles, kinematic_cycle, set_state
 from mechanism.errors import UserError
-from mechanism.inspection.probes import Probe, probe_cycle
+from mechanism.inspection.probes import Probe, parse_probes, probe_cycle
 
 RPM = 600.0
 OMEGA = RPM * 2 * np.pi / 60
@@ -104,6 +104,10 @@ def test_bad_probe_names_and_quantities():
         Probe("needle_tip", "jerk")
     with pytest.raises(UserError, match="X,Y,Z"):
         Probe("needle_tip", "position", point_mm=(1, 2))
+    with pytest.raises(UserError, match="X,Y,Z"):
+        parse_probes(["needle_tip"], ["position"], ["1,2"])
+    with pytest.raises(UserError, match="no joint given"):  # it was a TypeError in the 'close matches' hint
+        probe_cycle(M.needle_and_plate(), [Probe("needle_tip", "position")], driver=None)
 
 
 def test_dynamic_probes_obey_newtons_law_on_the_needle_bar():

@@ -196,12 +196,8 @@ def describe(exc: BaseException) -> str:
     """One line for any failure: user errors as written, others with their type."""
     from mechanism.errors import UserError
 
-    try:
-        from mechanism.converters.errors import ExportError
-    except ImportError:  # pragma: no cover - converters is part of the package
-        ExportError = UserError
     text = " ".join(str(exc).split()) or exc.__class__.__name__
-    if isinstance(exc, (UserError, ExportError)):
+    if isinstance(exc, UserError):  # the converters' ExportError among them
         return text
     if isinstance(exc, FileNotFoundError) and exc.filename:
         return f"no such file: {exc.filename}"

@@ -34,9 +34,12 @@ import math
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:  # the tables need mujoco; the lumped drive does not
+    from mechanism.kinematics.linkage import LinkageTables
 
 
 @dataclass(frozen=True)
@@ -84,7 +87,7 @@ class DriveNominal:
     # lumped numbers alone): the linkage tables over a shaft turn (J(theta), J'(theta), the
     # gravity torque G(theta), arm side; mechanism.kinematics.linkage.LinkageTables) and the
     # described roles (shaft joint, zero site) that name the shaft in its MJCF.
-    linkage: object = field(default=None, compare=False, repr=False)
+    linkage: LinkageTables | None = field(default=None, compare=False, repr=False)
     roles: tuple[str, str] | None = field(default=None, compare=False)
 
     def __post_init__(self):

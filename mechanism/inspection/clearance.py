@@ -40,7 +40,7 @@ from scipy.optimize import minimize_scalar
 from mechanism.machine import parts
 from mechanism.kinematics.cycle import DEFAULT_RESOLUTION_DEG, cycle_angles
 from mechanism.errors import UserError, close_matches
-from mechanism.kinematics.pose import approach, joint_dof, solve_pose
+from mechanism.kinematics.pose import approach, joint_dof, named_joint, solve_pose
 from mechanism.inspection.shapes import PartShape, overlap_volume, penetration
 from mechanism.tolerances import ANGLE_TOLERANCE_RAD, DEPTH_ANGLE_TOLERANCE_RAD, BOUNDARY_TOLERANCE_RAD, HULL_TOLERANCE_M
 
@@ -194,6 +194,7 @@ class ClearanceSweep:
             raise UserError(f"resolution {resolution_deg} deg: expected a value in (0, 30]")
         if not (0 < revolutions <= 100):
             raise UserError(f"cycle of {revolutions} revolutions: expected a value in (0, 100]")
+        driver = named_joint(driver)
         joint_dof(model, driver)
         self.model = model
         self.data = mujoco.MjData(model)
@@ -326,7 +327,7 @@ class ClearanceSweep:
             return (i + 1) % n if self.periodic else min(i + 1, n - 1)
 
         minima = [
-            i
+            int(i)
             for i in np.flatnonzero(np.isfinite(known) & ~hit)
             if known[i] <= known[before(i)] and known[i] <= known[after(i)] and known[i] - dip[i] <= smallest
         ]
@@ -350,6 +351,8 @@ class ClearanceSweep:
             deepest = max(interferences, key=lambda item: item.depth_mm)
             result = PairClearance(pair, -deepest.depth_mm, deepest.angle_deg, deepest.point_a_mm, deepest.point_b_mm, interferences)
         else:
+            # no overlap: the smallest sample is a minimum, and its refinement did not find one either
+            assert best is not None
             angle, value, pa, pb = best
             result = PairClearance(pair, value * 1e3, self._degrees(angle), pa * 1e3, pb * 1e3)
         result.grid_angle_deg = np.array([self._degrees(a) for a in self.angles])
@@ -542,6 +545,7 @@ def check_clearance(
     from mechanism.machine.machine import inspection_frame, inspection_travel
 
     pairs = list(pairs) if pairs else all_pairs(model)
+    driver = named_joint(driver)
     travel = travel or inspection_travel(model, driver, description)
     frame = inspection_frame(model, driver, description, travel)
     sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg, travel, frame)

@@ -71,8 +71,8 @@ class NeedleMotion:
             "needle_velocity_mm_per_rad": self.needle_velocity_mm_per_rad,
             "needle_acceleration_mm_per_rad2": self.needle_acceleration_mm_per_rad2,
         }
-        if self.speed_rpm is not None:
-            w = self.arm_speed_rad_s
+        w = self.arm_speed_rad_s
+        if w is not None:
             cols["needle_velocity_mm_s"] = self.needle_velocity_mm_per_rad * w
             cols["needle_acceleration_mm_s2"] = self.needle_acceleration_mm_per_rad2 * w**2
         cols["hook_angle_deg"] = self.hook_angle_deg
@@ -88,8 +88,8 @@ class NeedleMotion:
             f"bottom dead centre: shaft angle {self.bdc_angle_deg:.2f} deg, tool point {self.bdc_z_mm:.3f} mm",
             f"peak velocity: {vel:.3f} mm/rad; peak acceleration: {acc:.3f} mm/rad^2",
         ]
-        if self.speed_rpm is not None:
-            w = self.arm_speed_rad_s
+        w = self.arm_speed_rad_s
+        if w is not None:
             lines.append(f"at {self.speed_rpm:g} rpm: peak velocity {vel * w / 1000:.3f} m/s, "
                          f"peak acceleration {acc * w**2 / 1000:.1f} m/s^2")
         if self.hook_passage_angle_deg is not None:
@@ -147,6 +147,8 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
         notes.append("no plate part described: heights are measured from the world origin")
 
     theta = tables.angle_rad
+    # the machine's loader checked that [tool] site names a site, so the tool's tables are there
+    assert tables.tool_z_m is not None and tables.tool_dz_drad is not None
     z = (tables.tool_z_m - plate_z) * 1000.0
     velocity = tables.tool_dz_drad * 1000.0
     acceleration = np.gradient(velocity, theta) if rocks else periodic_derivative(velocity)
@@ -177,8 +179,10 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
         bdc = _velocity_zero(theta, velocity, falling=False)
     tdc_z, bdc_z = needle_z_at(tdc), needle_z_at(bdc)
 
-    has_hook = None not in (roles.hook_joint, roles.hook_point, roles.eye)
-    hook_angle = np.degrees(tables.positions[roles.hook_joint]) if has_hook else np.full(samples, np.nan)
+    # the hook timing needs the hook joint, the hook point's site and the needle eye's site
+    hook_joint = roles.hook_joint if roles.hook_point is not None and roles.eye is not None else None
+    has_hook = hook_joint is not None
+    hook_angle = np.degrees(tables.positions[hook_joint]) if hook_joint is not None else np.full(samples, np.nan)
     motion = NeedleMotion(
         arm_angle_deg=np.degrees(theta), needle_z_mm=z, needle_velocity_mm_per_rad=velocity,
         needle_acceleration_mm_per_rad2=acceleration, hook_angle_deg=hook_angle,
@@ -289,7 +293,7 @@ class _HookGeometry:
 
         from mechanism.inspection.shapes import PartShape
 
-        if self.geom < 0 or self.model.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH:
+        if self.roles.part is None or self.geom < 0 or self.model.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH:
             return None
         needle = PartShape(self.model, self.roles.part)
         needle.update(self.data)
@@ -370,7 +374,7 @@ def plot(motion: NeedleMotion, path: str | os.PathLike) -> None:
                  textcoords="offset points", fontsize=8)
     top.annotate(f"BDC {motion.bdc_angle_deg:.1f}°", (motion.bdc_angle_deg, motion.bdc_z_mm), xytext=(6, 4),
                  textcoords="offset points", fontsize=8)
-    if motion.hook_passage_angle_deg is not None:
+    if motion.hook_passage_angle_deg is not None and motion.needle_rise_at_passage_mm is not None:  # set together
         z_pass = motion.bdc_z_mm + motion.needle_rise_at_passage_mm
         top.plot([motion.hook_passage_angle_deg], [z_pass], "o", color="tab:red",
                  label=(f"hook point passes: {motion.hook_passage_angle_deg:.1f}°, needle +"

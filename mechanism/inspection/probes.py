@@ -209,6 +209,7 @@ def read_probes(model: mujoco.MjModel, data: mujoco.MjData, attached: Sequence[A
         if item.sensor is not None:  # sensor frame = site frame; report in world
             vector = data.site_xmat[site].reshape(3, 3) @ data.sensor(item.sensor).data
         else:
+            assert item.loop_joint is not None  # add_probes gives every probe without a sensor its loop joint
             vector = _loop_load(model, data, item.loop_joint, data.site_xpos[site], quantity)
         values.extend([*vector, float(np.linalg.norm(vector))])
     return values
@@ -249,7 +250,7 @@ def probe_cycle(
     ``revolutions`` turns sampled every ``resolution_deg`` (a driver that rocks: one stroke from
     the lower end of its travel to the upper, mechanism.machine.machine.inspection_travel),
     loads by rigid inverse dynamics (frictionless joints). Adds the probes to ``spec``."""
-    from mechanism.kinematics.pose import approach
+    from mechanism.kinematics.pose import approach, named_joint
     from mechanism.machine.machine import inspection_frame, inspection_travel
 
     if not np.isfinite(speed_rpm) or speed_rpm < 0:
@@ -260,6 +261,7 @@ def probe_cycle(
     model = _compile(spec)
     data = mujoco.MjData(model)
     joints = parts.joint_names(model)
+    driver = named_joint(driver)  # None reached close_matches: a TypeError instead of this UserError
     if driver not in joints:
         raise UserError(f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}")
     omega = speed_rpm * 2 * np.pi / 60
@@ -318,6 +320,7 @@ def probe_simulation(
     model, data = machine.model, machine.data
     motor = machine.actuator
     rows = []
+    assert result.state is not None  # the full model's simulate() keeps every sample's state
     for state, applied in zip(result.state, result.voltage_V):
         mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         data.ctrl[motor] = applied
@@ -353,7 +356,8 @@ def parse_probes(parts_args: Sequence[str], quantities: Sequence[str], points: S
         if points:
             text = points[0 if len(points) == 1 else i]
             try:
-                point = tuple(float(v) for v in text.split(","))
+                x, y, z = (float(v) for v in text.split(","))  # not three numbers: a ValueError too
+                point = (x, y, z)
             except ValueError:
                 raise UserError(f"--point {text!r}: expected X,Y,Z in mm") from None
         for name in names:
@@ -381,7 +385,7 @@ def run_probes(
 
     if (voltage is None) != (duration_s is None):
         raise UserError("a dynamic run needs both a voltage and a duration")
-    if voltage is not None:
+    if voltage is not None and duration_s is not None:  # both or neither, checked above
         return probe_simulation(probes, voltage, duration_s, description, progress)
     return probe_cycle(load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver, description)
 

@@ -24,6 +24,7 @@ extent (and by much less near a smooth maximum, where depth varies quadratically
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Literal
 
 import warnings
 
@@ -117,7 +118,8 @@ class PartShape:
         self._local_objects = [fcl.CollisionObject(g, fcl.Transform()) for g in geometries]
         self._probe = fcl.CollisionObject(fcl.Sphere(0.0), fcl.Transform())
         self._poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._solids = None
+        # one manifold3d solid per geom, built on first use; False when a mesh is not a closed solid
+        self._solids: list[Any] | Literal[False] | None = None
 
     def update(self, data: mujoco.MjData) -> None:
         for geom, obj in zip(self.geoms, self.objects):
@@ -127,16 +129,17 @@ class PartShape:
 
     def distance(self, other: "PartShape") -> tuple[float, np.ndarray, np.ndarray]:
         """Smallest distance [m] and the closest points (world, m); 0 when they overlap."""
-        best = (np.inf, None, None)
+        best: tuple[float, np.ndarray, np.ndarray] | None = None
         request = fcl.DistanceRequest(enable_nearest_points=True)
         for a in self.objects:
             for b in other.objects:
                 result = fcl.DistanceResult()
                 value = max(fcl.distance(a, b, request, result), 0.0)
-                if value < best[0]:
+                if best is None or value < best[0]:
                     best = (value, np.array(result.nearest_points[0]), np.array(result.nearest_points[1]))
                 if value == 0.0:
                     return best
+        assert best is not None, "a PartShape has at least one geom (its body is its first geom's)"
         return best
 
     def point_distance(self, point: np.ndarray) -> tuple[float, np.ndarray]:
@@ -145,14 +148,15 @@ class PartShape:
         Queried in each geom's own frame: fcl returns the nearest point of a shape-vs-mesh
         query in the mesh's local frame, so the mesh stays at the identity there."""
         request = fcl.DistanceRequest(enable_nearest_points=True)
-        best = (np.inf, None)
+        best: tuple[float, np.ndarray] | None = None
         for geom, local in zip(self.geoms, self._local_objects):
             rotation, origin = self._poses[geom]
             self._probe.setTranslation(rotation.T @ (np.asarray(point, dtype=float) - origin))
             result = fcl.DistanceResult()
             value = fcl.distance(local, self._probe, request, result)
-            if value < best[0]:
+            if best is None or value < best[0]:
                 best = (max(value, 0.0), origin + rotation @ np.asarray(result.nearest_points[0]))
+        assert best is not None, "a PartShape has at least one geom (its body is its first geom's)"
         return best
 
     def solid(self, data: mujoco.MjData):

@@ -58,10 +58,11 @@ def _check_frames(frames: int) -> None:
 def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str | None = None, description=None) -> Motion:
     """One revolution of ``driver`` in ``frames`` frames (the last one back at the start); a
     driver that rocks goes from the lower end of its travel to the upper and back."""
-    from mechanism.kinematics.pose import approach, sweep
+    from mechanism.kinematics.pose import approach, named_joint, sweep
     from mechanism.machine.machine import inspection_travel
 
     _check_frames(frames)
+    driver = named_joint(driver)
     travel = inspection_travel(model, driver, description)
     if travel.rotates:
         angles = np.linspace(0.0, 2 * np.pi, frames)
@@ -78,7 +79,7 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
     """A bench recording (``time``, ``voltage``, ``shaft_angle`` or ``arm_angle`` [rad, from the
     shaft's zero]) replayed kinematically at ``frames`` evenly spaced times; the driver joint's
     position is ``zero_rad + direction * angle``."""
-    from mechanism.kinematics.pose import solve_pose
+    from mechanism.kinematics.pose import named_joint, solve_pose
     from mechanism.files.tables import check_increasing, read_table
 
     _check_frames(frames)
@@ -90,6 +91,7 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
     check_increasing(time, table.source)
     times = np.linspace(time[0], time[-1], frames)
     angles = zero_rad + direction * np.interp(times, time, angle)
+    driver = named_joint(driver)
     data = mujoco.MjData(model)
     qpos = []
     # walk from angle 0 in small steps so that the assembly stays on its branch
@@ -114,6 +116,7 @@ def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_F
     machine = Machine(description)
     result = simulate(voltage, duration_s, machine=machine, progress=True)
     picks = np.linspace(0, len(result.time_s) - 1, frames).round().astype(int)
+    assert result.state is not None  # the full model's simulate() keeps every sample's state
     qpos = result.state[picks, 1 : 1 + machine.model.nq]
     how = (f"{voltage:g} V" if not isinstance(voltage, dict)
            else ", ".join(f"{joint} {value:g} {unit}" for joint, value, unit in
@@ -139,7 +142,7 @@ def _meshcat():
 class _Recorder:
     """Stands in for meshcat's ZMQ window: keeps every command, packed as the server would."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.commands: list[bytes] = []
 
     def send(self, command) -> None:
@@ -207,11 +210,11 @@ def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None
     shown = _shown_geoms(model)
     if not shown:
         raise UserError("the model has no visual geometry to show")
-    points = []
+    placed_vertices = []
     for geom in shown:
         vertices, _ = geom_mesh(model, geom, VIEW_SECTIONS)
-        points.append(vertices @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom])
-    points = np.vstack(points)
+        placed_vertices.append(vertices @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom])
+    points = np.vstack(placed_vertices)
     low, high = points.min(axis=0), points.max(axis=0)
     scale = TARGET_SIZE / max(float(np.max(high - low)), 1e-9)
     root = np.diag([scale, scale, scale, 1.0])
@@ -380,7 +383,7 @@ def view(
         raise UserError("a simulated motion needs both a voltage and a duration")
     if voltage is not None and recording is not None:
         raise UserError("choose one motion: a simulation (voltage, duration) or a recording")
-    if voltage is not None:
+    if voltage is not None and duration_s is not None:  # both or neither, checked above
         model, motion = simulation_motion(voltage, duration_s, frames, description)
     elif recording:
         from mechanism.machine.machine import Machine
@@ -396,7 +399,7 @@ def view(
         from mechanism.inspection.clearance import check_clearance, parse_pairs
 
         report = check_clearance(model, parse_pairs(pairs, model), driver=driver, description=description)
-        extra = clearance_overlays(model, report.results, driver)
+        extra = clearance_overlays(model, report.results, report.driver)
         overlays.markers += extra.markers
         overlays.lines += extra.lines
         overlays.notes += extra.notes

@@ -37,11 +37,17 @@ class PoseError(UserError):
     """The constraints cannot be satisfied with the given joints fixed."""
 
 
-def joint_dof(model: mujoco.MjModel, joint: str) -> tuple[int, int]:
-    """(qpos address, dof address) of a one-degree-of-freedom joint, by name."""
+def named_joint(joint: str | None) -> str:
+    """``joint``, where one is named: the driver a caller may leave out (None) until it is needed."""
     if not joint:
         raise UserError("no joint given: name the joint that drives the mechanism (a machine description's "
                         "shaft_joint, or --driver)")
+    return joint
+
+
+def joint_dof(model: mujoco.MjModel, joint: str) -> tuple[int, int]:
+    """(qpos address, dof address) of a one-degree-of-freedom joint, by name."""
+    joint = named_joint(joint)
     jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
     if jid < 0:
         names = [model.joint(i).name for i in range(model.njnt)]

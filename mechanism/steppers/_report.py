@@ -66,7 +66,8 @@ def slip_events(run: StepperRun) -> list[tuple[float, int]]:
     p = run.params.pole_pairs
     load = np.radians(run.command_deg - run.rotor_deg) * p  # electrical radians, + = rotor behind
     steps_per_period = 4
-    events, centre, start = [], 0, 0
+    events: list[tuple[float, int]] = []
+    centre, start = 0, 0
     while True:
         beyond = np.flatnonzero(np.abs(load[start:] - 2 * np.pi * centre) > 1.25 * np.pi)
         if beyond.size == 0:

@@ -26,7 +26,7 @@ Where profiles come from:
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +46,8 @@ class StepProfile:
     name: str
     knot_time_s: np.ndarray
     knot_rate_steps_s: np.ndarray
+    # full steps from the start at each knot, from the rates (set by __post_init__)
+    _knot_position: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         t = np.asarray(self.knot_time_s, dtype=float)

@@ -38,7 +38,8 @@ from mechanism.sysid.effects import Effect, Located, library as effect_library
 from mechanism.sysid.identification import (FitResult, ModelStructure, Problem, blas_single_threaded, damping_below_datasheet,
                                       equation_error_start, fit, fit_baseline, require_identifiable)
 from mechanism.dynamics.lumped import DriveNominal
-from mechanism.sysid.generic import candidates as generic_candidates, evidence as generic_evidence
+from mechanism.sysid.identifiability import Identifiability
+from mechanism.sysid.generic import GenericEffect, candidates as generic_candidates, evidence as generic_evidence
 from mechanism.sysid.recording import Recording, at_fitting_rate
 from mechanism.sysid.residual import UNEXPLAINED_FACTOR, NoiseFloor, Signature, describe, noise_floor, signature
 
@@ -154,8 +155,8 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     resonance = _resonance_peaks(f, psd)
     steps = np.flatnonzero(np.abs(np.diff(rec.voltage_V)) > 0.5) + 1
     after = np.zeros(len(r), bool)
-    for k in steps:
-        after[k:k + int(0.3 * fs)] = True
+    for step in steps:
+        after[step:step + int(0.3 * fs)] = True
     transient_rms = float(np.sqrt(np.mean(r[after] ** 2))) if after.any() else 0.0
     steady_rms = float(np.sqrt(np.mean(r[~after] ** 2))) if (~after).any() else 0.0
     low = (speed < 0.1 * top) & ((speed > 0.01) | (np.abs(rec.voltage_V) > 0.1))
@@ -246,7 +247,7 @@ class Diagnosis:
     traces: "Traces | None" = field(default=None, repr=False)
     noise: NoiseFloor | None = None  # the recording's own noise floor
     unexplained: "Unexplained | None" = None  # set when the final residual is clearly above it
-    identifiability: object = None  # what the recording determines (mechanism.sysid.identifiability.Identifiability)
+    identifiability: Identifiability | None = None  # what the recording determines
 
     @property
     def final(self) -> FitResult:
@@ -469,7 +470,7 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
     for finding in findings:
         loc = locate(problem, finding.fit)
         finding.rmse_before = previous.rmse_val
-        if finding.effect.generic:
+        if isinstance(finding.effect, GenericEffect):  # the effects with generic = True
             finding.signature = description
             finding.evidence = generic_evidence(finding.effect, finding.fit.values, description, previous.rmse_val, finding.fit.rmse_val)
         else:
@@ -525,7 +526,8 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
 
 
 def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect], located: Located, tick, workers,
-            backward: bool = True, step_gain: float = None, keep_gain: float = None) -> tuple[list["Finding"], FitResult, list]:
+            backward: bool = True, step_gain: float | None = None, keep_gain: float | None = None,
+            ) -> tuple[list["Finding"], FitResult, list]:
     """Forward selection from ``current`` over ``lib`` with a joint refit at every step, a
     backward step after each acceptance, and a final pruning.
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import ClassVar, Sequence
 
 import numpy as np
 
@@ -68,7 +68,7 @@ class Effect:
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal
         self.parameters: tuple[Parameter, ...] = tuple(self.make_parameters(nominal))
-        if self.linear == "all":
+        if self.all_linear:
             self.linear = tuple(p.name for p in self.parameters)
 
     def make_parameters(self, nominal: DriveNominal) -> Sequence[Parameter]:
@@ -90,6 +90,7 @@ class Effect:
     # the measured velocity and acceleration is regressed on these amplitudes, for each
     # point of ``grid`` (the other parameters). None: no torque form (belt, sensor).
     linear: tuple[str, ...] | None = None
+    all_linear: ClassVar[bool] = False  # every parameter is an amplitude: ``linear`` names them all
 
     def grid(self, s: Signals, located: Located) -> list[dict[str, float]]:
         """Values of the non-linear parameters to try in the equation-error start."""
@@ -140,7 +141,7 @@ class TorqueRipple(Effect):
     meaning = "motor-angle-periodic torque: shaft distortion (once and twice per motor revolution) and cogging of the 12-pole motor (12 and 24 per revolution)"
     enters = "torque"
     MOTOR_ORDERS = (1, 2, 12, 24)  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
-    linear = "all"
+    all_linear = True
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
@@ -236,7 +237,7 @@ class PositionFriction(Effect):
     # the bearing loads come from the slider-crank and the cams and levers off the arm shaft:
     # a single cosine (thesis 5.2.2), a broad bump or a lobed profile all need the third order
     ORDERS = (1, 2, 3)
-    linear = "all"
+    all_linear = True
 
     def make_parameters(self, nominal):
         t = nominal.torque_scale_Nm
@@ -495,7 +496,7 @@ class VoltageNonlinearity(Effect):
     enters = "voltage"
     U_REF = 24.0
     U_RAMP = 0.5
-    linear = "all"
+    all_linear = True
 
     def make_parameters(self, nominal):
         return (
@@ -509,13 +510,14 @@ class VoltageNonlinearity(Effect):
                 "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
                 "while the coast-downs at 0 V already fit")
 
-    def recorded_levels(self, u: np.ndarray, default) -> tuple[float, float, float]:
+    def recorded_levels(self, u: np.ndarray, default: tuple[float, float, float]) -> tuple[float, float, float]:
         """Three voltages the recording contains (its 5th, 50th and 95th percentiles of the
         driven samples): the evidence quotes the supply only where it was seen."""
         driven = u[np.abs(u) > self.U_RAMP]
         if len(driven) < 10:
             return default
-        return tuple(float(q) for q in np.percentile(driven, [5, 50, 95]))
+        low, middle, high = (float(q) for q in np.percentile(driven, [5, 50, 95]))
+        return low, middle, high
 
     def applied(self, v, u):
         x = u / self.U_REF
@@ -661,7 +663,7 @@ class GearLoadFriction(Effect):
                "drives the load, another share when the load drives the motor back (a gearbox's efficiency, "
                "direction-dependent)")
     enters = "friction"
-    linear = "all"
+    all_linear = True
     feature = "steady"
     MIN_REDUCTION = 20.0  # a gearbox: a belt (8:1) or a direct drive has no tooth friction growing with the load
     sentence = ("gearbox friction of {drive_pct:.2g} % of the motor torque while the motor drives and {back_pct:.2g} % while "

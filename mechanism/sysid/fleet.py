@@ -80,7 +80,8 @@ def _unique_names(paths: Sequence[Path]) -> list[str]:
     """The file stems, with ``_2``, ``_3``, ... for stems that repeat (files of several folders)."""
     from mechanism.files.formats import COMPRESSIONS
 
-    names, seen = [], {}
+    names: list[str] = []
+    seen: dict[str, int] = {}  # stem -> how often it came so far
     for path in paths:
         stem = Path(path.name[: -len(path.suffix)] if path.suffix.lower() in COMPRESSIONS else path.name).stem  # rec.csv.gz: rec
         seen[stem] = seen.get(stem, 0) + 1

@@ -22,13 +22,21 @@ from mechanism.sysid.parameters import Parameter
 from mechanism.sysid.residual import Signature
 
 
-class GenericShaftTorque(Effect):
-    name = "generic_shaft_torque"
+class GenericEffect(Effect):
+    """A fallback family: no mechanism named, so its evidence describes the fitted shape in words."""
+
     generic = True
+
+    def words(self, v: dict[str, float]) -> str:
+        raise NotImplementedError
+
+
+class GenericShaftTorque(GenericEffect):
+    name = "generic_shaft_torque"
     physics = ("an unbalanced or eccentric part on that shaft, a cam or a mechanism it drives, a damaged gear tooth or "
                "bearing race: a torque that repeats with the shaft's angle")
     enters = "torque"
-    linear = "all"
+    all_linear = True
     feature = "residual"
 
     def __init__(self, nominal: DriveNominal, shaft: str, ratio: float, orders: list[int]):
@@ -56,18 +64,17 @@ class GenericShaftTorque(Effect):
 
     def words(self, v) -> str:
         amps = {k: _amplitude(v, f"generic_{self.shaft}_order{k}_cos_Nm", f"generic_{self.shaft}_order{k}_sin_Nm")[0] for k in self.orders}
-        main = max(amps, key=amps.get)
+        main = max(amps, key=amps.__getitem__)
         return (f"a generic {self.shaft.replace('_', ' ')}-angle torque of order{'s' if len(self.orders) > 1 else ''} "
                 f"{', '.join(map(str, self.orders))} ({amps[main]:.2g} N m at order {main})")
 
 
-class GenericSpeedFriction(Effect):
+class GenericSpeedFriction(GenericEffect):
     name = "generic_speed_friction"
-    generic = True
     physics = ("a friction of another speed dependence than the library's: a lubricant film (a Stribeck curve of another "
                "shape), a fan, pump or air drag growing with speed, eddy-current drag, a seal")
     enters = "friction"
-    linear = "all"
+    all_linear = True
     feature = "residual"
     meaning = "a friction level that varies smoothly with speed (piecewise linear between speed knots)"
     KNOTS = (0.0, 0.05, 0.15, 0.35, 0.65, 1.0)  # fractions of the top speed
@@ -101,9 +108,8 @@ class GenericSpeedFriction(Effect):
                 f"{100 * self.KNOTS[2]:.0f}% and {values[-1]:+.2g} N m at top speed)")
 
 
-class GenericChange(Effect):
+class GenericChange(GenericEffect):
     name = "generic_change"
-    generic = True
     physics = ("something that changed at one instant: a supply dropout or a current limit engaging, a belt or clutch "
                "starting to slip, a part working loose, a load added or removed")
     enters = "voltage"
@@ -156,7 +162,7 @@ def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[
     return out
 
 
-def evidence(effect: Effect, values: dict, description: str, before: float, after: float) -> str:
+def evidence(effect: GenericEffect, values: dict, description: str, before: float, after: float) -> str:
     gain = 100 * (1 - after / before) if before > 0 else 0.0
     what = effect.words(values)
     return (f"Not in the library: {description}; {what} cuts the validation velocity error from {before:.3g} to "

@@ -129,7 +129,7 @@ def check_information(rec: Recording, nominal: DriveNominal, gravity_Nm: np.ndar
         with np.errstate(all="ignore"):
             cov = s2 * np.linalg.pinv(X.T @ X)
         relative_sd = {name: float(math.sqrt(max(cov[k, k], 0.0))) for k, name in enumerate(names)}
-    weakest = min(fractions, key=fractions.get)
+    weakest = min(fractions, key=fractions.__getitem__)
     if fractions[weakest] < MIN_INDEPENDENT_FRACTION:
         return Identifiability(False, _why(weakest, names, X, norms, w[moving], acc[moving], fractions[weakest]),
                                fractions, relative_sd, both)
@@ -142,7 +142,7 @@ def _why(name: str, names: list[str], X: np.ndarray, norms: np.ndarray, w: np.nd
         return f"{WORDS[name]} is not determined: the recording never excites it"
     cosine = {other: abs(float(X[:, k] @ X[:, j]) / (norms[k] * norms[j]))
               for j, other in enumerate(names) if j != k and norms[j] > 0}
-    partner = max(cosine, key=cosine.get)
+    partner = max(cosine, key=cosine.__getitem__)
     pair = {name, partner}
     speed = float(np.median(np.abs(w)))
     spread = float(np.std(np.abs(w)))

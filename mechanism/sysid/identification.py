@@ -32,7 +32,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from mechanism.sysid.identifiability import correlation_length
+from mechanism.sysid.identifiability import Identifiability, correlation_length
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Segments, Signals, make_segments, simulate
@@ -131,12 +131,12 @@ class Problem:
         self._gather = {}
         self.measured, self.scored = {}, {}
         for name, seg in self.parts.items():
-            rows, cols = [], []
+            window_rows, window_offsets = [], []
             for i, (b, e) in enumerate(zip(seg.score_begin, seg.score_end)):
                 offsets = np.arange(b, e, self.strides[name])
-                rows.append(np.full(len(offsets), i))
-                cols.append(offsets)
-            rows, cols = np.concatenate(rows), np.concatenate(cols)
+                window_rows.append(np.full(len(offsets), i))
+                window_offsets.append(offsets)
+            rows, cols = np.concatenate(window_rows), np.concatenate(window_offsets)
             # the differentiator's support of every scored sample, as flat indices into the part's windows
             self._gather[name] = ((rows * seg.length + cols - self.pad)[:, None]
                                   + np.arange(len(self.coefficients), dtype=np.int64)[None, :])
@@ -341,6 +341,9 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
     """
     from scipy.optimize import lsq_linear
 
+    amplitudes = effect.linear
+    if amplitudes is None:
+        raise ValueError(f"effect {effect.name} has no torque form (linear is None): it has no equation-error start")
     s = problem.signals
     if "eq_error" not in s._cache:
         w = s.velocity_rad_s
@@ -368,15 +371,15 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
 
     # the baseline's columns do not depend on the effect's shape: compute them once
     baseline_names = list(getattr(structure.baseline, "linear", ()))
-    v_ref = {**values, **{n: 0.0 for n in effect.linear}}
+    v_ref = {**values, **{n: 0.0 for n in amplitudes}}
     b_ref = missing(v_ref)
     baseline_columns = [column(v_ref, b_ref, n) for n in baseline_names]
-    names = [*effect.linear, *baseline_names]
+    names = [*amplitudes, *baseline_names]
     best, best_cost = dict(values), math.inf
     for shape in grid:
         v0 = {**v_ref, **shape}
         b0 = missing(v0) if shape else b_ref
-        A = np.column_stack([column(v0, b0, n) for n in effect.linear] + baseline_columns)
+        A = np.column_stack([column(v0, b0, n) for n in amplitudes] + baseline_columns)
         lo = np.array([by_name[n].lower - v0[n] for n in names])
         hi = np.array([by_name[n].upper - v0[n] for n in names])
         scale = np.maximum(np.abs(A).max(axis=0), 1e-30)
@@ -553,7 +556,7 @@ def blas_single_threaded():
     return threadpool_limits(1, "blas")
 
 
-def require_identifiable(rec: Recording, nominal: DriveNominal):
+def require_identifiable(rec: Recording, nominal: DriveNominal) -> Identifiability:
     """The recording's information on the baseline's parameters (refused, naming the
     parameter and why, when one is not determined; :mod:`mechanism.sysid.identifiability`)."""
     from mechanism.sysid.identifiability import check_information

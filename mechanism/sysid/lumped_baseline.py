@@ -42,7 +42,7 @@ class LumpedBaseline:
     convention is a 0.5 ms lag)."""
 
     name = "lumped"
-    linear = ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
+    linear: tuple[str, ...] = ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
     meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the belt"
 
     # bounds as factors of the description's values: wide enough for a machine 14x lighter or
@@ -99,6 +99,8 @@ class LumpedBaseline:
         torque = None
         if self.gravity:
             linkage = self.nominal.linkage  # one table per model: baselines of two models may share the signals
+            if linkage is None:  # baseline_terms asks for gravity only where the tables are
+                raise ValueError("a gravity torque needs the machine model's linkage tables (nominal.linkage)")
             # the entry holds the linkage itself: while it is cached its id cannot be reused by
             # another model's linkage (an id alone outlives a collected object)
             held, table = signals.memo("model_gravity_Nm", id(linkage),

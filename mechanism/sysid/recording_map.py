@@ -284,7 +284,7 @@ def apply_map(columns: Columns, mapping: RecordingMap | None, motor_joint: str |
     unit = table.get("shaft_angle_unit", "rad")
     counts = table.get("counts_per_rev")
     if unit == "counts":
-        factor = 2 * math.pi / counts
+        factor = 2 * math.pi / table["counts_per_rev"]  # _check_table: "counts" comes with it
     elif unit in ("m", "mm"):
         millimetres = 1.0 if unit == "mm" else 1e3
         factor = 2 * math.pi * millimetres / table["travel_per_rev_mm"]

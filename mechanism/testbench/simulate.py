@@ -12,6 +12,7 @@ from __future__ import annotations
 import ctypes
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -47,7 +48,7 @@ class Solver:
     """The integrator in use: ``native`` (C) or ``python``."""
 
     name: str
-    function: object
+    function: Callable[..., object]  # the C tb_simulate (through ctypes) or _simulate_python; their results are unused
 
 
 _SOLVER: Solver | None = None
@@ -67,7 +68,7 @@ def solver(prefer: str = "native") -> Solver:
         else:
             function = library.tb_simulate
             pointer = ctypes.POINTER(ctypes.c_double)
-            function.argtypes = [ctypes.POINTER(_Params), ctypes.c_int, pointer, pointer] + [pointer] * 7
+            function.argtypes = (ctypes.POINTER(_Params), ctypes.c_int, pointer, pointer, *(pointer,) * 7)
             function.restype = ctypes.c_int
             _SOLVER = Solver("native", function)
     return _SOLVER
