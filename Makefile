@@ -4,6 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+SOURCES := mechanism converters tests bench examples
 
 .PHONY: demo test test-fast lint bench clean
 
@@ -16,9 +17,11 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/mechanism demo --out out
 
-# ruff (bugs, not taste) and mypy on the whole package, then every test
+# ruff (bugs, not taste), the formatter (100-character lines: `ruff format` fixes what it reports)
+# and mypy on the whole package, then every test
 lint: $(STAMP)
-	$(VENV)/bin/ruff check mechanism converters tests bench
+	$(VENV)/bin/ruff check $(SOURCES)
+	$(VENV)/bin/ruff format --check $(SOURCES)
 	$(VENV)/bin/mypy
 
 # two pytest workers (pytest-xdist), one per core of the 2-core machines CI and developers have;

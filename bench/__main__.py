@@ -8,7 +8,9 @@ from pathlib import Path
 
 def main() -> int:
     here = Path(__file__).parent
-    names = sorted(info.name for info in pkgutil.iter_modules([str(here)]) if info.name.startswith("bench_"))
+    names = sorted(
+        info.name for info in pkgutil.iter_modules([str(here)]) if info.name.startswith("bench_")
+    )
     selected = sys.argv[1:] or names
     for name in selected:
         module = importlib.import_module(f"bench.{name}")

@@ -36,8 +36,12 @@ def _recordings(count: int, folder: Path) -> list[Path]:
     paths = []
     for seed in range(1, count + 1):
         path = folder / f"bench_seed{seed}.csv"
-        write_recording(make_recording(EFFECT_CYCLE[seed % len(EFFECT_CYCLE)], seed=seed, duration_s=60.0,
-                                       nominal=nominal), path)
+        write_recording(
+            make_recording(
+                EFFECT_CYCLE[seed % len(EFFECT_CYCLE)], seed=seed, duration_s=60.0, nominal=nominal
+            ),
+            path,
+        )
         paths.append(path)
     return paths
 
@@ -54,8 +58,13 @@ def _fleet(paths, scratch: Path, reference: int | None = None) -> None:
     singles = paths[: reference or len(paths)]
     results = {}
     for workers, batch in ((1, singles), (2, paths)):
-        results[workers] = diagnose_fleet(batch, scratch / f"fleet{workers}", workers=workers, progress=False,
-                                          nominal=drive_nominal(None))
+        results[workers] = diagnose_fleet(
+            batch,
+            scratch / f"fleet{workers}",
+            workers=workers,
+            progress=False,
+            nominal=drive_nominal(None),
+        )
         shutil.rmtree(scratch / f"fleet{workers}")
         failed = [row for row in results[workers].rows if row["status"] != "ok"]
         assert not failed, f"{len(failed)} recordings failed: {failed[0].get('error')}"
@@ -75,12 +84,16 @@ def _fleet(paths, scratch: Path, reference: int | None = None) -> None:
     single_1 = float(np.mean(one_thread))
     in_fleet = float(np.mean([row["time_s"] for row in results[2].rows]))
     one, two = results[1].seconds, results[2].seconds
-    same = [row["effects"] for row in results[1].rows] == [row["effects"] for row in results[2].rows[:k]]
-    print(f"fleet diagnosis of {n} recordings on 2 workers: {two:.1f} s, {two / n:.2f} s per recording of wall time; "
-          f"each recording took {in_fleet:.2f} s in its worker against {single:.2f} s for a single run ({k} alone, "
-          f"{one:.1f} s): {in_fleet / single:.2f} x single, {in_fleet / single_1:.2f} x a single run on one thread "
-          f"({single_1:.2f} s, the core a fleet worker has); speed-up 1 -> 2 workers {single / (two / n):.2f}x "
-          f"(a single diagnosis already fits on threads: the gain is what whole processes add); same effects: {same}")
+    same = [row["effects"] for row in results[1].rows] == [
+        row["effects"] for row in results[2].rows[:k]
+    ]
+    print(
+        f"fleet diagnosis of {n} recordings on 2 workers: {two:.1f} s, {two / n:.2f} s per recording of wall time; "
+        f"each recording took {in_fleet:.2f} s in its worker against {single:.2f} s for a single run ({k} alone, "
+        f"{one:.1f} s): {in_fleet / single:.2f} x single, {in_fleet / single_1:.2f} x a single run on one thread "
+        f"({single_1:.2f} s, the core a fleet worker has); speed-up 1 -> 2 workers {single / (two / n):.2f}x "
+        f"(a single diagnosis already fits on threads: the gain is what whole processes add); same effects: {same}"
+    )
 
 
 def _variants(count: int, scratch: Path) -> None:
@@ -94,18 +107,29 @@ def _variants(count: int, scratch: Path) -> None:
     variants = monte_carlo(count, timing, scratch)
     pairs = [Pair("needle", "hook")]
     run_variants(model, _subset(variants, 2), pairs, driver="arm_shaft", progress=False)  # warm-up
-    one, two = (run_variants(model, variants, pairs, driver="arm_shaft", workers=w, progress=False) for w in (1, 2))
+    one, two = (
+        run_variants(model, variants, pairs, driver="arm_shaft", workers=w, progress=False)
+        for w in (1, 2)
+    )
     # each worker's pose solver starts from the variant it solved last: equal to rounding
-    difference = np.nanmax(np.abs(np.subtract(*([r["needle_vs_hook_min_mm"] for r in batch.rows] for batch in (one, two)))))
-    print(f"clearance variants ({label}): {len(variants)} variants, 1 worker {one.seconds:.2f} s, 2 workers "
-          f"{two.seconds:.2f} s, speed-up {one.seconds / two.seconds:.2f}x; largest difference in the minima {difference:.1e} mm")
+    difference = np.nanmax(
+        np.abs(
+            np.subtract(*([r["needle_vs_hook_min_mm"] for r in batch.rows] for batch in (one, two)))
+        )
+    )
+    print(
+        f"clearance variants ({label}): {len(variants)} variants, 1 worker {one.seconds:.2f} s, 2 workers "
+        f"{two.seconds:.2f} s, speed-up {one.seconds / two.seconds:.2f}x; largest difference in the minima {difference:.1e} mm"
+    )
 
 
 def main() -> None:
     count = int(os.environ.get("MECHANISM_BENCH_FLEET", "3"))
     variants = int(os.environ.get("MECHANISM_BENCH_BATCH_VARIANTS", "40"))
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    print(f"{cores} CPU cores visible; load average {os.getloadavg()[0]:.2f} (ratios are only meaningful on idle cores)")
+    print(
+        f"{cores} CPU cores visible; load average {os.getloadavg()[0]:.2f} (ratios are only meaningful on idle cores)"
+    )
     with tempfile.TemporaryDirectory() as scratch:
         reference = int(os.environ.get("MECHANISM_BENCH_FLEET_REFERENCE", "0")) or None
         _fleet(_recordings(count, Path(scratch)), Path(scratch), reference)

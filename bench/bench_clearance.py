@@ -34,13 +34,19 @@ def _model():
             return model, f"sewing machine {path.name}", _sewing_timing(model)
     from tests.helpers import mechanisms
 
-    return mechanisms.needle_and_plate().compile(), "test needle/hook mechanism", "coupling:hook_drive:hook_deg"
+    return (
+        mechanisms.needle_and_plate().compile(),
+        "test needle/hook mechanism",
+        "coupling:hook_drive:hook_deg",
+    )
 
 
 def _sewing_timing(model) -> str:
     import mechanism
 
-    return mechanism.read_description(mechanism.load_machine().description.path).variant_presets["hook_timing_deg"]
+    return mechanism.read_description(mechanism.load_machine().description.path).variant_presets[
+        "hook_timing_deg"
+    ]
 
 
 def _variants(count: int, timing_target: str, scratch: Path):
@@ -50,13 +56,20 @@ def _variants(count: int, timing_target: str, scratch: Path):
 
     doc = {
         "format": "mechanism-variants/1",
-        "parameters": {"hook_timing_deg": timing_target, "needle_height_mm": "part:needle:z_mm",
-                       "crank_radius_mm": "joint:crank_pin:radial_mm"},
-        "samples": {"count": count - 1, "seed": 1, "tolerances": {
-            "hook_timing_deg": {"dist": "normal", "std": 1.0},
-            "needle_height_mm": {"dist": "uniform", "low": -0.1, "high": 0.1},
-            "crank_radius_mm": {"dist": "normal", "std": 0.02},
-        }},
+        "parameters": {
+            "hook_timing_deg": timing_target,
+            "needle_height_mm": "part:needle:z_mm",
+            "crank_radius_mm": "joint:crank_pin:radial_mm",
+        },
+        "samples": {
+            "count": count - 1,
+            "seed": 1,
+            "tolerances": {
+                "hook_timing_deg": {"dist": "normal", "std": 1.0},
+                "needle_height_mm": {"dist": "uniform", "low": -0.1, "high": 0.1},
+                "crank_radius_mm": {"dist": "normal", "std": 0.02},
+            },
+        },
     }
     path = scratch / "variants.json"
     path.write_text(json.dumps(doc))
@@ -66,7 +79,9 @@ def _variants(count: int, timing_target: str, scratch: Path):
 def _subset(variants, count):
     from mechanism.inspection.variants import VariantSet
 
-    return VariantSet(variants.parameters, variants.names[:count], variants.values[:count], variants.source)
+    return VariantSet(
+        variants.parameters, variants.names[:count], variants.values[:count], variants.source
+    )
 
 
 def _timed(model, variants, pairs, workers):
@@ -74,9 +89,14 @@ def _timed(model, variants, pairs, workers):
     from mechanism.inspection.variants import run_variants
 
     before = os.times()
-    batch = run_variants(model, variants, pairs, driver="arm_shaft", workers=workers, progress=False)
+    batch = run_variants(
+        model, variants, pairs, driver="arm_shaft", workers=workers, progress=False
+    )
     after = os.times()
-    cpu = sum(getattr(after, f) - getattr(before, f) for f in ("user", "system", "children_user", "children_system"))
+    cpu = sum(
+        getattr(after, f) - getattr(before, f)
+        for f in ("user", "system", "children_user", "children_system")
+    )
     return batch, cpu
 
 
@@ -111,23 +131,35 @@ def main() -> None:
     model, label, timing = _model()
     pairs = [Pair("needle", "hook")]
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    print(f"model: {label}; pair needle:hook; one revolution at 0.5 deg; {cores} CPU cores visible; "
-          f"load average {os.getloadavg()[0]:.2f} (the machine may be shared: speed-ups are only meaningful when idle)")
+    print(
+        f"model: {label}; pair needle:hook; one revolution at 0.5 deg; {cores} CPU cores visible; "
+        f"load average {os.getloadavg()[0]:.2f} (the machine may be shared: speed-ups are only meaningful when idle)"
+    )
     with tempfile.TemporaryDirectory() as scratch:
         variants = _variants(count, timing, Path(scratch))
         subset = _subset(variants, min(len(variants), 60))
-        run_variants(model, _subset(variants, 4), pairs, driver="arm_shaft", workers=1, progress=False)  # warm-up: imports, first calls
-        (one, cpu_one), (two, cpu_two) = (_timed(model, subset, pairs, workers) for workers in (1, 2))
-        print(f"{len(subset)} variants: 1 worker {one.seconds:.2f} s, 2 workers {two.seconds:.2f} s, "
-              f"speed-up {one.seconds / two.seconds:.2f}x (target >= 1.7x on 2 idle cores); CPU time "
-              f"{cpu_one:.2f} s vs {cpu_two:.2f} s (equal CPU = no parallel overhead: a lower speed-up means busy cores)")
+        run_variants(
+            model, _subset(variants, 4), pairs, driver="arm_shaft", workers=1, progress=False
+        )  # warm-up: imports, first calls
+        (one, cpu_one), (two, cpu_two) = (
+            _timed(model, subset, pairs, workers) for workers in (1, 2)
+        )
+        print(
+            f"{len(subset)} variants: 1 worker {one.seconds:.2f} s, 2 workers {two.seconds:.2f} s, "
+            f"speed-up {one.seconds / two.seconds:.2f}x (target >= 1.7x on 2 idle cores); CPU time "
+            f"{cpu_one:.2f} s vs {cpu_two:.2f} s (equal CPU = no parallel overhead: a lower speed-up means busy cores)"
+        )
         batch = run_variants(model, variants, pairs, driver="arm_shaft", workers=2, progress=True)
-        print(f"{len(variants)} variants with 2 workers: {batch.seconds:.1f} s, {len(variants) / batch.seconds:.1f} variants/s, "
-              f"{batch.failed} fail (interfere)")
+        print(
+            f"{len(variants)} variants with 2 workers: {batch.seconds:.1f} s, {len(variants) / batch.seconds:.1f} variants/s, "
+            f"{batch.failed} fail (interfere)"
+        )
     revolution, steps = _revolution_seconds(copy.deepcopy(model))
     per_variant = one.seconds / len(subset)
-    print(f"one simulated revolution: {steps} mj_step calls in {revolution * 1e3:.1f} ms; one variant check "
-          f"(1 worker): {per_variant * 1e3:.1f} ms = {per_variant / revolution:.2f} simulated revolutions")
+    print(
+        f"one simulated revolution: {steps} mj_step calls in {revolution * 1e3:.1f} ms; one variant check "
+        f"(1 worker): {per_variant * 1e3:.1f} ms = {per_variant / revolution:.2f} simulated revolutions"
+    )
 
 
 if __name__ == "__main__":

@@ -39,15 +39,19 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as scratch:
         scratch = Path(scratch)
         exports = list(_exports(scratch))
-        convert(exports[0][1], scratch / "warm-up")  # imports and first-call costs are not conversion time
+        convert(
+            exports[0][1], scratch / "warm-up"
+        )  # imports and first-call costs are not conversion time
         for label, export in exports:
             out = scratch / label.split()[0]
             total = _seconds(lambda: convert(export, out))
             geometry = _seconds(lambda: load_meshes(read(export)))
             model_file = next(out.glob("*.xml"))
             compile_ = _seconds(lambda: mujoco.MjModel.from_xml_path(str(model_file)))
-            print(f"{label:28s} convert {total:7.2f} s   geometry {geometry:7.2f} s   compile {compile_:6.2f} s   "
-                  f"convert / (geometry + compile) = {total / (geometry + compile_):5.2f}")
+            print(
+                f"{label:28s} convert {total:7.2f} s   geometry {geometry:7.2f} s   compile {compile_:6.2f} s   "
+                f"convert / (geometry + compile) = {total / (geometry + compile_):5.2f}"
+            )
 
 
 if __name__ == "__main__":

@@ -16,17 +16,26 @@ import tempfile
 import time
 from pathlib import Path
 
-PAIRS = ("torque_ripple,thermal_drift", "linkage_dynamics,needle_penetration", "position_friction,encoder_eccentricity",
-         "stribeck,voltage_nonlinearity", "belt_compliance,torque_ripple")
+PAIRS = (
+    "torque_ripple,thermal_drift",
+    "linkage_dynamics,needle_penetration",
+    "position_friction,encoder_eccentricity",
+    "stribeck,voltage_nonlinearity",
+    "belt_compliance,torque_ripple",
+)
 
 
 def _cases(seeds: list[int]) -> list[tuple[str, int]]:
     from mechanism.api import drive_nominal
     from mechanism.sysid.effects import library
 
-    cases = [(name, seed) for seed in seeds for name in library(drive_nominal(None))]  # the bench machine's candidates
+    cases = [
+        (name, seed) for seed in seeds for name in library(drive_nominal(None))
+    ]  # the bench machine's candidates
     cases += [("none", seed) for seed in seeds] + [("none", seeds[-1] + 100)]
-    cases += [(pair, seed) for seed in seeds for pair in PAIRS[:3 if len(seeds) == 1 else len(PAIRS)]]
+    cases += [
+        (pair, seed) for seed in seeds for pair in PAIRS[: 3 if len(seeds) == 1 else len(PAIRS)]
+    ]
     return cases
 
 
@@ -60,7 +69,9 @@ def main() -> None:
     def recording(effects: str, seed: int):
         path = folder / f"{effects.replace(',', '+')}_{seed}.csv"
         if not path.exists():
-            write_recording(make_recording(effects, seed=seed, duration_s=60.0, nominal=nominal), path)
+            write_recording(
+                make_recording(effects, seed=seed, duration_s=60.0, nominal=nominal), path
+            )
         return read_recording(path)
 
     # --- timing --------------------------------------------------------------------
@@ -72,10 +83,14 @@ def main() -> None:
     _, t_diag = _timed(lambda: diagnose(rec))
     print(f"recording: 60 s at 1 kHz ({len(rec)} samples), {os.cpu_count()} CPU(s)")
     print(f"reference: one baseline simulation of all segments  {t_sim * 1e3:8.2f} ms   1")
-    print(f"identify (baseline fit, uncertainties)               {t_identify:8.2f} s  {t_identify / t_sim:8.0f} x reference")
+    print(
+        f"identify (baseline fit, uncertainties)               {t_identify:8.2f} s  {t_identify / t_sim:8.0f} x reference"
+    )
     from mechanism.sysid.effects import library
 
-    print(f"diagnose ({len(library(nominal))} candidates, rounds, report)        {t_diag:8.2f} s  {t_diag / t_sim:8.0f} x reference")
+    print(
+        f"diagnose ({len(library(nominal))} candidates, rounds, report)        {t_diag:8.2f} s  {t_diag / t_sim:8.0f} x reference"
+    )
 
     # --- accuracy ------------------------------------------------------------------
     print()
@@ -97,11 +112,16 @@ def main() -> None:
         with_effects += bool(truth)
         sindy_ok += ok_sparse
         label = f"{effects} (seed {seed})"
-        print(f"{label:42s} {('ok ' if ok else 'NO ') + (', '.join(found) or '-'):44s} {ratio:10.2f}  "
-              f"{('ok ' if ok_sparse else 'NO ') + (', '.join(sparse) or '-'):40s}", flush=True)
+        print(
+            f"{label:42s} {('ok ' if ok else 'NO ') + (', '.join(found) or '-'):44s} {ratio:10.2f}  "
+            f"{('ok ' if ok_sparse else 'NO ') + (', '.join(sparse) or '-'):40s}",
+            flush=True,
+        )
     n = len(cases)
-    print(f"\nnamed correctly: diagnose {ours_ok}/{n}, sparse regression {sindy_ok}/{n}; "
-          f"effect recordings improved to <= 0.7 of the baseline rmse: {ratio_ok}/{with_effects}")
+    print(
+        f"\nnamed correctly: diagnose {ours_ok}/{n}, sparse regression {sindy_ok}/{n}; "
+        f"effect recordings improved to <= 0.7 of the baseline rmse: {ratio_ok}/{with_effects}"
+    )
 
 
 if __name__ == "__main__":

@@ -21,17 +21,29 @@ def main() -> None:
 
     nominal = drive_nominal(None)
     longest = float(os.environ.get("MECHANISM_BENCH_LONG_S", "3600"))
-    cases = [(d, 1000.0) for d in (10.0, 60.0, 600.0, longest) if d <= longest] + [(60.0, 5000.0), (60.0, 250.0)]
-    print(f"{'length [s]':>10s} {'rate [Hz]':>9s} {'diagnose [s]':>12s} {'per minute [s]':>14s} {'peak RSS [GiB]':>14s}  found")
+    cases = [(d, 1000.0) for d in (10.0, 60.0, 600.0, longest) if d <= longest] + [
+        (60.0, 5000.0),
+        (60.0, 250.0),
+    ]
+    print(
+        f"{'length [s]':>10s} {'rate [Hz]':>9s} {'diagnose [s]':>12s} {'per minute [s]':>14s} {'peak RSS [GiB]':>14s}  found"
+    )
     for duration, rate in cases:
-        bench = make_recording(["torque_ripple"], seed=1, duration_s=duration, nominal=nominal, sample_rate_hz=rate)
-        rec = as_recording(bench.time, bench.voltage, bench.arm_angle, bench.current, source=f"{duration:g} s")
+        bench = make_recording(
+            ["torque_ripple"], seed=1, duration_s=duration, nominal=nominal, sample_rate_hz=rate
+        )
+        rec = as_recording(
+            bench.time, bench.voltage, bench.arm_angle, bench.current, source=f"{duration:g} s"
+        )
         start = time.perf_counter()
         result = diagnose(rec, nominal=nominal)
         seconds = time.perf_counter() - start
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
-        print(f"{duration:10.0f} {rate:9.0f} {seconds:12.1f} {60 * seconds / duration:14.2f} {peak:14.2f}  "
-              f"{', '.join(result.effect_names) or '-'}", flush=True)
+        print(
+            f"{duration:10.0f} {rate:9.0f} {seconds:12.1f} {60 * seconds / duration:14.2f} {peak:14.2f}  "
+            f"{', '.join(result.effect_names) or '-'}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -54,7 +54,9 @@ def main() -> None:
         result = diagnose(rec, nominal=nominal)
         return time.perf_counter() - start, result.effect_names
 
-    print(f"60 s recordings at 1 kHz, {os.cpu_count()} CPU(s); reference = one baseline simulation of all segments")
+    print(
+        f"60 s recordings at 1 kHz, {os.cpu_count()} CPU(s); reference = one baseline simulation of all segments"
+    )
     singles, ratios = [], []
     for seed in seeds:
         for effects in SINGLES:
@@ -63,11 +65,17 @@ def main() -> None:
             seconds, names = timed(rec)
             singles.append(seconds)
             ratios.append(seconds / ref)
-            print(f"  {effects:<16} seed {seed}: {seconds:6.2f} s = {seconds / ref:7.0f} x reference ({ref * 1e3:.2f} ms); "
-                  f"found {', '.join(names) or 'nothing'}")
-    print(f"median over {len(singles)} recordings: {statistics.median(singles):.2f} s "
-          f"({statistics.median(ratios):.0f} x reference; goal 3 s)")
+            print(
+                f"  {effects:<16} seed {seed}: {seconds:6.2f} s = {seconds / ref:7.0f} x reference ({ref * 1e3:.2f} ms); "
+                f"found {', '.join(names) or 'nothing'}"
+            )
+    print(
+        f"median over {len(singles)} recordings: {statistics.median(singles):.2f} s "
+        f"({statistics.median(ratios):.0f} x reference; goal 3 s)"
+    )
     rec = recording(FOUR, seeds[0])
     ref = reference(rec)
     seconds, names = timed(rec)
-    print(f"four effects ({FOUR}): {seconds:.2f} s = {seconds / ref:.0f} x reference; found {', '.join(names)} (goal 10 s)")
+    print(
+        f"four effects ({FOUR}): {seconds:.2f} s = {seconds / ref:.0f} x reference; found {', '.join(names)} (goal 10 s)"
+    )

@@ -45,7 +45,10 @@ def raw_step_seconds(model_path, arm_speed, nstep):
     state = np.zeros(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state, spec)
     control = np.zeros((1, nstep, model.nu))
-    return best_of(lambda: mujoco.rollout.rollout(model, data, state[None], control, nstep=nstep)) / nstep
+    return (
+        best_of(lambda: mujoco.rollout.rollout(model, data, state[None], control, nstep=nstep))
+        / nstep
+    )
 
 
 def main() -> None:
@@ -60,10 +63,14 @@ def main() -> None:
     reduced = ReducedModel(machine)
     reduced.simulate(12.0, 1.0)  # compile the kernel outside the timing
     red = best_of(lambda: reduced.simulate(12.0, SIM_SECONDS))
-    print(f"model: {DEFAULT_MODEL.name}, time step {dt * 1e3:g} ms, {SIM_SECONDS:g} s simulated at 12 V "
-          f"(arm {arm_speed * 60 / (2 * np.pi):.0f} rpm), native callbacks: {machine.native}")
+    print(
+        f"model: {DEFAULT_MODEL.name}, time step {dt * 1e3:g} ms, {SIM_SECONDS:g} s simulated at 12 V "
+        f"(arm {arm_speed * 60 / (2 * np.pi):.0f} rpm), native callbacks: {machine.native}"
+    )
     print(f"full model real-time factor            {SIM_SECONDS / full:8.1f} x   (target >= 20)")
-    print(f"our step / raw mj_step (same MJCF)      {ours_per_step / raw_per_step:8.2f}     (target <= 1.30)")
+    print(
+        f"our step / raw mj_step (same MJCF)      {ours_per_step / raw_per_step:8.2f}     (target <= 1.30)"
+    )
     print(f"  our step {ours_per_step * 1e6:.2f} us, raw step {raw_per_step * 1e6:.2f} us")
     print(f"reduced model real-time factor         {SIM_SECONDS / red:8.0f} x   (target >= 1000)")
     print(f"reduced speed-up over the full model   {full / red:8.0f} x")

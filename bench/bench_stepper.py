@@ -55,17 +55,27 @@ def main() -> None:
         whole = _best_of(lambda: steppers.simulate(profile, kind, mode, params), repeats=2)
         n_short = 4000
         states, short_controls = state0[None], controls[:, :n_short, 0]
-        native_short = _best_of(lambda: steppers.run_rollout(model, states, short_controls, "native"))
-        python_short = _best_of(lambda: steppers.run_rollout(model, states, short_controls, "python"), 1)
+        native_short = _best_of(
+            lambda: steppers.run_rollout(model, states, short_controls, "native")
+        )
+        python_short = _best_of(
+            lambda: steppers.run_rollout(model, states, short_controls, "python"), 1
+        )
         simulated = time_s.size * h
         print(f"{kind} model, thread cut ({time_s.size} steps of {h * 1e6:g} us):")
         print(f"  raw mj_step rollout, no callbacks : {raw:.3f} s")
-        print(f"  with stepper callbacks            : {with_callbacks:.3f} s  = {with_callbacks / raw:.2f}x raw, "
-              f"{simulated / with_callbacks:.1f}x real time")
-        print(f"  steppers.simulate (with analysis)  : {whole:.3f} s  = {whole / raw:.2f}x raw, "
-              f"{simulated / whole:.1f}x real time")
-        print(f"  Python fallback, {n_short} steps      : {python_short / native_short:.0f}x the native rollout "
-              f"({python_short / n_short * 1e6:.0f} us per step)")
+        print(
+            f"  with stepper callbacks            : {with_callbacks:.3f} s  = {with_callbacks / raw:.2f}x raw, "
+            f"{simulated / with_callbacks:.1f}x real time"
+        )
+        print(
+            f"  steppers.simulate (with analysis)  : {whole:.3f} s  = {whole / raw:.2f}x raw, "
+            f"{simulated / whole:.1f}x real time"
+        )
+        print(
+            f"  Python fallback, {n_short} steps      : {python_short / native_short:.0f}x the native rollout "
+            f"({python_short / n_short * 1e6:.0f} us per step)"
+        )
         mujoco.set_mjcb_act_dyn(saved[0])
         mujoco.set_mjcb_act_bias(saved[1])
 

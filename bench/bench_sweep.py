@@ -23,9 +23,18 @@ def _variants(count: int, shaft: str):
     from mechanism.inspection.variants import variants_from_document
 
     side = 10  # a 10 x 10 grid of flywheel and voltage, times count/100 motor resistances: count variants
-    document = {"parameters": {"fly": f"inertia:{shaft}_kgm2", "V": "voltage_V", "R": "motor:resistance_ohm"},
-                "sweep": {"fly": {"start": 0, "stop": 2e-3, "num": side}, "V": {"start": 4, "stop": 14, "num": side},
-                          "R": {"start": -0.2, "stop": 0.4, "num": max(1, count // (side * side))}}}
+    document = {
+        "parameters": {
+            "fly": f"inertia:{shaft}_kgm2",
+            "V": "voltage_V",
+            "R": "motor:resistance_ohm",
+        },
+        "sweep": {
+            "fly": {"start": 0, "stop": 2e-3, "num": side},
+            "V": {"start": 4, "stop": 14, "num": side},
+            "R": {"start": -0.2, "stop": 0.4, "num": max(1, count // (side * side))},
+        },
+    }
     return variants_from_document(document)
 
 
@@ -36,8 +45,12 @@ def _reduced(machine, count: int) -> None:
     options = SweepOptions(duration_s=2.0)
     from dataclasses import replace
 
-    run_sweep(machine, replace(variants, names=variants.names[:50], values=variants.values[:50]), options,
-              progress=False)  # warm-up: native library, caches
+    run_sweep(
+        machine,
+        replace(variants, names=variants.names[:50], values=variants.values[:50]),
+        options,
+        progress=False,
+    )  # warm-up: native library, caches
     times = {}
     for workers in (1, 2):
         start = time.perf_counter()
@@ -45,9 +58,11 @@ def _reduced(machine, count: int) -> None:
         times[workers] = time.perf_counter() - start
     n = len(variants)
     notes = sum(1 for row in result.rows if row.get("note"))
-    print(f"reduced model: {n} variants x {options.duration_s:g} s simulated; 1 worker {times[1]:.1f} s "
-          f"({n / times[1]:.0f}/s, {n * options.duration_s / times[1]:.0f}x real time), 2 workers {times[2]:.1f} s "
-          f"({n / times[2]:.0f}/s); speed-up 1 -> 2 workers {times[1] / times[2]:.2f}x; {notes} rows with a note")
+    print(
+        f"reduced model: {n} variants x {options.duration_s:g} s simulated; 1 worker {times[1]:.1f} s "
+        f"({n / times[1]:.0f}/s, {n * options.duration_s / times[1]:.0f}x real time), 2 workers {times[2]:.1f} s "
+        f"({n / times[2]:.0f}/s); speed-up 1 -> 2 workers {times[1] / times[2]:.2f}x; {notes} rows with a note"
+    )
 
 
 def _full(machine, count: int) -> None:
@@ -60,7 +75,10 @@ def _full(machine, count: int) -> None:
     chosen = np.linspace(0, len(variants) - 1, count).astype(int)
     built = [variant_machine(machine, variants.parameters, variants.values[i]) for i in chosen]
     duration_s = 2.0
-    for variant, _ in built:  # the linkage tables (tool height) outside the timing: both sides skip them
+    for (
+        variant,
+        _,
+    ) in built:  # the linkage tables (tool height) outside the timing: both sides skip them
         variant.tables = machine.tables
     simulate_batch([m for m, _ in built[:2]], [v for _, v in built[:2]], 0.1, threads=2)  # warm-up
     start = time.perf_counter()
@@ -77,9 +95,11 @@ def _full(machine, count: int) -> None:
     looped = time.perf_counter() - start
     final = [r.arm_velocity_rad_s[-1] for r in results]
     difference = float(np.max(np.abs(np.subtract(final, speeds))))
-    print(f"full model: {count} variants x {duration_s:g} s; mujoco.rollout on 2 threads {batched / count * 1e3:.0f} ms per "
-          f"variant, Python mj_step loop {looped / count * 1e3:.0f} ms per variant: rollout {looped / batched:.2f}x faster; "
-          f"final speeds differ by {difference:.1e} rad/s")
+    print(
+        f"full model: {count} variants x {duration_s:g} s; mujoco.rollout on 2 threads {batched / count * 1e3:.0f} ms per "
+        f"variant, Python mj_step loop {looped / count * 1e3:.0f} ms per variant: rollout {looped / batched:.2f}x faster; "
+        f"final speeds differ by {difference:.1e} rad/s"
+    )
 
 
 def main() -> None:

@@ -25,8 +25,11 @@ def _best_of(repeats, function):
 
 def main() -> None:
     make_recording([], duration_s=0.1)  # compile/load the C integrator outside the timing
-    cases = {"clean": [], "all but belt (rigid)": [n for n in EFFECTS if n != "belt_compliance"],
-             "belt + linkage + needle": ["belt_compliance", "linkage_dynamics", "needle_penetration"]}
+    cases = {
+        "clean": [],
+        "all but belt (rigid)": [n for n in EFFECTS if n != "belt_compliance"],
+        "belt + linkage + needle": ["belt_compliance", "linkage_dynamics", "needle_penetration"],
+    }
     python_1s = _best_of(1, lambda: make_recording([], duration_s=1.0, integrator="python"))
     print(f"{'case':28s} {'60 s recording [s]':>18s} {'x real time':>12s} {'vs Python twin':>15s}")
     for label, effects in cases.items():

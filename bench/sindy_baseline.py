@@ -34,7 +34,7 @@ def library(problem: Problem) -> tuple[np.ndarray, np.ndarray, list[str]]:
     # winding lag dominate any regression on it)
     near_step = np.zeros(len(w), bool)
     for k in np.flatnonzero(np.abs(np.diff(s.voltage_V)) > 0.5):
-        near_step[max(0, k - 20):k + 60] = True
+        near_step[max(0, k - 20) : k + 60] = True
     sel = np.flatnonzero((np.abs(w) > 1.0) & ~near_step)[::2]
     base = LumpedBaseline(problem.nominal)
     values = {p.name: p.nominal for p in base.parameters}
@@ -49,13 +49,20 @@ def library(problem: Problem) -> tuple[np.ndarray, np.ndarray, list[str]]:
         if effect.linear is not None:
             st = structure.with_effect(effect)
             shape = effect.grid(s, None)[0]
-            v0 = {**values, **{p.name: p.nominal for p in effect.parameters}, **shape, **{n: 0.0 for n in effect.linear}}
+            v0 = {
+                **values,
+                **{p.name: p.nominal for p in effect.parameters},
+                **shape,
+                **{n: 0.0 for n in effect.linear},
+            }
             b0 = torque_balance(st.drive(v0, s), motor, w, acc)
             for name in effect.linear:
                 if name == "supply_linear_V":
                     continue  # the same column as the motor gain
                 step = next(p for p in effect.parameters if p.name == name).typical
-                columns.append((b0 - torque_balance(st.drive({**v0, name: step}, s), motor, w, acc)) / step)
+                columns.append(
+                    (b0 - torque_balance(st.drive({**v0, name: step}, s), motor, w, acc)) / step
+                )
                 owners.append(effect.name)
     c = motor.emf_damping_arm
     j = values["inertia_motor_side_kgm2"] * s.ratio**2

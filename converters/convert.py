@@ -36,11 +36,15 @@ class ConversionReport:
     n_loop_closures: int
     n_couplings: int
     n_meshes: int
-    degrees_of_freedom: int  # joint DOF minus independent loop and coupling constraints, at the assembly pose
+    degrees_of_freedom: (
+        int  # joint DOF minus independent loop and coupling constraints, at the assembly pose
+    )
     total_mass_kg: float  # of the compiled model (export masses plus any repair, see warnings)
     export_mass_kg: float  # sum of the part masses as the export states them
     warnings: list[str] = field(default_factory=list)
-    joint_origins: list[str] = field(default_factory=list)  # per export joint: what it came from, what it became
+    joint_origins: list[str] = field(
+        default_factory=list
+    )  # per export joint: what it came from, what it became
 
     @property
     def n_joints(self) -> int:
@@ -50,7 +54,10 @@ class ConversionReport:
         """The printed summary of a conversion, the one place for its wording. ``extra`` lines
         (quantities the simulator computes from the model) go after the totals, before the warnings;
         ``explain`` adds a line per joint naming the mates (or export joint) it came from."""
-        joints = ", ".join(f"{count} {kind}" for kind, count in self.joints_by_type.items() if count) or "none"
+        joints = (
+            ", ".join(f"{count} {kind}" for kind, count in self.joints_by_type.items() if count)
+            or "none"
+        )
         lines = [
             f"wrote {self.mjcf_path} ({self.export_format}, {self.n_parts} parts, {self.n_meshes} meshes in {self.mesh_dir})",
             f"bodies: {self.n_bodies}",
@@ -82,12 +89,22 @@ def check_conversion_memory(export_path: Path, geometry) -> None:
             size += Path(path).stat().st_size
         except OSError:
             continue  # a missing file is reported (as a warning) where it is read
-    check_memory(CONVERSION_BASE_BYTES + CONVERSION_BYTES_PER_INPUT_BYTE * size,
-                 f"converting {export_path.name} ({size / 2**20:.3g} MiB of export and geometry files)")
+    check_memory(
+        CONVERSION_BASE_BYTES + CONVERSION_BYTES_PER_INPUT_BYTE * size,
+        f"converting {export_path.name} ({size / 2**20:.3g} MiB of export and geometry files)",
+    )
 
 
-def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: str | None = "z",
-            drivers: tuple[str, ...] = (), ground: str | None = None) -> ConversionReport:
+def convert(
+    export_path,
+    outdir,
+    *,
+    name: str | None = None,
+    mesh_dir=None,
+    up: str | None = "z",
+    drivers: tuple[str, ...] = (),
+    ground: str | None = None,
+) -> ConversionReport:
     """Convert a CAD export to ``outdir/<name>.xml`` with meshes in ``mesh_dir`` (default ``outdir/meshes``).
 
     ``name`` defaults to the export's file stem. ``up`` is the export's world axis that points up
@@ -109,7 +126,9 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
 
     check_conversion_memory(export_path, [])
     assembly = read(export_path)
-    check_conversion_memory(export_path, [part.geometry for part in assembly.real_parts if part.geometry is not None])
+    check_conversion_memory(
+        export_path, [part.geometry for part in assembly.real_parts if part.geometry is not None]
+    )
     if up is None:
         up = detect_up(assembly)[0]
     gravity = mjcf.gravity_along(up)
@@ -120,11 +139,15 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
     joint_names = {j.name for j in assembly.joints} | {sanitize(j.name) for j in assembly.joints}
     for driver in drivers:
         if driver not in joint_names:
-            raise ExportError(f"export {export_path.name}: no joint {driver!r} to keep as a driver; close matches: "
-                              f"{', '.join(difflib.get_close_matches(driver, sorted(joint_names), 3)) or 'none'}")
+            raise ExportError(
+                f"export {export_path.name}: no joint {driver!r} to keep as a driver; close matches: "
+                f"{', '.join(difflib.get_close_matches(driver, sorted(joint_names), 3)) or 'none'}"
+            )
     plan = tree.plan(assembly, set(drivers))
     meshdir = os.path.relpath(mesh_dir.resolve(), outdir.resolve()).replace(os.sep, "/")
-    built = mjcf.build(assembly, plan, meshes, model_name=model_name, meshdir=meshdir, gravity=gravity)
+    built = mjcf.build(
+        assembly, plan, meshes, model_name=model_name, meshdir=meshdir, gravity=gravity
+    )
     used = {m.name: m for m in meshes.values() if m is not None}
 
     mjcf_path = outdir / f"{model_name}.xml"
@@ -139,16 +162,32 @@ def convert(export_path, outdir, *, name: str | None = None, mesh_dir=None, up: 
             xml = built.spec.to_xml()
             dof, locked = mobility(model)
         except Exception as exc:  # MuJoCo reports model errors as ValueError with several lines
-            raise ExportError(f"export {export_path.name}: MuJoCo rejects the converted model: {' '.join(str(exc).split())}") from None
+            raise ExportError(
+                f"export {export_path.name}: MuJoCo rejects the converted model: {' '.join(str(exc).split())}"
+            ) from None
         (stage_model / mjcf_path.name).write_text(xml, encoding="utf-8")
-        _publish(stage_model / mjcf_path.name, mjcf_path, [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()],
-                 inputs=[export_path, *(p.geometry for p in assembly.parts.values())])
+        _publish(
+            stage_model / mjcf_path.name,
+            mjcf_path,
+            [(stage_meshes / m.filename, mesh_dir / m.filename) for m in used.values()],
+            inputs=[export_path, *(p.geometry for p in assembly.parts.values())],
+        )
 
     return ConversionReport(
-        mjcf_path=mjcf_path, mesh_dir=mesh_dir, model_name=model_name, source=export_path,
-        export_format=assembly.format, n_parts=len(assembly.real_parts), n_bodies=built.n_bodies,
-        joints_by_type=dict(built.joints_by_type), n_loop_closures=built.n_closures, n_couplings=built.n_couplings,
-        n_meshes=len(used), degrees_of_freedom=dof, total_mass_kg=float(model.body_mass.sum()), export_mass_kg=assembly.total_mass,
+        mjcf_path=mjcf_path,
+        mesh_dir=mesh_dir,
+        model_name=model_name,
+        source=export_path,
+        export_format=assembly.format,
+        n_parts=len(assembly.real_parts),
+        n_bodies=built.n_bodies,
+        joints_by_type=dict(built.joints_by_type),
+        n_loop_closures=built.n_closures,
+        n_couplings=built.n_couplings,
+        n_meshes=len(used),
+        degrees_of_freedom=dof,
+        total_mass_kg=float(model.body_mass.sum()),
+        export_mass_kg=assembly.total_mass,
         warnings=assembly.warnings + plan.warnings + built.warnings + _locked_warning(locked),
         joint_origins=_joint_origins(assembly, plan, built),
     )
@@ -158,14 +197,28 @@ def ground_part(assembly, part: str) -> None:
     """Fix ``part`` (export or sanitised name) to the world: a synthetic weld to the ground."""
     from mechanism.converters.assembly import GROUND, Joint
 
-    matches = [p for p in assembly.parts.values() if not p.virtual and part in (p.name, sanitize(p.name))]
+    matches = [
+        p for p in assembly.parts.values() if not p.virtual and part in (p.name, sanitize(p.name))
+    ]
     if not matches:
         names = sorted({sanitize(p.name) for p in assembly.parts.values() if not p.virtual})
-        raise ExportError(f"export {assembly.source.name}: no part {part!r} to fix to the world; close matches: "
-                          f"{', '.join(difflib.get_close_matches(part, names, 3)) or 'none'}")
+        raise ExportError(
+            f"export {assembly.source.name}: no part {part!r} to fix to the world; close matches: "
+            f"{', '.join(difflib.get_close_matches(part, names, 3)) or 'none'}"
+        )
     chosen = matches[0]
-    assembly.joints.insert(0, Joint(name=f"ground:{sanitize(chosen.name)}", kind="weld", base=GROUND, follower=chosen.key,
-                                    base_frame=chosen.frame, follower_frame=chosen.frame, synthetic=True))
+    assembly.joints.insert(
+        0,
+        Joint(
+            name=f"ground:{sanitize(chosen.name)}",
+            kind="weld",
+            base=GROUND,
+            follower=chosen.key,
+            base_frame=chosen.frame,
+            follower_frame=chosen.frame,
+            synthetic=True,
+        ),
+    )
 
 
 def detect_up(assembly) -> tuple[str, str]:
@@ -175,8 +228,14 @@ def detect_up(assembly) -> tuple[str, str]:
         axis = int(np.argmax(np.abs(gravity)))
         down = ("-" if gravity[axis] < 0 else "") + "xyz"[axis]
         up = down[1:] if down.startswith("-") else "-" + down
-        return up, f"the export's gravity vector ({', '.join(f'{v:g}' for v in gravity)}) points along {down}"
-    return "z", "assumed: the export carries no gravity vector (give --up when its up axis is another)"
+        return (
+            up,
+            f"the export's gravity vector ({', '.join(f'{v:g}' for v in gravity)}) points along {down}",
+        )
+    return (
+        "z",
+        "assumed: the export carries no gravity vector (give --up when its up axis is another)",
+    )
 
 
 def _joint_origins(assembly, plan, built) -> list[str]:
@@ -188,7 +247,9 @@ def _joint_origins(assembly, plan, built) -> list[str]:
     for joint in assembly.joints:
         if joint.synthetic and not joint.sources:
             continue
-        origin = f"from mates {', '.join(joint.sources)}" if joint.sources else "from the export's joint"
+        origin = (
+            f"from mates {', '.join(joint.sources)}" if joint.sources else "from the export's joint"
+        )
         if id(joint) in closing:
             result = "closes a loop (a loop: equality constraint)"
         elif joint.name in built.joint_names:
@@ -205,8 +266,10 @@ def _locked_warning(locked: list[str]) -> list[str]:
     if not locked:
         return []
     shown = ", ".join(locked[:10]) + (f" and {len(locked) - 10} more" if len(locked) > 10 else "")
-    return [f"{len(locked)} joint(s) cannot move at the assembly pose because closed loops lock them: {shown} "
-            f"(check the export for welds or joints that over-constrain the mechanism)"]
+    return [
+        f"{len(locked)} joint(s) cannot move at the assembly pose because closed loops lock them: {shown} "
+        f"(check the export for welds or joints that over-constrain the mechanism)"
+    ]
 
 
 # Relative singular value below which a loop equation counts as dependent. Exports print 6 to 9
@@ -244,7 +307,9 @@ def mobility(model) -> tuple[int, list[str]]:
         return 0, []
     rank, free_motions = allowed_motions(model.qpos0)
     movable = np.zeros(model.nv, bool)
-    probes = [None] + [np.random.default_rng(k).normal(size=free_motions.shape[1]) for k in range(3)]
+    probes = [None] + [
+        np.random.default_rng(k).normal(size=free_motions.shape[1]) for k in range(3)
+    ]
     for direction in probes:
         qpos = model.qpos0.copy()
         if direction is not None:
@@ -259,7 +324,7 @@ def mobility(model) -> tuple[int, list[str]]:
     for joint in range(model.njnt):
         start = model.jnt_dofadr[joint]
         width = {0: 6, 1: 3}.get(int(model.jnt_type[joint]), 1)
-        if not movable[start:start + width].any():
+        if not movable[start : start + width].any():
             locked.append(model.joint(joint).name)
     return int(model.nv - rank), locked
 

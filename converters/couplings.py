@@ -57,8 +57,10 @@ def _joint(assembly: Assembly, name: str, where: str, role: str):
         hint = f" (did you mean {', '.join(close)}?)" if close else " (the export has no joints)"
         raise ExportError(f"{where}: {role} joint '{name}' does not exist in the export{hint}")
     if joint.dof != 1:
-        raise ExportError(f"{where}: {role} joint '{joint.name}' is a {joint.kind} joint with {joint.dof} degrees of "
-                          f"freedom; couplings need a 1-DOF revolute or prismatic joint")
+        raise ExportError(
+            f"{where}: {role} joint '{joint.name}' is a {joint.kind} joint with {joint.dof} degrees of "
+            f"freedom; couplings need a 1-DOF revolute or prismatic joint"
+        )
     return joint
 
 
@@ -72,9 +74,11 @@ def read_couplings(assembly: Assembly, path: Path | None = None) -> None:
     try:
         document = json.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ExportError(f"{where}: not valid JSON ({exc.__class__.__name__}: {str(exc)[:80]})") from None
+        raise ExportError(
+            f"{where}: not valid JSON ({exc.__class__.__name__}: {str(exc)[:80]})"
+        ) from None
     if not isinstance(document, dict) or document.get("format") != FORMAT:
-        raise ExportError(f"{where}: expected a JSON object with \"format\": \"{FORMAT}\"")
+        raise ExportError(f'{where}: expected a JSON object with "format": "{FORMAT}"')
     entries = document.get("couplings", [])
     if not isinstance(entries, list):
         raise ExportError(f"{where}: 'couplings' must be a list")
@@ -100,7 +104,16 @@ def read_couplings(assembly: Assembly, path: Path | None = None) -> None:
         if input_joint is output_joint:
             raise ExportError(f"{here}: input and output are the same joint '{input_joint.name}'")
         if offset_deg and input_joint.primitives[0].kind != "hinge":
-            raise ExportError(f"{here}: 'offset_deg' needs a revolute input joint, '{input_joint.name}' is {input_joint.kind}")
-        assembly.couplings.append(Coupling(name=name, kind=_text(entry, "kind", here, "coupling"),
-                                           input=input_joint.name, output=output_joint.name,
-                                           ratio=ratio, offset=math.radians(offset_deg)))
+            raise ExportError(
+                f"{here}: 'offset_deg' needs a revolute input joint, '{input_joint.name}' is {input_joint.kind}"
+            )
+        assembly.couplings.append(
+            Coupling(
+                name=name,
+                kind=_text(entry, "kind", here, "coupling"),
+                input=input_joint.name,
+                output=output_joint.name,
+                ratio=ratio,
+                offset=math.radians(offset_deg),
+            )
+        )

@@ -31,7 +31,17 @@ from typing import overload
 
 import numpy as np
 
-from mechanism.converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint, NamedFrame, Part, Primitive
+from mechanism.converters.assembly import (
+    BALL,
+    GROUND,
+    HINGE,
+    SLIDE,
+    Assembly,
+    Joint,
+    NamedFrame,
+    Part,
+    Primitive,
+)
 from mechanism.converters.errors import ExportError
 from mechanism.converters.pose import Pose, orthonormal
 from mechanism.converters.safety import MAX_DEPTH, numbers, resolve_inside
@@ -42,8 +52,13 @@ FORMAT = "first-generation PhysicalModelingXMLFile"
 # the model element: SimMechanics Link writes <SimMechanics>, Simscape Multibody Link 4.8 and later <SimscapeMultibody>
 MODEL_TAGS = ("SimMechanics", "SimscapeMultibody")
 
-PRIMITIVES = {"revolute": [HINGE], "prismatic": [SLIDE], "spherical": [BALL], "weld": [],
-              "cylindrical": [SLIDE, HINGE]}
+PRIMITIVES = {
+    "revolute": [HINGE],
+    "prismatic": [SLIDE],
+    "spherical": [BALL],
+    "weld": [],
+    "cylindrical": [SLIDE, HINGE],
+}
 
 
 @overload
@@ -76,17 +91,25 @@ class _Reader:
 
     # -- structure ---------------------------------------------------------------------------
     def read(self, root) -> Assembly:
-        if str(root.tag).rsplit("}", 1)[-1] in MODEL_TAGS:  # the model element written as the document's root
+        if (
+            str(root.tag).rsplit("}", 1)[-1] in MODEL_TAGS
+        ):  # the model element written as the document's root
             model = root
         else:
             model = next((root.find(tag) for tag in MODEL_TAGS if root.find(tag) is not None), None)
         if model is None:
-            raise ExportError(f"export {self.path}: <{ROOT_TAG}> has no <SimMechanics> (or <SimscapeMultibody>) element")
+            raise ExportError(
+                f"export {self.path}: <{ROOT_TAG}> has no <SimMechanics> (or <SimscapeMultibody>) element"
+            )
         title = _text(root, "name") or _text(model, "name")
         if title:
             self.assembly.name = title
         levels = list(self._levels(model, ()))
-        counts = Counter(_text(body, "name", "") for _, level in levels for body in _children(level, "bodies", "Body"))
+        counts = Counter(
+            _text(body, "name", "")
+            for _, level in levels
+            for body in _children(level, "bodies", "Body")
+        )
         for path, level in levels:
             for body in _children(level, "bodies", "Body"):
                 self._body(body, path, counts)
@@ -98,14 +121,18 @@ class _Reader:
                 if element.tag == "SimpleJoint":
                     self._joint(element)
                 else:
-                    self.assembly.warn(f"joint element <{element.tag}> is not supported by the first-generation reader: ignored")
+                    self.assembly.warn(
+                        f"joint element <{element.tag}> is not supported by the first-generation reader: ignored"
+                    )
         if not self.assembly.real_parts:
             raise ExportError(f"export {self.path}: contains no bodies")
         return self.assembly
 
     def _levels(self, level, path: tuple):
         if len(path) > MAX_DEPTH:
-            raise ExportError(f"export {self.path}: subsystems nested more than {MAX_DEPTH} levels deep")
+            raise ExportError(
+                f"export {self.path}: subsystems nested more than {MAX_DEPTH} levels deep"
+            )
         yield path, level
         for subsystem in _children(level, "subsystems", "Subsystem"):
             yield from self._levels(subsystem, path + (_text(subsystem, "name", "subsystem"),))
@@ -120,14 +147,18 @@ class _Reader:
             if name in poses:
                 return poses[name]
             if name in stack:
-                raise ExportError(f"{where}: frames {' -> '.join(stack + (name,))} are placed relative to each other in a cycle")
+                raise ExportError(
+                    f"{where}: frames {' -> '.join(stack + (name,))} are placed relative to each other in a cycle"
+                )
             frame = by_name[name]
             here = f"{where}, frame {name}"
             unit = length_factor(_text(frame, "positionUnits", "m"), here)
             position = _floats(_text(frame, "position"), 3, f"{here}: position") * unit
             kind = _text(frame, "orientationType", "3x3 Transform")
             if kind.lower().replace(" ", "") != "3x3transform":
-                raise ExportError(f"{here}: orientationType '{kind}' is not supported (expected '3x3 Transform')")
+                raise ExportError(
+                    f"{here}: orientationType '{kind}' is not supported (expected '3x3 Transform')"
+                )
             values = _floats(_text(frame, "orientation"), 9, f"{here}: orientation")
             local_rotation = orthonormal(values.reshape(3, 3).T, f"{here}: orientation")
 
@@ -137,7 +168,9 @@ class _Reader:
                     return Pose()
                 if ref in by_name:
                     return pose_of(ref, stack + (name,))
-                raise ExportError(f"{here}: {tag} '{ref}' is neither WORLD nor a frame of this body")
+                raise ExportError(
+                    f"{here}: {tag} '{ref}' is neither WORLD nor a frame of this body"
+                )
 
             origin = reference("positionOrigin").position
             axes = reference("positionReferenceFrame").rotation
@@ -169,10 +202,14 @@ class _Reader:
         for i, frame in enumerate(frames):
             self._register(frame, key, poses[_frame_name(frame, i)])
 
-        mass = _number(_text(body, "mass", "0"), f"{where}: mass") * mass_factor(_text(body, "massUnits", "kg"), where)
+        mass = _number(_text(body, "mass", "0"), f"{where}: mass") * mass_factor(
+            _text(body, "massUnits", "kg"), where
+        )
         if mass < 0:
             raise ExportError(f"{where}: negative mass {mass:g} kg")
-        inertia = _floats(_text(body, "inertia", "0,0,0,0,0,0,0,0,0"), 9, f"{where}: inertia").reshape(3, 3)
+        inertia = _floats(
+            _text(body, "inertia", "0,0,0,0,0,0,0,0,0"), 9, f"{where}: inertia"
+        ).reshape(3, 3)
         inertia = inertia * inertia_factor(_text(body, "inertiaUnits", "kg*m^2"), where)
         cg = poses.get("CG")
         if cg is None:
@@ -184,30 +221,56 @@ class _Reader:
         part_frame_name = "CS1" if "CS1" in poses else next((n for n in poses if n != "CG"), None)
         part_frame = poses[part_frame_name] if part_frame_name else cg
         unit_frame = next((f for f in frames if _text(f, "name") == part_frame_name), None)
-        scale = length_factor(_text(unit_frame, "positionUnits", "m"), where) if unit_frame is not None else 1.0
+        scale = (
+            length_factor(_text(unit_frame, "positionUnits", "m"), where)
+            if unit_frame is not None
+            else 1.0
+        )
 
         volume = None
         volume_text = _text(body, "volume")
         if volume_text:
-            volume = _number(volume_text, f"{where}: volume") * volume_factor(_text(body, "volumeUnits", "m^3"), where)
+            volume = _number(volume_text, f"{where}: volume") * volume_factor(
+                _text(body, "volumeUnits", "m^3"), where
+            )
             volume = volume if volume > 0 else None
 
         geometry_name = _text(body, "geometryFileName", "") or ""
-        geometry = resolve_inside(self.folder, geometry_name, f"{where}: geometryFileName") if geometry_name else None
+        geometry = (
+            resolve_inside(self.folder, geometry_name, f"{where}: geometryFileName")
+            if geometry_name
+            else None
+        )
 
         color = (0.7, 0.7, 0.7, 1.0)
         material = body.find("MaterialProp")
         if material is not None and _text(material, "color"):
             rgb = np.clip(_floats(_text(material, "color"), 3, f"{where}: color"), 0, 1)
-            transparency = float(np.clip(_number(_text(material, "transparency", "0"), f"{where}: transparency"), 0, 1))
+            transparency = float(
+                np.clip(
+                    _number(_text(material, "transparency", "0"), f"{where}: transparency"), 0, 1
+                )
+            )
             color = (*rgb.tolist(), 1.0 - transparency)
 
-        named = [NamedFrame(display_name, poses[_frame_name(frame, i)])
-                 for i, frame in enumerate(frames) if (display_name := _text(frame, "displayName"))]
+        named = [
+            NamedFrame(display_name, poses[_frame_name(frame, i)])
+            for i, frame in enumerate(frames)
+            if (display_name := _text(frame, "displayName"))
+        ]
         self.assembly.parts[key] = Part(
-            key=key, name=name, mass=mass, com=cg.position, inertia=inertia_world, frame=part_frame,
-            geometry=geometry, geometry_name=geometry_name, geometry_scale=scale, color=color,
-            volume=volume, frames=named,
+            key=key,
+            name=name,
+            mass=mass,
+            com=cg.position,
+            inertia=inertia_world,
+            frame=part_frame,
+            geometry=geometry,
+            geometry_name=geometry_name,
+            geometry_scale=scale,
+            color=color,
+            volume=volume,
+            frames=named,
         )
 
     def _ground(self, ground) -> None:
@@ -224,7 +287,9 @@ class _Reader:
             raise ExportError(f"{where}: has no {side} frame")
         ref = frame.get("ref")
         if ref is None or ref not in self.frame_refs:
-            raise ExportError(f"{where}: {side} frame ref {ref!r} is not a frame of any body or ground")
+            raise ExportError(
+                f"{where}: {side} frame ref {ref!r} is not a frame of any body or ground"
+            )
         return self.frame_refs[ref]
 
     def _joint(self, element) -> None:
@@ -239,21 +304,36 @@ class _Reader:
         for primitive in element.findall("primitives/Primitive"):
             kind = (_text(primitive, "name", "") or "").lower()
             if kind not in PRIMITIVES:
-                self.assembly.warn(f"joint {name}: primitive '{kind}' is not supported: ignored (the joint loses that freedom)")
+                self.assembly.warn(
+                    f"joint {name}: primitive '{kind}' is not supported: ignored (the joint loses that freedom)"
+                )
                 continue
             kinds.append(kind)
             if not PRIMITIVES[kind]:
                 continue
             axis = _floats(_text(primitive, "axis", "0,0,1"), 3, f"{where}: axis")
-            axis = self._axis_in_world(axis, _text(primitive, "referenceFrame", "WORLD"), base, follower, where)
+            axis = self._axis_in_world(
+                axis, _text(primitive, "referenceFrame", "WORLD"), base, follower, where
+            )
             primitives += [Primitive(k, axis) for k in PRIMITIVES[kind]]
         kind = "weld" if not primitives else "+".join(k for k in kinds if k != "weld")
         if kind in ("prismatic+revolute", "revolute+prismatic"):
             kind = "cylindrical"
-        self.assembly.joints.append(Joint(name=name, kind=kind, base=base, follower=follower,
-                                          base_frame=base_pose, follower_frame=follower_pose, primitives=primitives))
+        self.assembly.joints.append(
+            Joint(
+                name=name,
+                kind=kind,
+                base=base,
+                follower=follower,
+                base_frame=base_pose,
+                follower_frame=follower_pose,
+                primitives=primitives,
+            )
+        )
 
-    def _axis_in_world(self, axis, reference: str, base: str, follower: str, where: str) -> np.ndarray:
+    def _axis_in_world(
+        self, axis, reference: str, base: str, follower: str, where: str
+    ) -> np.ndarray:
         norm = np.linalg.norm(axis)
         if norm < 1e-12:
             raise ExportError(f"{where}: primitive axis is zero")
@@ -264,7 +344,9 @@ class _Reader:
             pose = self.frame_names.get(key, {}).get(reference)
             if pose is not None:
                 return pose.rotation @ axis
-        raise ExportError(f"{where}: axis referenceFrame '{reference}' is neither WORLD nor a frame of its bodies")
+        raise ExportError(
+            f"{where}: axis referenceFrame '{reference}' is neither WORLD nor a frame of its bodies"
+        )
 
 
 def _frame_name(frame, index: int) -> str:

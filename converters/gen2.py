@@ -31,7 +31,16 @@ from pathlib import Path
 import numpy as np
 
 from mechanism.converters import mates, relations
-from mechanism.converters.assembly import BALL, GROUND, HINGE, SLIDE, Assembly, Joint, Part, Primitive
+from mechanism.converters.assembly import (
+    BALL,
+    GROUND,
+    HINGE,
+    SLIDE,
+    Assembly,
+    Joint,
+    Part,
+    Primitive,
+)
 from mechanism.converters.errors import ExportError
 from mechanism.converters.mates import Mate, MateGeometry
 from mechanism.converters.pose import Pose, orthonormal
@@ -39,20 +48,48 @@ from mechanism.converters.safety import MAX_DEPTH, numbers, resolve_inside
 from mechanism.converters.units import length_factor, mass_factor
 
 ROOT_TAG = "SimscapeMultibodyImportXML"
-LEGACY_ROOT_TAG = "SimMechanicsImportXML"  # the same format as SimMechanics Link 4.x (2013-2016) wrote it
+LEGACY_ROOT_TAG = (
+    "SimMechanicsImportXML"  # the same format as SimMechanics Link 4.x (2013-2016) wrote it
+)
 
-_P = {"Px": (SLIDE, 0), "Py": (SLIDE, 1), "Pz": (SLIDE, 2), "Rx": (HINGE, 0), "Ry": (HINGE, 1), "Rz": (HINGE, 2),
-      "S": (BALL, 2)}
+_P = {
+    "Px": (SLIDE, 0),
+    "Py": (SLIDE, 1),
+    "Pz": (SLIDE, 2),
+    "Rx": (HINGE, 0),
+    "Ry": (HINGE, 1),
+    "Rz": (HINGE, 2),
+    "S": (BALL, 2),
+}
 JOINT_PRIMITIVES = {
-    "revolute": ["Rz"], "prismatic": ["Pz"], "cylindrical": ["Pz", "Rz"], "spherical": ["S"],
-    "weld": [], "rigid": [], "fixed": [],
-    "planar": ["Px", "Py", "Rz"], "universal": ["Rx", "Ry"], "gimbal": ["Rx", "Ry", "Rz"],
-    "sixdof": ["Px", "Py", "Pz", "S"], "6dof": ["Px", "Py", "Pz", "S"], "free": ["Px", "Py", "Pz", "S"],
-    "rectangular": ["Px", "Py"], "cartesian": ["Px", "Py", "Pz"], "pinslot": ["Px", "Rz"],
-    "telescoping": ["Pz", "S"], "bearing": ["Pz", "Rx", "Ry", "Rz"],
-    "bushing": ["Px", "Py", "Pz", "Rx", "Ry", "Rz"], "leadscrew": ["Rz", "Pz"], "constantvelocity": ["Rx", "Ry"],
+    "revolute": ["Rz"],
+    "prismatic": ["Pz"],
+    "cylindrical": ["Pz", "Rz"],
+    "spherical": ["S"],
+    "weld": [],
+    "rigid": [],
+    "fixed": [],
+    "planar": ["Px", "Py", "Rz"],
+    "universal": ["Rx", "Ry"],
+    "gimbal": ["Rx", "Ry", "Rz"],
+    "sixdof": ["Px", "Py", "Pz", "S"],
+    "6dof": ["Px", "Py", "Pz", "S"],
+    "free": ["Px", "Py", "Pz", "S"],
+    "rectangular": ["Px", "Py"],
+    "cartesian": ["Px", "Py", "Pz"],
+    "pinslot": ["Px", "Rz"],
+    "telescoping": ["Pz", "S"],
+    "bearing": ["Pz", "Rx", "Ry", "Rz"],
+    "bushing": ["Px", "Py", "Pz", "Rx", "Ry", "Rz"],
+    "leadscrew": ["Rz", "Pz"],
+    "constantvelocity": ["Rx", "Ry"],
     # names CAD tools use for the same joints (Onshape mate types, SolidWorks/Inventor wording)
-    "fastened": [], "slider": ["Pz"], "ball": ["S"], "pin": ["Rz"], "hinge": ["Rz"], "slot": ["Px", "Rz"],
+    "fastened": [],
+    "slider": ["Pz"],
+    "ball": ["S"],
+    "pin": ["Rz"],
+    "hinge": ["Rz"],
+    "slot": ["Px", "Rz"],
 }
 APPROXIMATED = {
     "bushing": "its stiffness and damping are not modelled: it becomes 3 slides and 3 hinges",
@@ -91,9 +128,15 @@ class _Reader:
     def __init__(self, path: Path, root_tag: str):
         self.path = Path(path)
         self.folder = self.path.parent
-        self.assembly = Assembly(name=self.path.stem, source=self.path, format=f"second-generation {root_tag}")
-        self.nodes: dict[str, tuple] = {}  # instance key -> (parent node key, element, is_assembly, entity uid)
-        self.scope_uids: dict[str, str | None] = {}  # assembly instance key ("" for the root) -> its own uid
+        self.assembly = Assembly(
+            name=self.path.stem, source=self.path, format=f"second-generation {root_tag}"
+        )
+        self.nodes: dict[
+            str, tuple
+        ] = {}  # instance key -> (parent node key, element, is_assembly, entity uid)
+        self.scope_uids: dict[
+            str, str | None
+        ] = {}  # assembly instance key ("" for the root) -> its own uid
 
     def read(self, root) -> Assembly:
         # numbers are in DataUnits; exports without it (Creo's Simscape Multibody Link 6) write them in ModelUnits
@@ -101,20 +144,30 @@ class _Reader:
         if units is None:
             units = _child(root, "ModelUnits")
         where = f"export {self.path.name}"
-        self.length = length_factor(units.get("length", "meter") if units is not None else "meter", f"{where}: DataUnits")
-        self.mass = mass_factor(units.get("mass", "kilogram") if units is not None else "kilogram", f"{where}: DataUnits")
+        self.length = length_factor(
+            units.get("length", "meter") if units is not None else "meter", f"{where}: DataUnits"
+        )
+        self.mass = mass_factor(
+            units.get("mass", "kilogram") if units is not None else "kilogram",
+            f"{where}: DataUnits",
+        )
         self.assembly.gravity = _gravity(root)
         top = _child(root, "RootAssembly")
         if top is None:
             raise ExportError(f"{where}: has no <RootAssembly>")
         self.assembly.name = top.get("name") or self.assembly.name
         self.part_entities = {p.get("uid"): p for p in _children(_child(root, "Parts"), "Part")}
-        self.assembly_entities = {a.get("uid"): a for a in _children(_child(root, "Assemblies"), "Assembly")}
+        self.assembly_entities = {
+            a.get("uid"): a for a in _children(_child(root, "Assemblies"), "Assembly")
+        }
         self._instances(_child(top, "InstanceTree"), "", Pose(), 0)
         if not self.assembly.real_parts:
             raise ExportError(f"{where}: the instance tree contains no parts")
-        scopes = [("", top)] + [(key, self.assembly_entities[entity]) for key, (_, _, is_asm, entity) in self.nodes.items()
-                                if is_asm and entity in self.assembly_entities]
+        scopes = [("", top)] + [
+            (key, self.assembly_entities[entity])
+            for key, (_, _, is_asm, entity) in self.nodes.items()
+            if is_asm and entity in self.assembly_entities
+        ]
         # a path naming the assembly itself is its origin (SolidWorks writes mates to the origin so)
         self.scope_uids = {prefix: scope.get("uid") for prefix, scope in scopes}
         referenced: set[str] = set()
@@ -139,7 +192,9 @@ class _Reader:
         self.assembly.joints.extend(self._fix_instances(referenced))
         names = {key: part.name for key, part in self.assembly.parts.items()}
         welded = [(j.base, j.follower) for j in self.assembly.joints if j.is_weld]
-        origins = frozenset({GROUND} | {key for key, (_, _, is_asm, _) in self.nodes.items() if is_asm})
+        origins = frozenset(
+            {GROUND} | {key for key, (_, _, is_asm, _) in self.nodes.items() if is_asm}
+        )
         inferred = mates.infer_joints(mate_list, welded, names, origins)
         self.assembly.joints.extend(inferred.joints)
         for message in inferred.warnings:
@@ -151,7 +206,9 @@ class _Reader:
     # -- instance tree ----------------------------------------------------------------------
     def _instances(self, element, parent: str, parent_pose: Pose, depth: int) -> None:
         if depth > MAX_DEPTH:
-            raise ExportError(f"export {self.path.name}: instances nested more than {MAX_DEPTH} levels deep")
+            raise ExportError(
+                f"export {self.path.name}: instances nested more than {MAX_DEPTH} levels deep"
+            )
         for instance in _children(element, "Instance"):
             uid = instance.get("uid") or f"#{len(self.nodes)}"
             key = f"{parent}/{uid}" if parent else uid
@@ -162,52 +219,93 @@ class _Reader:
             nested = _children(instance, "Instance")
             if entity in self.part_entities and not nested:
                 self.nodes[key] = (parent, instance, False, entity)
-                self.assembly.parts[key] = self._part(self.part_entities[entity], key, name, pose, where)
+                self.assembly.parts[key] = self._part(
+                    self.part_entities[entity], key, name, pose, where
+                )
             elif nested or entity in self.assembly_entities:
                 self.nodes[key] = (parent, instance, True, entity)
-                self.assembly.parts[key] = Part(key=key, name=name, mass=0.0, com=pose.position, inertia=np.zeros((3, 3)),
-                                                frame=pose, virtual=True)
+                self.assembly.parts[key] = Part(
+                    key=key,
+                    name=name,
+                    mass=0.0,
+                    com=pose.position,
+                    inertia=np.zeros((3, 3)),
+                    frame=pose,
+                    virtual=True,
+                )
                 self._instances(instance, key, pose, depth + 1)
             else:
-                self.assembly.warn(f"instance {instance.get('name', uid)} refers to entity {entity!r}, which is neither "
-                                   f"a part nor an assembly of the export: ignored")
+                self.assembly.warn(
+                    f"instance {instance.get('name', uid)} refers to entity {entity!r}, which is neither "
+                    f"a part nor an assembly of the export: ignored"
+                )
 
     def _transform(self, element, where: str) -> Pose:
         if element is None:
             return Pose()
         rotation = _numbers(_child(element, "Rotation"), 9, f"{where}: Rotation").reshape(3, 3)
-        translation = _numbers(_child(element, "Translation"), 3, f"{where}: Translation") * self.length
+        translation = (
+            _numbers(_child(element, "Translation"), 3, f"{where}: Translation") * self.length
+        )
         return Pose(orthonormal(rotation, f"{where}: Rotation"), translation)
 
     def _part(self, entity, key: str, name: str, pose: Pose, where: str) -> Part:
         where = f"{where} (part {entity.get('name', '')})"
         props = _child(entity, "MassProperties")
-        mass = float(_numbers(_child(props, "Mass"), 1, f"{where}: Mass")[0]) * self.mass if props is not None else 0.0
+        mass = (
+            float(_numbers(_child(props, "Mass"), 1, f"{where}: Mass")[0]) * self.mass
+            if props is not None
+            else 0.0
+        )
         if mass < 0:
             raise ExportError(f"{where}: negative mass {mass:g} kg")
-        com = _numbers(_child(props, "CenterOfMass"), 3, f"{where}: CenterOfMass") * self.length if props is not None else np.zeros(3)
+        com = (
+            _numbers(_child(props, "CenterOfMass"), 3, f"{where}: CenterOfMass") * self.length
+            if props is not None
+            else np.zeros(3)
+        )
         inertia_element = _child(props, "Inertia") if props is not None else None
         tensor = np.zeros((3, 3))
         resolution = 0.0
         if inertia_element is not None:
             ixx, iyy, izz, iyz, izx, ixy = _numbers(inertia_element, 6, f"{where}: Inertia")
-            tensor = np.array([[ixx, ixy, izx], [ixy, iyy, iyz], [izx, iyz, izz]]) * self.mass * self.length**2
+            tensor = (
+                np.array([[ixx, ixy, izx], [ixy, iyy, iyz], [izx, iyz, izz]])
+                * self.mass
+                * self.length**2
+            )
             decimals = _decimals(inertia_element)
             resolution = 0.5 * 10.0**-decimals * self.mass * self.length**2 if decimals else 0.0
         geometry_element = _child(entity, "GeometryFile")
         geometry_name = (geometry_element.get("name") or "") if geometry_element is not None else ""
-        geometry = resolve_inside(self.folder, geometry_name, f"{where}: GeometryFile") if geometry_name else None
+        geometry = (
+            resolve_inside(self.folder, geometry_name, f"{where}: GeometryFile")
+            if geometry_name
+            else None
+        )
         color: tuple[float, ...] = (0.7, 0.7, 0.7, 1.0)  # RGBA
         diffuse = _child(_child(entity, "VisualProperties"), "Diffuse")
         if diffuse is not None:
             try:
-                color = tuple(float(np.clip(float(diffuse.get(c, d)), 0, 1)) for c, d in zip("rgba", (0.7, 0.7, 0.7, 1)))
+                color = tuple(
+                    float(np.clip(float(diffuse.get(c, d)), 0, 1))
+                    for c, d in zip("rgba", (0.7, 0.7, 0.7, 1))
+                )
             except ValueError:
                 self.assembly.warn(f"{where}: colour is not numeric: using grey")
-        return Part(key=key, name=name, mass=mass, com=pose.apply(com),
-                    inertia=pose.rotation @ tensor @ pose.rotation.T, frame=pose, geometry=geometry,
-                    geometry_name=geometry_name, geometry_scale=self.length, color=color,
-                    inertia_resolution=resolution)
+        return Part(
+            key=key,
+            name=name,
+            mass=mass,
+            com=pose.apply(com),
+            inertia=pose.rotation @ tensor @ pose.rotation.T,
+            frame=pose,
+            geometry=geometry,
+            geometry_name=geometry_name,
+            geometry_scale=self.length,
+            color=color,
+            inertia_resolution=resolution,
+        )
 
     # -- joints and mates --------------------------------------------------------------------
     def _instance_key(self, element, prefix: str, where: str) -> str:
@@ -223,7 +321,9 @@ class _Reader:
             return prefix or GROUND
         key = "/".join(([prefix] if prefix else []) + uids)
         if key not in self.assembly.parts:
-            raise ExportError(f"{where}: InstancePath {'/'.join(uids)} is not an instance of the export")
+            raise ExportError(
+                f"{where}: InstancePath {'/'.join(uids)} is not an instance of the export"
+            )
         return key
 
     def _pose_of(self, key: str) -> Pose:
@@ -241,12 +341,18 @@ class _Reader:
         where = f"export {self.path.name}, joint {name}"
         kind = re.sub(r"[^a-z0-9]", "", tag.lower()).removesuffix("joint") or tag.lower()
         try:
-            base, base_frame = self._frame(_child(element, "BaseFrame"), prefix, f"{where}: BaseFrame")
-            follower, follower_frame = self._frame(_child(element, "FollowerFrame"), prefix, f"{where}: FollowerFrame")
+            base, base_frame = self._frame(
+                _child(element, "BaseFrame"), prefix, f"{where}: BaseFrame"
+            )
+            follower, follower_frame = self._frame(
+                _child(element, "FollowerFrame"), prefix, f"{where}: FollowerFrame"
+            )
         except ExportError as exc:
             if "InstancePath" not in str(exc):
                 raise
-            self.assembly.warn(f"joint {name} is ignored: {str(exc).split(': ', 2)[-1]} (a suppressed or deleted part?)")
+            self.assembly.warn(
+                f"joint {name} is ignored: {str(exc).split(': ', 2)[-1]} (a suppressed or deleted part?)"
+            )
             return None
         if kind not in JOINT_PRIMITIVES:
             self.assembly.warn(f"joint {name}: type <{tag}> is not supported: treated as a weld")
@@ -256,9 +362,19 @@ class _Reader:
         if base == follower:
             self.assembly.warn(f"joint {name} joins two frames of one part: ignored")
             return None
-        primitives = [Primitive(_P[p][0], base_frame.rotation[:, _P[p][1]].copy()) for p in JOINT_PRIMITIVES[kind]]
-        return Joint(name=name, kind=kind if primitives else "weld", base=base, follower=follower,
-                     base_frame=base_frame, follower_frame=follower_frame, primitives=primitives)
+        primitives = [
+            Primitive(_P[p][0], base_frame.rotation[:, _P[p][1]].copy())
+            for p in JOINT_PRIMITIVES[kind]
+        ]
+        return Joint(
+            name=name,
+            kind=kind if primitives else "weld",
+            base=base,
+            follower=follower,
+            base_frame=base_frame,
+            follower_frame=follower_frame,
+            primitives=primitives,
+        )
 
     def _mate(self, element, prefix: str) -> Mate | None:
         """A CAD mate: two ``ConstraintGeometry`` (geomType, InstancePath, Position and Axis in the
@@ -270,13 +386,20 @@ class _Reader:
         try:
             if len(sides) == 2:
                 first, second = (self._mate_geometry(side, prefix, where) for side in sides)
-            elif _child(element, "BaseFrame") is not None and _child(element, "FollowerFrame") is not None:
-                first, second = (self._frame_geometry(_child(element, side), prefix, where, tag)
-                                 for side in ("BaseFrame", "FollowerFrame"))
+            elif (
+                _child(element, "BaseFrame") is not None
+                and _child(element, "FollowerFrame") is not None
+            ):
+                first, second = (
+                    self._frame_geometry(_child(element, side), prefix, where, tag)
+                    for side in ("BaseFrame", "FollowerFrame")
+                )
             else:
                 first = second = None
         except ExportError as exc:
-            self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
+            self.assembly.warn(
+                f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}"
+            )
             return None
         if first is not None and second is not None:
             return Mate(name=name, tag=tag, first=first, second=second)
@@ -291,21 +414,33 @@ class _Reader:
         elements directly in the constraint; other exporters put each in a geometry-less side."""
         paths = _children(element, "InstancePath")
         if len(paths) != 2:
-            paths = [_child(side, "InstancePath") for side in element if _child(side, "InstancePath") is not None]
+            paths = [
+                _child(side, "InstancePath")
+                for side in element
+                if _child(side, "InstancePath") is not None
+            ]
         if len(paths) != 2:
-            self.assembly.warn(f"constraint {name} <{tag}> names {len(paths)} instance(s), not two: ignored")
+            self.assembly.warn(
+                f"constraint {name} <{tag}> names {len(paths)} instance(s), not two: ignored"
+            )
             return None
         try:
             keys = [self._path_key(path, prefix, where) for path in paths]
         except ExportError as exc:
-            self.assembly.warn(f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}")
+            self.assembly.warn(
+                f"constraint {name} <{tag}> is ignored: {str(exc).split(': ', 1)[-1]}"
+            )
             return None
-        first, second = (MateGeometry(part=key, shape="origin", position=self._pose_of(key).position, axis=None)
-                         for key in keys)
+        first, second = (
+            MateGeometry(part=key, shape="origin", position=self._pose_of(key).position, axis=None)
+            for key in keys
+        )
         if tag.lower() == "unknownconstraint":
-            self.assembly.warn(f"constraint {name} <{tag}> could not be described by the exporter: it fixes "
-                               f"{' and '.join('the world' if key == GROUND else self.assembly.parts[key].name for key in keys)} together, "
-                               "as Simscape's import does")
+            self.assembly.warn(
+                f"constraint {name} <{tag}> could not be described by the exporter: it fixes "
+                f"{' and '.join('the world' if key == GROUND else self.assembly.parts[key].name for key in keys)} together, "
+                "as Simscape's import does"
+            )
         return Mate(name=name, tag=tag, first=first, second=second)
 
     def _mate_geometry(self, element, prefix: str, where: str) -> MateGeometry | None:
@@ -321,17 +456,22 @@ class _Reader:
             local = _numbers(axis_element, 3, f"{where}: Axis")
             if np.linalg.norm(local) > 1e-12:
                 axis = pose.rotation @ (local / np.linalg.norm(local))
-        return MateGeometry(part=key, shape=(element.get("geomType") or "").lower(), position=position, axis=axis)
+        return MateGeometry(
+            part=key, shape=(element.get("geomType") or "").lower(), position=position, axis=axis
+        )
 
     def _frame_geometry(self, element, prefix: str, where: str, tag: str) -> MateGeometry:
         """A Simscape constraint block's frame as mate geometry: its origin (distance constraints)
         or its z axis through the origin (angle constraints)."""
         key, pose = self._frame(element, prefix, where)
         shape = "line" if "angle" in tag.lower() else "point"
-        return MateGeometry(part=key, shape=shape, position=pose.position, axis=pose.rotation[:, 2].copy())
+        return MateGeometry(
+            part=key, shape=shape, position=pose.position, axis=pose.rotation[:, 2].copy()
+        )
 
     def _relation_side(self, prefix: str):
         """For gear-like constraints: (element, where) -> (instance key, world pose) of one side."""
+
         def side(element, where):
             if _child(element, "Transform") is not None:
                 return self._frame(element, prefix, where)
@@ -341,6 +481,7 @@ class _Reader:
                 return key, self._pose_of(key)
             axis = geometry.axis if geometry.axis is not None else np.array([0, 0, 1.0])
             return geometry.part, Pose(mates.frame_with_z(axis), geometry.position)
+
         return side
 
     def _fix_instances(self, referenced: set[str]) -> list[Joint]:
@@ -352,8 +493,17 @@ class _Reader:
         def weld(anchor: str, key: str, reason: str) -> None:
             frame = self.assembly.parts[key].frame
             anchor_name = self.assembly.parts[anchor].name if anchor != GROUND else "world"
-            welds.append(Joint(name=f"{self.assembly.parts[key].name} {reason} {anchor_name}", kind="weld",
-                               base=anchor, follower=key, base_frame=frame, follower_frame=frame, synthetic=True))
+            welds.append(
+                Joint(
+                    name=f"{self.assembly.parts[key].name} {reason} {anchor_name}",
+                    kind="weld",
+                    base=anchor,
+                    follower=key,
+                    base_frame=frame,
+                    follower_frame=frame,
+                    synthetic=True,
+                )
+            )
 
         groups: dict[tuple[str, str], str] = {}
         for key, (parent, element, _, _) in self.nodes.items():
@@ -373,8 +523,10 @@ class _Reader:
         if element.get("rigid", "").lower() == "true":
             return True
         definition = self.assembly_entities.get(entity)
-        return definition is None or not (list(_child(definition, "Joints") or [])
-                                          or list(_child(definition, "Constraints") or []))
+        return definition is None or not (
+            list(_child(definition, "Joints") or [])
+            or list(_child(definition, "Constraints") or [])
+        )
 
 
 def _ancestors(key: str) -> set[str]:
@@ -387,12 +539,22 @@ def _gravity(root) -> np.ndarray | None:
     """The export's gravity vector where it carries one: a ``<Gravity>`` (or ``<GravityVector>``)
     element with three numbers as its text or as ``x``/``y``/``z`` (or ``value``) attributes."""
     for element in root.iter():
-        if not isinstance(element.tag, str) or _local(element.tag).lower() not in ("gravity", "gravityvector"):
+        if not isinstance(element.tag, str) or _local(element.tag).lower() not in (
+            "gravity",
+            "gravityvector",
+        ):
             continue
         texts = [element.get(k) for k in ("x", "y", "z")]
-        text = " ".join(texts) if None not in texts else (element.get("value") or element.text or "")
+        text = (
+            " ".join(texts) if None not in texts else (element.get("value") or element.text or "")
+        )
         try:
-            values = np.array([float(v) for v in text.replace(",", " ").replace("[", " ").replace("]", " ").split()])
+            values = np.array(
+                [
+                    float(v)
+                    for v in text.replace(",", " ").replace("[", " ").replace("]", " ").split()
+                ]
+            )
         except ValueError:
             continue
         if values.shape == (3,) and np.all(np.isfinite(values)) and np.linalg.norm(values) > 0:

@@ -21,7 +21,9 @@ from mechanism.converters.assembly import Assembly, Part
 from mechanism.converters.names import Namer
 from mechanism.converters.safety import MAX_GEOMETRY_BYTES
 
-STEP_LINEAR_DEFLECTION_MM = 0.05  # tessellation chord error: 0.05 mm is below CAD tolerances of machined parts
+STEP_LINEAR_DEFLECTION_MM = (
+    0.05  # tessellation chord error: 0.05 mm is below CAD tolerances of machined parts
+)
 STEP_ANGULAR_DEFLECTION_RAD = 0.5
 CONVEX_VOLUME_RATIO = 0.99
 PLAUSIBLE_DENSITY = (20.0, 30000.0)  # kg/m^3: foam to tungsten; outside it a mesh unit is wrong
@@ -62,16 +64,26 @@ def _load(path: Path, scale: float):
         raise GeometryError("file is empty")
     try:
         if file_type == "step":
-            loaded = trimesh.load(str(path), file_type="step", tol_linear=STEP_LINEAR_DEFLECTION_MM,
-                                  tol_angular=STEP_ANGULAR_DEFLECTION_RAD)
+            loaded = trimesh.load(
+                str(path),
+                file_type="step",
+                tol_linear=STEP_LINEAR_DEFLECTION_MM,
+                tol_angular=STEP_ANGULAR_DEFLECTION_RAD,
+            )
             scale = 1.0  # OpenCASCADE converts STEP units; glTF is in metres
         else:
             loaded = trimesh.load(io.BytesIO(path.read_bytes()), file_type=file_type, process=False)
     except Exception as exc:  # noqa: BLE001 - any reader failure means "unusable geometry"
-        raise GeometryError(f"cannot be read ({exc.__class__.__name__}: {' '.join(str(exc).split())[:120]})") from None
+        raise GeometryError(
+            f"cannot be read ({exc.__class__.__name__}: {' '.join(str(exc).split())[:120]})"
+        ) from None
     mesh: object = loaded  # a scene's flattening can be a list of geometries: checked below
     if isinstance(loaded, trimesh.Scene):
-        mesh = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded.dump(concatenate=True)
+        mesh = (
+            loaded.to_geometry()
+            if hasattr(loaded, "to_geometry")
+            else loaded.dump(concatenate=True)
+        )
     if not isinstance(mesh, trimesh.Trimesh):
         raise GeometryError("contains no triangles")
     vertices = np.asarray(mesh.vertices, dtype=float) * scale
@@ -82,7 +94,9 @@ def _load(path: Path, scale: float):
 def _clean(vertices: np.ndarray, faces: np.ndarray):
     finite = np.all(np.isfinite(vertices), axis=1)
     keep = finite[faces].all(axis=1)
-    keep &= (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+    keep &= (
+        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+    )
     faces = faces[keep]
     if len(faces) == 0:
         raise GeometryError("contains no usable triangles")
@@ -93,10 +107,16 @@ def _clean(vertices: np.ndarray, faces: np.ndarray):
 def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
     """A deterministic binary STL (float32, fixed header, zero attribute bytes)."""
     triangles = vertices[faces].astype(np.float32)
-    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]).astype(np.float64)
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]).astype(
+        np.float64
+    )
     lengths = np.linalg.norm(normals, axis=1, keepdims=True)
-    normals = np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0).astype(np.float32)
-    record = np.zeros(len(faces), dtype=[("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+    normals = np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0).astype(
+        np.float32
+    )
+    record = np.zeros(
+        len(faces), dtype=[("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")]
+    )
     record["normal"] = normals
     record["corners"] = triangles
     return STL_HEADER + struct.pack("<I", len(faces)) + record.tobytes()
@@ -135,8 +155,10 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
             missing.append(part.geometry_name)
             continue
         if isinstance(loaded, GeometryError):
-            assembly.warn(f"geometry file {part.geometry_name} of part {part.name} {loaded}: the part gets an "
-                          f"equivalent-inertia box instead")
+            assembly.warn(
+                f"geometry file {part.geometry_name} of part {part.name} {loaded}: the part gets an "
+                f"equivalent-inertia box instead"
+            )
             continue
         vertices, faces, has_units = loaded
         scale = 1.0 if has_units else _choose_scale(assembly, part, vertices, faces)
@@ -147,8 +169,10 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
     if missing:
         unique = list(dict.fromkeys(missing))
         shown = ", ".join(unique[:8]) + (f" and {len(unique) - 8} more" if len(unique) > 8 else "")
-        assembly.warn(f"{len(unique)} geometry file(s) are missing from {assembly.source.parent} ({shown}): "
-                      f"{len(missing)} part(s) get equivalent-inertia boxes instead of meshes")
+        assembly.warn(
+            f"{len(unique)} geometry file(s) are missing from {assembly.source.parent} ({shown}): "
+            f"{len(missing)} part(s) get equivalent-inertia boxes instead of meshes"
+        )
     return meshes
 
 
@@ -184,14 +208,19 @@ def _choose_scale(assembly: Assembly, part: Part, vertices, faces) -> float:
     the mesh in another common unit (then the density decides between candidates)."""
     if part.mass <= 0 or _holds_com(part, vertices, part.geometry_scale):
         return part.geometry_scale
-    fits = [(unit, scale) for unit, scale in ALTERNATIVE_UNITS.items()
-            if scale != part.geometry_scale and _holds_com(part, vertices, scale)]
+    fits = [
+        (unit, scale)
+        for unit, scale in ALTERNATIVE_UNITS.items()
+        if scale != part.geometry_scale and _holds_com(part, vertices, scale)
+    ]
     fits.sort(key=lambda fit: not _density_plausible(part, vertices, faces, fit[1]))
     if not fits:
         return part.geometry_scale
     unit, scale = fits[0]
-    assembly.warn(f"geometry file {part.geometry_name} of part {part.name} only fits the part's mass properties "
-                  f"in {unit}: read in {unit} instead of the export's length unit")
+    assembly.warn(
+        f"geometry file {part.geometry_name} of part {part.name} only fits the part's mass properties "
+        f"in {unit}: read in {unit} instead of the export's length unit"
+    )
     return scale
 
 
@@ -199,8 +228,13 @@ def _mesh(part: Part, vertices, faces, namer: Namer, by_digest: dict) -> Mesh:
     data = stl_bytes(vertices, faces)
     digest = hashlib.sha256(data).hexdigest()
     if digest not in by_digest:
-        by_digest[digest] = Mesh(name=namer(Path(part.geometry_name.replace("\\", "/")).stem), vertices=vertices,
-                                 faces=faces, data=data, convex=is_convex(vertices, faces))
+        by_digest[digest] = Mesh(
+            name=namer(Path(part.geometry_name.replace("\\", "/")).stem),
+            vertices=vertices,
+            faces=faces,
+            data=data,
+            convex=is_convex(vertices, faces),
+        )
     return by_digest[digest]
 
 
@@ -212,5 +246,7 @@ def _check_placement(assembly: Assembly, part: Part, mesh: Mesh) -> None:
     low, high = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
     margin = 0.25 * float(np.linalg.norm(high - low)) + 1e-6
     if np.any(com < low - margin) or np.any(com > high + margin):
-        assembly.warn(f"part {part.name}: its centre of mass lies outside its geometry ({part.geometry_name}); "
-                      f"check the geometry's units and frame")
+        assembly.warn(
+            f"part {part.name}: its centre of mass lies outside its geometry ({part.geometry_name}); "
+            f"check the geometry's units and frame"
+        )

@@ -13,7 +13,6 @@ import numpy as np
 from mechanism.tolerances import INERTIA_RELATIVE_TOLERANCE as RELATIVE_TOLERANCE
 
 
-
 def principal(inertia) -> tuple[np.ndarray, np.ndarray]:
     """Principal moments (ascending) and axes (columns, right-handed)."""
     moments, axes = np.linalg.eigh(0.5 * (np.asarray(inertia) + np.asarray(inertia).T))
@@ -88,7 +87,9 @@ def combine(items) -> MassProperties:
     items = list(items)
     mass = float(sum(m for m, _, _ in items))
     if mass <= 0:
-        return MassProperties(0.0, np.asarray(items[0][1], dtype=float) if items else np.zeros(3), np.zeros((3, 3)))
+        return MassProperties(
+            0.0, np.asarray(items[0][1], dtype=float) if items else np.zeros(3), np.zeros((3, 3))
+        )
     com = sum(m * np.asarray(c, dtype=float) for m, c, _ in items) / mass
     inertia = np.zeros((3, 3))
     for m, c, inertia_i in items:
@@ -112,8 +113,10 @@ def repair_parts(assembly, meshes: dict) -> None:
         replacement, method = _replacement(part, meshes.get(part.key))
         part.inertia = replacement
         moments, _ = principal(replacement)
-        assembly.warn(f"part {part.name}: the export's inertia tensor {problem}; replaced by {method} "
-                      f"(principal moments {_fmt(moments)} kg*m^2), check the part's mass properties in CAD")
+        assembly.warn(
+            f"part {part.name}: the export's inertia tensor {problem}; replaced by {method} "
+            f"(principal moments {_fmt(moments)} kg*m^2), check the part's mass properties in CAD"
+        )
 
 
 def _replacement(part, mesh) -> tuple[np.ndarray, str]:

@@ -15,7 +15,9 @@ from mechanism.converters.safety import parse_xml
 
 READERS = {
     gen1.ROOT_TAG: gen1.read,
-    **{tag: gen1.read for tag in gen1.MODEL_TAGS},  # a first-generation model element without its wrapper
+    **{
+        tag: gen1.read for tag in gen1.MODEL_TAGS
+    },  # a first-generation model element without its wrapper
     gen2.ROOT_TAG: gen2.read,
     gen2.LEGACY_ROOT_TAG: gen2.read,
 }
@@ -34,7 +36,9 @@ def read(export_path) -> Assembly:
     reader = READERS.get(tag)
     if reader is None:
         known = ", ".join(f"<{name}>" for name in READERS)
-        raise ExportError(f"export {path}: root element <{tag}> is not a known CAD export format (expected {known})")
+        raise ExportError(
+            f"export {path}: root element <{tag}> is not a known CAD export format (expected {known})"
+        )
     assembly = reader(root, path)
     read_couplings(assembly)
     return assembly

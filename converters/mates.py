@@ -39,27 +39,63 @@ from mechanism.tolerances import MATE_RANK_TOLERANCE as RANK_TOLERANCE, PIVOT_TO
 PLANE, AXIS, POINT = "plane", "axis", "point"
 SPHERE = "sphere"
 GEOMETRY_KINDS = {
-    "plane": PLANE, "face": PLANE, "planarface": PLANE, "surface": PLANE,
-    "cylinder": AXIS, "circle": AXIS, "arc": AXIS, "cone": AXIS, "line": AXIS, "axis": AXIS, "edge": AXIS,
-    "ellipse": AXIS, "torus": AXIS, "linearedge": AXIS, "circularedge": AXIS,
-    "point": POINT, "vertex": POINT, "sphere": POINT, "origin": POINT,
+    "plane": PLANE,
+    "face": PLANE,
+    "planarface": PLANE,
+    "surface": PLANE,
+    "cylinder": AXIS,
+    "circle": AXIS,
+    "arc": AXIS,
+    "cone": AXIS,
+    "line": AXIS,
+    "axis": AXIS,
+    "edge": AXIS,
+    "ellipse": AXIS,
+    "torus": AXIS,
+    "linearedge": AXIS,
+    "circularedge": AXIS,
+    "point": POINT,
+    "vertex": POINT,
+    "sphere": POINT,
+    "origin": POINT,
 }
 CIRCULAR = {"circle", "arc", "circularedge"}
 
 # mate names as CAD tools write them (SolidWorks, Inventor, Creo, Onshape) -> the kind analysed here
 MATE_KINDS = {
-    "coincident": "coincident", "mate": "coincident", "flush": "coincident", "align": "coincident",
-    "aligned": "coincident", "pointonline": "coincident", "pntonline": "coincident",
-    "pointonsurface": "coincident", "pntonsrf": "coincident", "coplanar": "coincident",
-    "concentric": "concentric", "coaxial": "concentric", "centered": "concentric",
+    "coincident": "coincident",
+    "mate": "coincident",
+    "flush": "coincident",
+    "align": "coincident",
+    "aligned": "coincident",
+    "pointonline": "coincident",
+    "pntonline": "coincident",
+    "pointonsurface": "coincident",
+    "pntonsrf": "coincident",
+    "coplanar": "coincident",
+    "concentric": "concentric",
+    "coaxial": "concentric",
+    "centered": "concentric",
     "insert": "insert",
-    "parallel": "parallel", "orient": "parallel",
-    "perpendicular": "perpendicular", "normal": "perpendicular",
-    "distance": "distance", "offset": "distance", "distanceconstraint": "distance",
-    "angle": "angle", "angleconstraint": "angle",
+    "parallel": "parallel",
+    "orient": "parallel",
+    "perpendicular": "perpendicular",
+    "normal": "perpendicular",
+    "distance": "distance",
+    "offset": "distance",
+    "distanceconstraint": "distance",
+    "angle": "angle",
+    "angleconstraint": "angle",
     "tangent": "tangent",
-    "lock": "weld", "rigid": "weld", "fixed": "weld", "fix": "weld", "fastened": "weld", "weld": "weld",
-    "default": "weld", "coordsys": "weld", "csys": "weld",
+    "lock": "weld",
+    "rigid": "weld",
+    "fixed": "weld",
+    "fix": "weld",
+    "fastened": "weld",
+    "weld": "weld",
+    "default": "weld",
+    "coordsys": "weld",
+    "csys": "weld",
     # a mate the exporter could not describe (a SolidWorks lock, width or symmetric mate): Simscape's
     # import makes it rigid (the Furuta export's Lock3: its DataFile has no joint between the two parts)
     "unknownconstraint": "weld",
@@ -80,7 +116,9 @@ class MateGeometry:
 
     @property
     def kind(self) -> str:
-        return GEOMETRY_KINDS.get(re.sub(r"[^a-z]", "", self.shape), POINT if self.axis is None else AXIS)
+        return GEOMETRY_KINDS.get(
+            re.sub(r"[^a-z]", "", self.shape), POINT if self.axis is None else AXIS
+        )
 
 
 @dataclass
@@ -122,6 +160,7 @@ class Inferred:
 
 # -- residuals -------------------------------------------------------------------------------
 
+
 def _direction(g: MateGeometry) -> np.ndarray | None:
     return g.axis if g.kind in (PLANE, AXIS) else None
 
@@ -153,7 +192,9 @@ def residuals(kind: str, a: MateGeometry, b: MateGeometry, scale: float) -> np.n
     a, b = _pair(a, b, (PLANE, AXIS, POINT))
     da, db = _direction(a), _direction(b)
     if (a.kind != POINT and da is None) or (b.kind != POINT and db is None):
-        return None  # a plane or an axis exported without its direction: it constrains nothing known
+        return (
+            None  # a plane or an axis exported without its direction: it constrains nothing known
+        )
     # from here a direction is None exactly for a point, and a point comes last in the pair's order
     gap = (b.position - a.position) / scale
     if kind in ("coincident", "distance", "tangent"):
@@ -207,7 +248,9 @@ def _moved(g: MateGeometry, twist: np.ndarray, centre: np.ndarray, scale: float)
     return MateGeometry(g.part, g.shape, position, axis)
 
 
-def jacobian(mates: list[tuple[str, MateGeometry, MateGeometry]], centre: np.ndarray, scale: float) -> np.ndarray:
+def jacobian(
+    mates: list[tuple[str, MateGeometry, MateGeometry]], centre: np.ndarray, scale: float
+) -> np.ndarray:
     """d(residuals)/d(twist of the second unit): twist = (rotation about ``centre`` [rad],
     translation [units of ``scale``]). ``mates``: (kind, geometry on unit A, geometry on unit B)."""
     rows = []
@@ -221,8 +264,12 @@ def jacobian(mates: list[tuple[str, MateGeometry, MateGeometry]], centre: np.nda
             step[i] = STEP
             plus = residuals(kind, a, _moved(b, step, centre, scale), scale)
             minus = residuals(kind, a, _moved(b, -step, centre, scale), scale)
-            if plus is None or minus is None:  # moving b changes no geometry kind: the mate was never usable
-                raise ValueError(f"a {kind} mate between a {a.kind} and a {b.kind} constrains nothing (see usable())")
+            if (
+                plus is None or minus is None
+            ):  # moving b changes no geometry kind: the mate was never usable
+                raise ValueError(
+                    f"a {kind} mate between a {a.kind} and a {b.kind} constrains nothing (see usable())"
+                )
             columns.append((plus - minus) / (2 * STEP))
         rows.append(np.array(columns).T)
     return np.vstack(rows) if rows else np.zeros((0, 6))
@@ -265,26 +312,47 @@ def freedoms(mates: list[tuple[str, MateGeometry, MateGeometry]]) -> Freedoms:
     anchor = _rotation_centre(rotations, translations, slides, spin_basis, centre)
     if r == 1:
         axis = _canonical(spin_basis[:, 0])
-        anchor = anchor + ((centre - anchor) @ axis) * axis  # the point of the axis nearest the mates
+        anchor = (
+            anchor + ((centre - anchor) @ axis) * axis
+        )  # the point of the axis nearest the mates
         along = [i for i in range(slides.shape[1]) if abs(slides[:, i] @ axis) > 0.999]
         across = _orthonormal_columns(slides - np.outer(axis, axis @ slides))
         if not slides.shape[1]:
             return Freedoms("revolute", [Primitive(HINGE, axis)], anchor, axis)
         if along and slides.shape[1] == 1:
-            return Freedoms("cylindrical", [Primitive(SLIDE, axis.copy()), Primitive(HINGE, axis)], anchor, axis)
+            return Freedoms(
+                "cylindrical", [Primitive(SLIDE, axis.copy()), Primitive(HINGE, axis)], anchor, axis
+            )
         if not along and across.shape[1] == 2 and slides.shape[1] == 2:
             frame = frame_with_z(axis)
-            return Freedoms("planar", [Primitive(SLIDE, frame[:, 0]), Primitive(SLIDE, frame[:, 1]),
-                                       Primitive(HINGE, axis)], anchor, axis)
+            return Freedoms(
+                "planar",
+                [
+                    Primitive(SLIDE, frame[:, 0]),
+                    Primitive(SLIDE, frame[:, 1]),
+                    Primitive(HINGE, axis),
+                ],
+                anchor,
+                axis,
+            )
         if not along and slides.shape[1] == 1:
-            return Freedoms("pinslot", [Primitive(SLIDE, across[:, 0].copy()), Primitive(HINGE, axis)], anchor, axis)
-        prims = [Primitive(SLIDE, slides[:, i].copy()) for i in range(slides.shape[1])] + [Primitive(HINGE, axis)]
+            return Freedoms(
+                "pinslot",
+                [Primitive(SLIDE, across[:, 0].copy()), Primitive(HINGE, axis)],
+                anchor,
+                axis,
+            )
+        prims = [Primitive(SLIDE, slides[:, i].copy()) for i in range(slides.shape[1])] + [
+            Primitive(HINGE, axis)
+        ]
         return Freedoms("compound", prims, anchor, axis)
     prims = [Primitive(SLIDE, slides[:, i].copy()) for i in range(slides.shape[1])]
     if r == 2:
         first, second = _canonical(spin_basis[:, 0]), _canonical(spin_basis[:, 1])
         kind = "universal" if not slides.shape[1] else "compound"
-        return Freedoms(kind, prims + [Primitive(HINGE, first), Primitive(HINGE, second)], anchor, first)
+        return Freedoms(
+            kind, prims + [Primitive(HINGE, first), Primitive(HINGE, second)], anchor, first
+        )
     kind = {0: "spherical", 3: "free"}.get(slides.shape[1], "compound")
     return Freedoms(kind, prims + [Primitive(BALL)], anchor, np.array([0, 0, 1.0]))
 
@@ -305,7 +373,11 @@ def _orthonormal_columns(matrix: np.ndarray) -> np.ndarray:
     basis = u[:, :rank]
     if rank == 3:
         return np.eye(3)
-    return np.column_stack([_canonical(basis[:, i]) for i in range(rank)]) if rank else np.zeros((3, 0))
+    return (
+        np.column_stack([_canonical(basis[:, i]) for i in range(rank)])
+        if rank
+        else np.zeros((3, 0))
+    )
 
 
 def _rotation_centre(rotations, translations, slides, spin_basis, centre) -> np.ndarray:
@@ -335,10 +407,13 @@ def _rotation_centre(rotations, translations, slides, spin_basis, centre) -> np.
 
 # -- from mates to joints --------------------------------------------------------------------
 
+
 def usable(mate: Mate) -> bool:
     """Whether the mate constrains the relative position of its two parts (so it makes a joint)."""
     kind = mate.kind
-    return kind is not None and (kind == "weld" or residuals(kind, mate.first, mate.second, 1.0) is not None)
+    return kind is not None and (
+        kind == "weld" or residuals(kind, mate.first, mate.second, 1.0) is not None
+    )
 
 
 def sphere_tangent(mate: Mate) -> bool:
@@ -351,8 +426,12 @@ def _shape(g: MateGeometry) -> str:
     return re.sub(r"[^a-z]", "", g.shape)
 
 
-def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: dict[str, str],
-                 origins: frozenset[str] = frozenset()) -> Inferred:
+def infer_joints(
+    mates: list[Mate],
+    rigid_links: list[tuple[str, str]],
+    names: dict[str, str],
+    origins: frozenset[str] = frozenset(),
+) -> Inferred:
     """Joints (and welds) between the units the ``mates`` join. ``rigid_links``: part pairs the
     instance tree already fixes together; ``names``: part key -> name for joint names and messages;
     ``origins``: keys that stand for an assembly's own origin (the world, a sub-assembly's frame)."""
@@ -377,18 +456,28 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
         if mate.first.part == mate.second.part:
             continue
         if sphere_tangent(mate):
-            ball, other = (mate.first, mate.second) if SPHERE in _shape(mate.first) else (mate.second, mate.first)
-            result.warnings.append(f"mate {mate.name} <{mate.tag}> between a sphere of {shown_name(ball.part)} and "
-                                   f"{shown_name(other.part)}: no joint from it (Simscape's import makes none from a "
-                                   f"sphere's tangency), so it does not hold {shown_name(ball.part)}")
+            ball, other = (
+                (mate.first, mate.second)
+                if SPHERE in _shape(mate.first)
+                else (mate.second, mate.first)
+            )
+            result.warnings.append(
+                f"mate {mate.name} <{mate.tag}> between a sphere of {shown_name(ball.part)} and "
+                f"{shown_name(other.part)}: no joint from it (Simscape's import makes none from a "
+                f"sphere's tangency), so it does not hold {shown_name(ball.part)}"
+            )
         elif usable(mate):
             usable_mates.append(mate)
         else:
             unusable.setdefault(mate.tag, []).append(mate.name)
     for tag, mate_names in unusable.items():
-        shown = ", ".join(mate_names[:5]) + (f" and {len(mate_names) - 5} more" if len(mate_names) > 5 else "")
-        result.warnings.append(f"{len(mate_names)} <{tag}> mate(s) ({shown}) have no positional meaning for their "
-                               f"geometry or are not supported: ignored")
+        shown = ", ".join(mate_names[:5]) + (
+            f" and {len(mate_names) - 5} more" if len(mate_names) > 5 else ""
+        )
+        result.warnings.append(
+            f"{len(mate_names)} <{tag}> mate(s) ({shown}) have no positional meaning for their "
+            f"geometry or are not supported: ignored"
+        )
 
     # each pair of units once, as Simscape's import does: no re-grouping after the welds are merged
     welded_pairs: list[tuple[list[Mate], Freedoms]] = []
@@ -403,32 +492,66 @@ def infer_joints(mates: list[Mate], rigid_links: list[tuple[str, str]], names: d
     for group, found in welded_pairs:
         base, follower = _ends(group)
         frame = Pose(np.eye(3), found.anchor)
-        result.joints.append(Joint(name=f"{name(follower)} fixed to {name(base)} by mates",
-                                   kind="weld", base=base, follower=follower, base_frame=frame, follower_frame=frame,
-                                   synthetic=True, sources=[m.name for m in group]))
-    placed: list[tuple[str, int, list[str]]] = []  # (part, freedoms, mates) placed against the origin
+        result.joints.append(
+            Joint(
+                name=f"{name(follower)} fixed to {name(base)} by mates",
+                kind="weld",
+                base=base,
+                follower=follower,
+                base_frame=frame,
+                follower_frame=frame,
+                synthetic=True,
+                sources=[m.name for m in group],
+            )
+        )
+    placed: list[
+        tuple[str, int, list[str]]
+    ] = []  # (part, freedoms, mates) placed against the origin
     for group in jointed_pairs:
         found = _analyse(group, units)
         base, follower = _ends(group)
         label = f"{name(base)}--{name(follower)}"
         listed_mates = ", ".join(m.name for m in group)
         if found.kind == "free":
-            result.warnings.append(f"mates {listed_mates} between {name(base)} and {name(follower)} leave all six "
-                                   f"freedoms: no joint")
+            result.warnings.append(
+                f"mates {listed_mates} between {name(base)} and {name(follower)} leave all six "
+                f"freedoms: no joint"
+            )
             continue
-        if found.dof >= ORIGIN_PLACEMENT_DOF and all({m.first.part, m.second.part} & origins for m in group):
-            placed.append((shown_name(follower if base in origins else base), found.dof, [m.name for m in group]))
+        if found.dof >= ORIGIN_PLACEMENT_DOF and all(
+            {m.first.part, m.second.part} & origins for m in group
+        ):
+            placed.append(
+                (
+                    shown_name(follower if base in origins else base),
+                    found.dof,
+                    [m.name for m in group],
+                )
+            )
             continue
         frame = Pose(frame_with_z(found.main_axis), found.anchor)
-        result.joints.append(Joint(name=label, kind=found.kind, base=base, follower=follower,
-                                   base_frame=frame, follower_frame=frame, primitives=found.primitives,
-                                   sources=[m.name for m in group]))
+        result.joints.append(
+            Joint(
+                name=label,
+                kind=found.kind,
+                base=base,
+                follower=follower,
+                base_frame=frame,
+                follower_frame=frame,
+                primitives=found.primitives,
+                sources=[m.name for m in group],
+            )
+        )
     if placed:
-        shown = "; ".join(f"{part} ({dof} freedoms, mates {', '.join(group)})" for part, dof, group in placed[:5])
+        shown = "; ".join(
+            f"{part} ({dof} freedoms, mates {', '.join(group)})" for part, dof, group in placed[:5]
+        )
         more = f"; and {len(placed) - 5} more part(s)" if len(placed) > 5 else ""
-        result.warnings.append(f"{len(placed)} part(s) are mated to the assembly origin only loosely, leaving "
-                               f"{ORIGIN_PLACEMENT_DOF} or more freedoms: {shown}{more}: those mates place the parts, "
-                               f"they make no joint to the world (as in Simscape's import)")
+        result.warnings.append(
+            f"{len(placed)} part(s) are mated to the assembly origin only loosely, leaving "
+            f"{ORIGIN_PLACEMENT_DOF} or more freedoms: {shown}{more}: those mates place the parts, "
+            f"they make no joint to the world (as in Simscape's import)"
+        )
     return result
 
 

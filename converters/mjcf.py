@@ -36,12 +36,18 @@ EQUALITY_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
 CARRIER_MASS_FRACTION = 0.1  # of the follower body's mass properties, lent to a loop's carrier body
 LIGHT_CARRIER_FRACTION = 1e-3  # of a donor's mass when the follower has none to share
 MISSING_MASS_FRACTION = 1e-3  # a massless moving body gets this fraction of the lightest real part (lent by a neighbour)
-LOOP_SPACING_FRACTION = 0.1  # revolute closures: connect points this fraction of the model size apart
+LOOP_SPACING_FRACTION = (
+    0.1  # revolute closures: connect points this fraction of the model size apart
+)
 LOOP_SPACING_LIMITS_M = (0.005, 0.1)
 SIGNIFICANT_DIGITS = 10  # every number written is rounded: bytes do not depend on last-bit noise
 
 KIND_NAMES = {HINGE: "hinge", SLIDE: "slide", BALL: "ball"}
-JOINT_TYPES = {HINGE: mujoco.mjtJoint.mjJNT_HINGE, SLIDE: mujoco.mjtJoint.mjJNT_SLIDE, BALL: mujoco.mjtJoint.mjJNT_BALL}
+JOINT_TYPES = {
+    HINGE: mujoco.mjtJoint.mjJNT_HINGE,
+    SLIDE: mujoco.mjtJoint.mjJNT_SLIDE,
+    BALL: mujoco.mjtJoint.mjJNT_BALL,
+}
 
 
 def _r(values):
@@ -77,7 +83,9 @@ def _set_inertial(element, props, pose: Pose) -> None:
     element.explicitinertial = True
     element.mass = _r(props.mass)
     element.ipos = _r(rotation @ (props.com - pose.position))
-    element.fullinertia = _r([local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2], local[1, 2]])
+    element.fullinertia = _r(
+        [local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2], local[1, 2]]
+    )
 
 
 def _take_mass(element, mass: float) -> None:
@@ -98,7 +106,9 @@ class Built:
 
     spec: mujoco.MjSpec
     joint_names: dict[str, list[str]] = field(default_factory=dict)  # export joint -> MJCF joints
-    joints_by_type: dict[str, int] = field(default_factory=lambda: {"hinge": 0, "slide": 0, "ball": 0, "free": 0})
+    joints_by_type: dict[str, int] = field(
+        default_factory=lambda: {"hinge": 0, "slide": 0, "ball": 0, "free": 0}
+    )
     n_bodies: int = 0
     n_closures: int = 0
     n_couplings: int = 0
@@ -121,13 +131,22 @@ def compound_names(name: str, primitives) -> list[str]:
 
 
 class _Writer:
-    def __init__(self, assembly: Assembly, plan: Plan, meshes: dict[str, Mesh | None], model_name: str, meshdir: str):
+    def __init__(
+        self,
+        assembly: Assembly,
+        plan: Plan,
+        meshes: dict[str, Mesh | None],
+        model_name: str,
+        meshdir: str,
+    ):
         self.assembly, self.plan, self.meshes = assembly, plan, meshes
         self.spec = mujoco.MjSpec()
         self.built = Built(spec=self.spec)
         self.spec.modelname = model_name
         self.spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
-        self.spec.compiler.balanceinertia = True  # only float-level A + B < C is left after the repairs here
+        self.spec.compiler.balanceinertia = (
+            True  # only float-level A + B < C is left after the repairs here
+        )
         self.spec.compiler.meshdir = meshdir
         self.spec.option.timestep = TIMESTEP_S
         self.spec.option.integrator = INTEGRATOR
@@ -155,11 +174,15 @@ class _Writer:
         self.body_poses: dict[int, Pose] = {}
         self.body_moves: dict[int, bool] = {}
         self.loop_spacing = self._loop_spacing()
-        self.massless: list[tuple] = []  # (plan body, spec body, pose) of moving bodies without mass
+        self.massless: list[
+            tuple
+        ] = []  # (plan body, spec body, pose) of moving bodies without mass
 
     # -- helpers -----------------------------------------------------------------------------
     def _loop_spacing(self) -> float:
-        located = [p.com for p in self.assembly.real_parts] + [j.follower_frame.position for j in self.assembly.joints]
+        located = [p.com for p in self.assembly.real_parts] + [
+            j.follower_frame.position for j in self.assembly.joints
+        ]
         points = np.array(located) if located else np.zeros((1, 3))
         size = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
         low, high = LOOP_SPACING_LIMITS_M
@@ -168,7 +191,11 @@ class _Writer:
     def _root_part(self, body) -> str | None:
         """The root-most real part, skipping massless, geometry-less helpers (gen-1 ``RootPart``)."""
         real = [k for k in body.parts if k != GROUND and not self.assembly.parts[k].virtual]
-        solid = [k for k in real if self.assembly.parts[k].mass > 0 or self.assembly.parts[k].geometry is not None]
+        solid = [
+            k
+            for k in real
+            if self.assembly.parts[k].mass > 0 or self.assembly.parts[k].geometry is not None
+        ]
         return (solid or real or [None])[0]
 
     def _body_pose(self, body) -> Pose:
@@ -214,20 +241,33 @@ class _Writer:
         ground = body.index == 0
         has_parts = any(k != GROUND for k in body.parts)
         if ground and not has_parts:
-            self.spec_bodies[0], self.body_names[0], self.body_poses[0] = self.spec.worldbody, "world", Pose()
+            self.spec_bodies[0], self.body_names[0], self.body_poses[0] = (
+                self.spec.worldbody,
+                "world",
+                Pose(),
+            )
             self.body_moves[0] = False
             return
         free = self._is_free(body)
         if body.parent is None or free:
             parent_element, parent_pose = self.spec.worldbody, Pose()
         else:
-            parent_element, parent_pose = self.spec_bodies[body.parent], self.body_poses[body.parent]
+            parent_element, parent_pose = (
+                self.spec_bodies[body.parent],
+                self.body_poses[body.parent],
+            )
         pose = self._body_pose(body)
         name = self.body_namer(self._body_label(body))
         element = parent_element.add_body(name=name)
         self._set_pose(element, pose, parent_pose)
-        self.spec_bodies[body.index], self.body_names[body.index], self.body_poses[body.index] = element, name, pose
-        moves = body.joint is not None or (body.parent is not None and self.body_moves.get(body.parent, False))
+        self.spec_bodies[body.index], self.body_names[body.index], self.body_poses[body.index] = (
+            element,
+            name,
+            pose,
+        )
+        moves = body.joint is not None or (
+            body.parent is not None and self.body_moves.get(body.parent, False)
+        )
         self.body_moves[body.index] = moves
         self.built.n_bodies += 1
         self._inertial(element, body, pose, moves)
@@ -255,7 +295,8 @@ class _Writer:
             if moments is not None:
                 self.built.warnings.append(
                     f"body {label}: inertia is singular (principal moments "
-                    f"{', '.join(f'{m:.3g}' for m in moments)} kg*m^2): raised to at least {floor:.3g} kg*m^2")
+                    f"{', '.join(f'{m:.3g}' for m in moments)} kg*m^2): raised to at least {floor:.3g} kg*m^2"
+                )
         _set_inertial(element, props, pose)
 
     def _lend_masses(self) -> None:
@@ -263,7 +304,10 @@ class _Writer:
         body (the one it moves on, else a body moving on it, else the heaviest): the model's total
         mass stays the export's."""
         # an export without any mass (an Onshape model without materials) gets only the least MuJoCo needs
-        lightest = min((p.mass for p in self.assembly.real_parts if p.mass > 0), default=MIN_LENT_MASS_KG / MISSING_MASS_FRACTION)
+        lightest = min(
+            (p.mass for p in self.assembly.real_parts if p.mass > 0),
+            default=MIN_LENT_MASS_KG / MISSING_MASS_FRACTION,
+        )
         for body, element, pose in self.massless:
             label = self.body_names[body.index]
             donor = self._donor([body.parent, *body.children])
@@ -272,21 +316,30 @@ class _Writer:
                 source = "added (no body in the model has mass to lend it): the total mass grows by as much"
             else:
                 donor_element, donor_label = donor
-                mass = min(max(MISSING_MASS_FRACTION * min(lightest, donor_element.mass), MIN_LENT_MASS_KG),
-                           0.5 * donor_element.mass)
+                mass = min(
+                    max(
+                        MISSING_MASS_FRACTION * min(lightest, donor_element.mass), MIN_LENT_MASS_KG
+                    ),
+                    0.5 * donor_element.mass,
+                )
                 _take_mass(donor_element, mass)
                 source = f"taken from body {donor_label} (the total mass stays the export's)"
             inertia, _, floor = _floored(mass_properties.sphere(mass, mass / 1000.0))
-            _set_inertial(element, mass_properties.MassProperties(mass, pose.position, inertia), pose)
+            _set_inertial(
+                element, mass_properties.MassProperties(mass, pose.position, inertia), pose
+            )
             self.built.warnings.append(
                 f"body {label} moves on joint {body.joint.name} but its parts have no mass: given {mass:.3g} kg "
-                f"{source}, inertia at least {floor:.3g} kg*m^2")
+                f"{source}, inertia at least {floor:.3g} kg*m^2"
+            )
 
     def _donor(self, candidates):
         """(spec body, name) of the first candidate body index with mass, else the heaviest body."""
+
         def usable(index):
             element = self.spec_bodies.get(index) if index is not None else None
             return element is not None and element is not self.spec.worldbody and element.mass > 0
+
         for index in candidates:
             if usable(index):
                 return self.spec_bodies[index], self.body_names[index]
@@ -300,7 +353,10 @@ class _Writer:
         primitives = list(joint.primitives)
         if reversed_:
             primitives = [type(p)(p.kind, -p.axis) for p in reversed(primitives)]
-        names = [self.mjcf_joint_namer(n) for n in compound_names(self.joint_names[id(joint)], primitives)]
+        names = [
+            self.mjcf_joint_namer(n)
+            for n in compound_names(self.joint_names[id(joint)], primitives)
+        ]
         for primitive, name in zip(primitives, names):
             kwargs = dict(name=name, type=JOINT_TYPES[primitive.kind], pos=[0.0, 0.0, 0.0])
             if primitive.kind != BALL:
@@ -320,19 +376,35 @@ class _Writer:
             if self.spec.mesh(mesh.name) is None:
                 asset = self.spec.add_mesh(name=mesh.name, file=mesh.filename)
                 asset.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-            collision = element.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name,
-                                         default=self.collision)
-            if not mesh.convex:  # exact-distance mark: kept out of MuJoCo contacts, triangles kept as exported
+            collision = element.add_geom(
+                name=name,
+                type=mujoco.mjtGeom.mjGEOM_MESH,
+                meshname=mesh.name,
+                default=self.collision,
+            )
+            if (
+                not mesh.convex
+            ):  # exact-distance mark: kept out of MuJoCo contacts, triangles kept as exported
                 collision.contype = 0
                 collision.conaffinity = 0
             self._set_pose(collision, part.frame, body_pose)
-            visual = element.add_geom(name=self.geom_namer(f"{name}_visual"), type=mujoco.mjtGeom.mjGEOM_MESH,
-                                      meshname=mesh.name, default=self.visual, rgba=rgba)
+            visual = element.add_geom(
+                name=self.geom_namer(f"{name}_visual"),
+                type=mujoco.mjtGeom.mjGEOM_MESH,
+                meshname=mesh.name,
+                default=self.visual,
+                rgba=rgba,
+            )
             self._set_pose(visual, part.frame, body_pose)
         elif part.geometry is not None and part.mass > 0:
             half, axes = mass_properties.box_half_sizes(part.mass, part.inertia)
-            visual = element.add_geom(name=self.geom_namer(f"{name}_visual"), type=mujoco.mjtGeom.mjGEOM_BOX,
-                                      size=_r(half), default=self.visual, rgba=rgba)
+            visual = element.add_geom(
+                name=self.geom_namer(f"{name}_visual"),
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=_r(half),
+                default=self.visual,
+                rgba=rgba,
+            )
             self._set_pose(visual, Pose(axes, part.com), body_pose)
         site = element.add_site(name=name)
         self._set_pose(site, part.frame, body_pose)
@@ -344,42 +416,73 @@ class _Writer:
     def _closure(self, closure) -> None:
         joint = closure.joint
         label = self.equality_namer(self.joint_names.get(id(joint), joint.name), prefix="loop:")
-        base_name, follower_name = self.body_names[closure.base_body], self.body_names[closure.follower_body]
+        base_name, follower_name = (
+            self.body_names[closure.base_body],
+            self.body_names[closure.follower_body],
+        )
         follower_pose = self.body_poses[closure.follower_body]
         anchor = joint.follower_frame.position
         kinds = [p.kind for p in joint.primitives]
         self.built.n_closures += 1
-        if "world" not in (base_name, follower_name):  # the CAD parts touch at the joint: no contact between them
+        if "world" not in (
+            base_name,
+            follower_name,
+        ):  # the CAD parts touch at the joint: no contact between them
             self.spec.add_exclude(bodyname1=base_name, bodyname2=follower_name)
         if kinds == [HINGE]:
             axis = joint.primitives[0].axis
             for suffix, sign in (("", -0.5), (":2", 0.5)):
-                self._connect(label + suffix, follower_name, base_name, follower_pose.inverse().apply(anchor + sign * self.loop_spacing * axis))
+                self._connect(
+                    label + suffix,
+                    follower_name,
+                    base_name,
+                    follower_pose.inverse().apply(anchor + sign * self.loop_spacing * axis),
+                )
         elif kinds == [BALL]:
             self._connect(label, follower_name, base_name, follower_pose.inverse().apply(anchor))
         elif not kinds:
-            self._weld(label, base_name, follower_name, self.body_poses[closure.follower_body].inverse().apply(anchor))
+            self._weld(
+                label,
+                base_name,
+                follower_name,
+                self.body_poses[closure.follower_body].inverse().apply(anchor),
+            )
         else:
             self._carrier(closure, label)
 
     def _connect(self, label: str, body1: str, body2: str, anchor) -> None:
         data = np.zeros(12)
         data[:3] = _r(anchor)
-        self.spec.add_equality(name=label, type=mujoco.mjtEq.mjEQ_CONNECT, name1=body1, name2=body2,
-                               objtype=mujoco.mjtObj.mjOBJ_BODY, data=data.tolist())
+        self.spec.add_equality(
+            name=label,
+            type=mujoco.mjtEq.mjEQ_CONNECT,
+            name1=body1,
+            name2=body2,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            data=data.tolist(),
+        )
 
     def _weld(self, label: str, body1: str, body2: str, anchor_in_body2) -> None:
         data = np.zeros(12)
         data[:3] = _r(anchor_in_body2)
         data[10] = 1.0  # torquescale
-        self.spec.add_equality(name=label, type=mujoco.mjtEq.mjEQ_WELD, name1=body1, name2=body2,
-                               objtype=mujoco.mjtObj.mjOBJ_BODY, data=data.tolist())
+        self.spec.add_equality(
+            name=label,
+            type=mujoco.mjtEq.mjEQ_WELD,
+            name1=body1,
+            name2=body2,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            data=data.tolist(),
+        )
 
     def _carrier(self, closure, label: str) -> None:
         """A light carrier body on the base carries the joint's real freedoms and is
         welded to the follower: the closure keeps exactly the joint's degrees of freedom."""
         joint = closure.joint
-        base_element, base_pose = self.spec_bodies[closure.base_body], self.body_poses[closure.base_body]
+        base_element, base_pose = (
+            self.spec_bodies[closure.base_body],
+            self.body_poses[closure.base_body],
+        )
         pose = Pose(joint.follower_frame.rotation, joint.follower_frame.position)
         name = self.body_namer(f"{self.joint_names[id(joint)]}_carrier")
         carrier = base_element.add_body(name=name)
@@ -394,13 +497,21 @@ class _Writer:
         else:
             donor = self._donor([closure.follower_body, closure.base_body])
             mass = LIGHT_CARRIER_FRACTION * (donor[0].mass if donor is not None else 1e-3)
-            if donor is not None:  # the carrier is welded to the follower: its mass is lent, the total stays exact
+            if (
+                donor is not None
+            ):  # the carrier is welded to the follower: its mass is lent, the total stays exact
                 _take_mass(donor[0], mass)
             inertia, _, _ = _floored(mass_properties.sphere(mass, mass / 1000.0))
-            _set_inertial(carrier, mass_properties.MassProperties(mass, pose.position, inertia), pose)
+            _set_inertial(
+                carrier, mass_properties.MassProperties(mass, pose.position, inertia), pose
+            )
         self._joints(carrier, joint, pose, False)
-        self._weld(label, name, self.body_names[closure.follower_body],
-                   self.body_poses[closure.follower_body].inverse().apply(joint.follower_frame.position))
+        self._weld(
+            label,
+            name,
+            self.body_names[closure.follower_body],
+            self.body_poses[closure.follower_body].inverse().apply(joint.follower_frame.position),
+        )
 
     def _follower_share(self, follower: int):
         """``CARRIER_MASS_FRACTION`` of the follower body's mass properties in world terms, or None
@@ -411,29 +522,49 @@ class _Writer:
         local = np.asarray(element.fullinertia, dtype=float)
         if not np.all(np.isfinite(local)):
             return None
-        tensor = np.array([[local[0], local[3], local[4]], [local[3], local[1], local[5]], [local[4], local[5], local[2]]])
+        tensor = np.array(
+            [
+                [local[0], local[3], local[4]],
+                [local[3], local[1], local[5]],
+                [local[4], local[5], local[2]],
+            ]
+        )
         body = self.body_poses[follower]
         rotation = body.rotation
         fraction = CARRIER_MASS_FRACTION
-        return mass_properties.MassProperties(fraction * float(element.mass), body.apply(np.asarray(element.ipos, dtype=float)),
-                                              fraction * (rotation @ tensor @ rotation.T))
+        return mass_properties.MassProperties(
+            fraction * float(element.mass),
+            body.apply(np.asarray(element.ipos, dtype=float)),
+            fraction * (rotation @ tensor @ rotation.T),
+        )
 
     def _couplings(self) -> None:
         for coupling in self.assembly.couplings:
             names = [self._coupled_joint(coupling, which) for which in ("input", "output")]
-            self.spec.add_equality(name=self.equality_namer(coupling.name, prefix="coupling:"), type=mujoco.mjtEq.mjEQ_JOINT,
-                                   name1=names[0], name2=names[1], objtype=mujoco.mjtObj.mjOBJ_JOINT,
-                                   data=_r([coupling.offset, coupling.ratio] + [0.0] * 10))
+            self.spec.add_equality(
+                name=self.equality_namer(coupling.name, prefix="coupling:"),
+                type=mujoco.mjtEq.mjEQ_JOINT,
+                name1=names[0],
+                name2=names[1],
+                objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                data=_r([coupling.offset, coupling.ratio] + [0.0] * 10),
+            )
             self.built.n_couplings += 1
 
     def _coupled_joint(self, coupling: Coupling, which: Literal["input", "output"]) -> str:
         joint_name = coupling.input if which == "input" else coupling.output
         joint = self.assembly.joint(joint_name)
-        if joint is None:  # the side-car's reader checks the names; an assembly built otherwise may not
-            raise ExportError(f"coupling {coupling.name}: {which} joint {joint_name} is not a joint of the assembly")
+        if (
+            joint is None
+        ):  # the side-car's reader checks the names; an assembly built otherwise may not
+            raise ExportError(
+                f"coupling {coupling.name}: {which} joint {joint_name} is not a joint of the assembly"
+            )
         names = self.built.joint_names.get(joint.name)
         if names is None:
-            raise ExportError(f"coupling {coupling.name}: {which} joint {joint.name} ended up inside one rigid body")
+            raise ExportError(
+                f"coupling {coupling.name}: {which} joint {joint.name} ended up inside one rigid body"
+            )
         return names[0]
 
 
@@ -453,8 +584,15 @@ def gravity_along(up: str) -> list[float]:
     return gravity
 
 
-def build(assembly: Assembly, plan: Plan, meshes: dict[str, Mesh | None], *, model_name: str, meshdir: str,
-          gravity=(0.0, 0.0, -GRAVITY_M_S2)) -> Built:
+def build(
+    assembly: Assembly,
+    plan: Plan,
+    meshes: dict[str, Mesh | None],
+    *,
+    model_name: str,
+    meshdir: str,
+    gravity=(0.0, 0.0, -GRAVITY_M_S2),
+) -> Built:
     """The MjSpec of ``assembly`` following ``plan`` (meshes are referenced as ``meshdir/<name>.stl``)."""
     writer = _Writer(assembly, plan, meshes, model_name, meshdir)
     writer.spec.option.gravity = list(gravity)

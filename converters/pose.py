@@ -20,10 +20,14 @@ def orthonormal(matrix, where: str) -> np.ndarray:
         raise ExportError(f"{where}: rotation matrix has NaN/inf entries")
     u, s, vt = np.linalg.svd(matrix)
     if np.any(np.abs(s - 1.0) > 1e-3):
-        raise ExportError(f"{where}: orientation is not a rotation matrix (singular values {np.round(s, 4).tolist()})")
+        raise ExportError(
+            f"{where}: orientation is not a rotation matrix (singular values {np.round(s, 4).tolist()})"
+        )
     rotation = u @ vt
     if np.linalg.det(rotation) < 0:
-        raise ExportError(f"{where}: orientation is mirrored (left-handed frame); MuJoCo frames cannot be mirrored")
+        raise ExportError(
+            f"{where}: orientation is mirrored (left-handed frame); MuJoCo frames cannot be mirrored"
+        )
     return rotation
 
 

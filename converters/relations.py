@@ -20,10 +20,22 @@ from mechanism.converters.graph import UnionFind
 
 # (substring of the normalised element name, kind); the first match wins
 KINDS = (
-    ("rackandpinion", "rack_and_pinion"), ("rackpinion", "rack_and_pinion"), ("rack", "rack_and_pinion"),
-    ("worm", "worm_gear"), ("bevel", "bevel_gear"), ("gear", "gear"),
-    ("leadscrew", "screw"), ("screw", "screw"), ("belt", "belt"), ("pulley", "belt"), ("chain", "chain"),
-    ("pointoncurve", None), ("curve", None), ("cam", None), ("path", None), ("slot", None),
+    ("rackandpinion", "rack_and_pinion"),
+    ("rackpinion", "rack_and_pinion"),
+    ("rack", "rack_and_pinion"),
+    ("worm", "worm_gear"),
+    ("bevel", "bevel_gear"),
+    ("gear", "gear"),
+    ("leadscrew", "screw"),
+    ("screw", "screw"),
+    ("belt", "belt"),
+    ("pulley", "belt"),
+    ("chain", "chain"),
+    ("pointoncurve", None),
+    ("curve", None),
+    ("cam", None),
+    ("path", None),
+    ("slot", None),
 )
 
 
@@ -77,7 +89,10 @@ def _ratio(kind: str, values: dict[str, str], length: float) -> tuple[float | No
         if explicit is not None:
             return abs(explicit), "the export's ratio"
         for measure in ("teeth", "radius", "diameter"):
-            follower, base = _number(values, f"follower+{measure}"), _number(values, f"base+{measure}")
+            follower, base = (
+                _number(values, f"follower+{measure}"),
+                _number(values, f"base+{measure}"),
+            )
             if follower is not None and base is not None:
                 return abs(follower / base), f"the export's {measure}"
         return None, ""
@@ -111,7 +126,9 @@ def _carrier_joint(assembly: Assembly, welded: UnionFind, part: str, axis: np.nd
     for joint in assembly.joints:
         if joint.dof != 1 or joint.primitives[0].kind != want:
             continue
-        sides = [s for s, end in ((1, joint.follower), (-1, joint.base)) if welded.find(end) == group]
+        sides = [
+            s for s, end in ((1, joint.follower), (-1, joint.base)) if welded.find(end) == group
+        ]
         other = joint.base if sides and sides[0] == 1 else joint.follower
         if not sides or welded.find(other) == group:
             continue
@@ -129,10 +146,16 @@ def add_relation(assembly: Assembly, element, side, length: float) -> None:
     where = f"export {assembly.source.name}, constraint {name}"
     kind = kind_of(tag)
     if kind is None:
-        assembly.warn(f"constraint {name} <{tag}> has no joint-coupling equivalent: ignored "
-                      f"(the mechanism may move where the CAD constraint would not let it)")
+        assembly.warn(
+            f"constraint {name} <{tag}> has no joint-coupling equivalent: ignored "
+            f"(the mechanism may move where the CAD constraint would not let it)"
+        )
         return
-    children = [c for c in element if c.tag.rsplit("}", 1)[-1] in ("ConstraintGeometry", "BaseFrame", "FollowerFrame")]
+    children = [
+        c
+        for c in element
+        if c.tag.rsplit("}", 1)[-1] in ("ConstraintGeometry", "BaseFrame", "FollowerFrame")
+    ]
     if len(children) != 2:
         assembly.warn(f"constraint {name} <{tag}> does not name two parts: ignored")
         return
@@ -144,37 +167,61 @@ def add_relation(assembly: Assembly, element, side, length: float) -> None:
     magnitude, source = _ratio(kind, _values(element), length)
     welded = _welded(assembly)
     want_base = SLIDE if kind == "rack_and_pinion" else HINGE
-    base_joint, base_sign = _carrier_joint(assembly, welded, base_part, base_pose.rotation[:, 2], want_base)
-    follower_joint, follower_sign = _carrier_joint(assembly, welded, follower_part, follower_pose.rotation[:, 2], HINGE)
-    names = {k: assembly.parts[k].name if k != GROUND else "world" for k in (base_part, follower_part)}
+    base_joint, base_sign = _carrier_joint(
+        assembly, welded, base_part, base_pose.rotation[:, 2], want_base
+    )
+    follower_joint, follower_sign = _carrier_joint(
+        assembly, welded, follower_part, follower_pose.rotation[:, 2], HINGE
+    )
+    names = {
+        k: assembly.parts[k].name if k != GROUND else "world" for k in (base_part, follower_part)
+    }
     between = f"between {names[base_part]} and {names[follower_part]}"
     if base_joint is None or follower_joint is None or base_joint is follower_joint:
-        assembly.warn(f"{kind.replace('_', ' ')} constraint {name} {between}: no 1-DOF joint carries each part, "
-                      f"so it is not modelled (add a coupling to the side-car, see docs/architecture.md)")
+        assembly.warn(
+            f"{kind.replace('_', ' ')} constraint {name} {between}: no 1-DOF joint carries each part, "
+            f"so it is not modelled (add a coupling to the side-car, see docs/architecture.md)"
+        )
         return
-    repeated = [j.name for j in (base_joint, follower_joint) if sum(1 for o in assembly.joints if o.name == j.name) > 1]
+    repeated = [
+        j.name
+        for j in (base_joint, follower_joint)
+        if sum(1 for o in assembly.joints if o.name == j.name) > 1
+    ]
     if repeated:
-        assembly.warn(f"{kind.replace('_', ' ')} constraint {name} {between}: joint name {repeated[0]} repeats in the "
-                      f"export, so the coupling cannot name it: not modelled")
+        assembly.warn(
+            f"{kind.replace('_', ' ')} constraint {name} {between}: joint name {repeated[0]} repeats in the "
+            f"export, so the coupling cannot name it: not modelled"
+        )
         return
     if magnitude is None:
-        assembly.warn(f"{kind.replace('_', ' ')} constraint {name} {between}: the export states no ratio, so it is "
-                      f"not modelled; add it to the couplings side-car (input {base_joint.name}, output "
-                      f"{follower_joint.name})")
+        assembly.warn(
+            f"{kind.replace('_', ' ')} constraint {name} {between}: the export states no ratio, so it is "
+            f"not modelled; add it to the couplings side-car (input {base_joint.name}, output "
+            f"{follower_joint.name})"
+        )
         return
     alignment = float(base_joint.primitives[0].axis @ follower_joint.primitives[0].axis)
     internal = "internal" in _normalised(tag) or "ring" in _normalised(tag)
     if kind in ("gear", "belt", "chain") and abs(alignment) > 0.999:
         # external gears turn opposite ways, internal gears, belts and chains the same way
         same_way = internal or kind in ("belt", "chain")
-        sign = (1.0 if same_way else -1.0) * base_sign * follower_sign * math.copysign(1.0, alignment)
-        assumption = "internal gear" if internal else ("belt or chain" if same_way else "external gear")
+        sign = (
+            (1.0 if same_way else -1.0) * base_sign * follower_sign * math.copysign(1.0, alignment)
+        )
+        assumption = (
+            "internal gear" if internal else ("belt or chain" if same_way else "external gear")
+        )
     else:
         sign = 1.0
         assumption = "direction not determined by the export: check the sign"
     ratio = sign * magnitude
-    assembly.couplings.append(Coupling(name=name, kind=kind, input=base_joint.name, output=follower_joint.name,
-                                       ratio=ratio))
-    assembly.warn(f"{kind.replace('_', ' ')} constraint {name} {between} becomes the joint coupling "
-                  f"{base_joint.name} = {ratio:.6g} x {follower_joint.name} ({assumption}; ratio from {source})")
-
+    assembly.couplings.append(
+        Coupling(
+            name=name, kind=kind, input=base_joint.name, output=follower_joint.name, ratio=ratio
+        )
+    )
+    assembly.warn(
+        f"{kind.replace('_', ' ')} constraint {name} {between} becomes the joint coupling "
+        f"{base_joint.name} = {ratio:.6g} x {follower_joint.name} ({assumption}; ratio from {source})"
+    )

@@ -43,17 +43,25 @@ def parse_xml(path: Path):
     try:
         root = SafeET.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     except defusedxml.DTDForbidden:
-        raise ExportError(f"export {path}: contains a DTD (<!DOCTYPE ...>), refused as unsafe XML") from None
+        raise ExportError(
+            f"export {path}: contains a DTD (<!DOCTYPE ...>), refused as unsafe XML"
+        ) from None
     except defusedxml.EntitiesForbidden:
         raise ExportError(f"export {path}: declares XML entities, refused as unsafe XML") from None
     except defusedxml.ExternalReferenceForbidden:
-        raise ExportError(f"export {path}: refers to external XML resources, refused as unsafe XML") from None
+        raise ExportError(
+            f"export {path}: refers to external XML resources, refused as unsafe XML"
+        ) from None
     except ParseError as exc:
         line, column = getattr(exc, "position", (0, 0))
         reason = str(exc).split(":")[0]
-        raise ExportError(f"export {path}: not well-formed XML ({reason} at line {line}, column {column})") from None
+        raise ExportError(
+            f"export {path}: not well-formed XML ({reason} at line {line}, column {column})"
+        ) from None
     except (ValueError, RecursionError) as exc:
-        raise ExportError(f"export {path}: cannot be parsed as XML ({exc.__class__.__name__})") from None
+        raise ExportError(
+            f"export {path}: cannot be parsed as XML ({exc.__class__.__name__})"
+        ) from None
     return root
 
 
@@ -67,12 +75,16 @@ def resolve_inside(folder: Path, name: str, what: str) -> Path:
         raise ExportError(f"{what}: file name contains a NUL character")
     cleaned = name.strip().replace("\\", "/")
     if cleaned.startswith("/") or (len(cleaned) > 1 and cleaned[1] == ":"):
-        raise ExportError(f"{what}: file name '{name}' is an absolute path; geometry must lie inside the export folder")
+        raise ExportError(
+            f"{what}: file name '{name}' is an absolute path; geometry must lie inside the export folder"
+        )
     folder = Path(folder).resolve()
     try:
         resolved = (folder / cleaned).resolve()
     except (OSError, RuntimeError):  # symlink loops
-        raise ExportError(f"{what}: file name '{name}' cannot be resolved inside the export folder") from None
+        raise ExportError(
+            f"{what}: file name '{name}' cannot be resolved inside the export folder"
+        ) from None
     if folder not in resolved.parents:
         raise ExportError(f"{what}: file name '{name}' points outside the export folder {folder}")
     return resolved

@@ -69,7 +69,12 @@ class Plan:
         return order
 
 
-def tree_rank(joint: Joint, coupled: set[str], drivers: frozenset[str] | set[str] = frozenset(), on_frame: bool = False) -> tuple:
+def tree_rank(
+    joint: Joint,
+    coupled: set[str],
+    drivers: frozenset[str] | set[str] = frozenset(),
+    on_frame: bool = False,
+) -> tuple:
     """Sort key: lower ranks are taken into the tree first (closing them would cost most)."""
     kinds = [p.kind for p in joint.primitives]
     if joint.name in drivers or sanitize(joint.name) in drivers:
@@ -102,16 +107,22 @@ def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -
     def on_frame(joint: Joint) -> bool:
         return frame in (weld_only.find(joint.base), weld_only.find(joint.follower))
 
-    free = sorted((j for j in reals if j not in locked),
-                  key=lambda j: (tree_rank(j, coupled, drivers, on_frame(j)), order[id(j)]))
+    free = sorted(
+        (j for j in reals if j not in locked),
+        key=lambda j: (tree_rank(j, coupled, drivers, on_frame(j)), order[id(j)]),
+    )
 
     spanning = UnionFind()
     tree_joints: list[Joint] = []
     left_out: list[Joint] = []
     for joint in locked + welds + free:
         (tree_joints if spanning.union(joint.base, joint.follower) else left_out).append(joint)
-    warnings = [f"joint {j.name} ({j.kind}) is locked by welds between its parts: kept as a joint, "
-                f"the weld closing that cycle becomes a loop constraint" for j in locked if j in tree_joints]
+    warnings = [
+        f"joint {j.name} ({j.kind}) is locked by welds between its parts: kept as a joint, "
+        f"the weld closing that cycle becomes a loop constraint"
+        for j in locked
+        if j in tree_joints
+    ]
 
     # bodies: parts joined by tree welds
     rigid = UnionFind()
@@ -131,7 +142,9 @@ def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -
     moving_joints = [j for j in tree_joints if not j.is_weld]
     linked = {rigid.find(k) for j in moving_joints for k in (j.base, j.follower)}
     ground_root = rigid.find(GROUND)
-    roots = [ground_root] + [r for r in groups if r != ground_root and (any(real(k) for k in groups[r]) or r in linked)]
+    roots = [ground_root] + [
+        r for r in groups if r != ground_root and (any(real(k) for k in groups[r]) or r in linked)
+    ]
 
     adjacency: dict[str, list[Joint]] = {r: [] for r in roots}
     for joint in moving_joints:
@@ -142,9 +155,16 @@ def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -
     body_of: dict[str, int] = {}
     weld_links = [j for j in tree_joints if j.is_weld]
 
-    def add_body(root: str, entry: str, parent: int | None, joint: Joint | None, reversed_: bool) -> int:
-        body = Body(index=len(bodies), parts=_ordered(groups[root], entry, weld_links, keys),
-                    parent=parent, joint=joint, reversed=reversed_)
+    def add_body(
+        root: str, entry: str, parent: int | None, joint: Joint | None, reversed_: bool
+    ) -> int:
+        body = Body(
+            index=len(bodies),
+            parts=_ordered(groups[root], entry, weld_links, keys),
+            parent=parent,
+            joint=joint,
+            reversed=reversed_,
+        )
         bodies.append(body)
         for key in groups[root]:
             body_of[key] = body.index
@@ -159,7 +179,11 @@ def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -
             root = rigid.find(bodies[index].parts[0])
             for joint in sorted(adjacency[root], key=lambda j: order[id(j)]):
                 base_root, follower_root = rigid.find(joint.base), rigid.find(joint.follower)
-                other, entry, rev = (follower_root, joint.follower, False) if base_root == root else (base_root, joint.base, True)
+                other, entry, rev = (
+                    (follower_root, joint.follower, False)
+                    if base_root == root
+                    else (base_root, joint.base, True)
+                )
                 if groups[other][0] in body_of:
                     continue
                 queue.append(add_body(other, entry, index, joint, rev))
@@ -174,12 +198,18 @@ def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -
             continue
         heaviest = max(parts, key=lambda k: (assembly.parts[k].mass, -keys.index(k)))
         anchor = rigid.find(heaviest)
-        names = ", ".join(assembly.parts[k].name for k in parts[:6]) + (f" and {len(parts) - 6} more" if len(parts) > 6 else "")
+        names = ", ".join(assembly.parts[k].name for k in parts[:6]) + (
+            f" and {len(parts) - 6} more" if len(parts) > 6 else ""
+        )
         if len(members) == 1:
-            warnings.append(f"part(s) {names} are connected to nothing (no joint, not grounded): fixed to the world")
+            warnings.append(
+                f"part(s) {names} are connected to nothing (no joint, not grounded): fixed to the world"
+            )
         else:
-            warnings.append(f"parts {names} ({len(members)} bodies joined by joints) are not connected to the ground: "
-                            f"{assembly.parts[heaviest].name} (the heaviest) is fixed to the world")
+            warnings.append(
+                f"parts {names} ({len(members)} bodies joined by joints) are not connected to the ground: "
+                f"{assembly.parts[heaviest].name} (the heaviest) is fixed to the world"
+            )
         grow(add_body(anchor, heaviest, None, None, False))
 
     closures = []
@@ -189,7 +219,9 @@ def plan(assembly: Assembly, drivers: frozenset[str] | set[str] = frozenset()) -
             continue
         if base_body == follower_body:
             if not joint.is_weld:
-                warnings.append(f"joint {joint.name} ({joint.kind}) connects parts of one rigid body: ignored")
+                warnings.append(
+                    f"joint {joint.name} ({joint.kind}) connects parts of one rigid body: ignored"
+                )
             continue
         closures.append(Closure(joint, base_body, follower_body))
     return Plan(bodies=bodies, closures=closures, body_of=body_of, warnings=warnings)

@@ -35,7 +35,11 @@ plate = "needle_plate"
 """)
 machine = mechanism.load_machine(work / "machine.toml")
 print("stroke", round(mechanism.needle_motion(machine).stroke_mm, 3), "mm")
-print("speed at 12 V", round(mechanism.simulate(machine, voltage_V=12, duration_s=2).mean_speed_rpm), "rpm")
+print(
+    "speed at 12 V",
+    round(mechanism.simulate(machine, voltage_V=12, duration_s=2).mean_speed_rpm),
+    "rpm",
+)
 truth = mechanism.write_bench_recording(machine, ["torque_ripple"], seed=3, path=work / "bench.csv")
 found = mechanism.diagnose(machine, work / "bench.csv").to_json()["effects"]
 print("found", [e["name"] for e in found], "- the truth is in", truth)

@@ -18,15 +18,49 @@ from mechanism.lazy import lazy_exports
 
 __version__ = "0.2.0"
 
-_lazy_names, __getattr__, _lazy_dir = lazy_exports(__name__, {
-    "api": ("Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
-            "conversion_summary", "convert", "diagnose", "diagnosis_report", "driven_inertia_kgm2", "identify",
-            "inspect", "inspect_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "plot_sweep", "probe",
-            "read_recording", "read_table", "shipped_export", "shipped_folder", "shipped_machines", "shipped_model", "shipped_scene", "simulate", "sweep", "view", "write_bench_recording",
-            "write_needle_csv", "write_table"),
-    "machine.description": ("read_description",),
-    "files.cache": ("cache_info", "clear_cache"),
-})
+_lazy_names, __getattr__, _lazy_dir = lazy_exports(
+    __name__,
+    {
+        "api": (
+            "Machine",
+            "MachineConfig",
+            "NeedleMotion",
+            "SimulationResult",
+            "VoltageProfile",
+            "atomic_dir",
+            "clearance",
+            "conversion_summary",
+            "convert",
+            "diagnose",
+            "diagnosis_report",
+            "driven_inertia_kgm2",
+            "identify",
+            "inspect",
+            "inspect_recording",
+            "load_machine",
+            "needle_motion",
+            "plot_needle",
+            "plot_simulation",
+            "plot_sweep",
+            "probe",
+            "read_recording",
+            "read_table",
+            "shipped_export",
+            "shipped_folder",
+            "shipped_machines",
+            "shipped_model",
+            "shipped_scene",
+            "simulate",
+            "sweep",
+            "view",
+            "write_bench_recording",
+            "write_needle_csv",
+            "write_table",
+        ),
+        "machine.description": ("read_description",),
+        "files.cache": ("cache_info", "clear_cache"),
+    },
+)
 __all__ = ["UserError", "__version__", *_lazy_names]
 
 

@@ -17,13 +17,26 @@ from mechanism.inspection.needle import NeedleMotion, needle_motion
 from mechanism.inspection.needle import plot as plot_needle
 from mechanism.inspection.needle import write_csv as write_needle_csv
 from mechanism.machine.machine import Machine, MachineConfig, load_machine
-from mechanism.machine.models import shipped_export, shipped_folder, shipped_machines, shipped_model, shipped_scene
+from mechanism.machine.models import (
+    shipped_export,
+    shipped_folder,
+    shipped_machines,
+    shipped_model,
+    shipped_scene,
+)
 from mechanism.physics.inputs import VoltageProfile
 
 
-def simulate(machine: Machine | None = None, voltage_V: float | VoltageProfile = 12.0, duration_s: float = 2.0, *,
-             start_angle_rad: float = 0.0, sample_rate_hz: float = 1000.0, reduced: bool = False,
-             progress: bool = False) -> SimulationResult:
+def simulate(
+    machine: Machine | None = None,
+    voltage_V: float | VoltageProfile = 12.0,
+    duration_s: float = 2.0,
+    *,
+    start_angle_rad: float = 0.0,
+    sample_rate_hz: float = 1000.0,
+    reduced: bool = False,
+    progress: bool = False,
+) -> SimulationResult:
     """Run ``machine`` (default: the shipped one, cold) from rest under a voltage or profile.
     ``reduced=True`` integrates the exact 1-DOF equation instead of the full multibody model."""
     from mechanism.dynamics.reduced import ReducedModel
@@ -31,10 +44,17 @@ def simulate(machine: Machine | None = None, voltage_V: float | VoltageProfile =
 
     machine = machine or load_machine()
     if reduced:
-        return ReducedModel(machine).simulate(voltage_V, duration_s, start_angle_rad=start_angle_rad,
-                                              sample_rate_hz=sample_rate_hz)
-    return full(voltage_V, duration_s, machine=machine, start_angle_rad=start_angle_rad,
-                sample_rate_hz=sample_rate_hz, progress=progress)
+        return ReducedModel(machine).simulate(
+            voltage_V, duration_s, start_angle_rad=start_angle_rad, sample_rate_hz=sample_rate_hz
+        )
+    return full(
+        voltage_V,
+        duration_s,
+        machine=machine,
+        start_angle_rad=start_angle_rad,
+        sample_rate_hz=sample_rate_hz,
+        progress=progress,
+    )
 
 
 def convert(export: str | os.PathLike, out_dir: str | os.PathLike, **options):
@@ -51,20 +71,40 @@ def conversion_summary(report) -> list[str]:
     return report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom))
 
 
-def probe(machine: Machine | None = None, probes: Sequence[str] = (), *, speed_rpm: float = 600.0,
-          voltage_V: float | None = None, duration_s: float | None = None):
+def probe(
+    machine: Machine | None = None,
+    probes: Sequence[str] = (),
+    *,
+    speed_rpm: float = 600.0,
+    voltage_V: float | None = None,
+    duration_s: float | None = None,
+):
     """Probes ``"name:quantity"`` (position, velocity, acceleration, force, torque) over one
     kinematic shaft revolution at ``speed_rpm``, or along a simulation under ``voltage_V``."""
     from mechanism.inspection.probes import Probe, run_probes
 
     machine = machine or load_machine()
-    parsed = [Probe(name, quantity) for name, _, quantity in (text.rpartition(":") for text in probes)]
-    return run_probes(parsed, machine.model_path, voltage_V, duration_s, speed_rpm, driver=machine.shaft_joint,
-                      description=machine.description)
+    parsed = [
+        Probe(name, quantity) for name, _, quantity in (text.rpartition(":") for text in probes)
+    ]
+    return run_probes(
+        parsed,
+        machine.model_path,
+        voltage_V,
+        duration_s,
+        speed_rpm,
+        driver=machine.shaft_joint,
+        description=machine.description,
+    )
 
 
-def clearance(machine: Machine | None = None, pairs: str | Sequence[str] = (), *, required_mm: float = 0.0,
-              resolution_deg: float = 0.5):
+def clearance(
+    machine: Machine | None = None,
+    pairs: str | Sequence[str] = (),
+    *,
+    required_mm: float = 0.0,
+    resolution_deg: float = 0.5,
+):
     """Minimum clearance of part pairs ``"A:B"`` over a shaft revolution (exact shapes)."""
     from mechanism.inspection.clearance import check_clearance, parse_pairs
     from mechanism.machine.models import load_model
@@ -72,12 +112,26 @@ def clearance(machine: Machine | None = None, pairs: str | Sequence[str] = (), *
     machine = machine or load_machine()
     model = load_model(machine.model_path)
     text = pairs if isinstance(pairs, str) else ",".join(pairs)
-    return check_clearance(model, parse_pairs(text, model), resolution_deg=resolution_deg, required_mm=required_mm,
-                           driver=machine.shaft_joint)
+    return check_clearance(
+        model,
+        parse_pairs(text, model),
+        resolution_deg=resolution_deg,
+        required_mm=required_mm,
+        driver=machine.shaft_joint,
+    )
 
 
-def sweep(machine: Machine | None, variants: str | os.PathLike | dict, *, voltage_V: float = 12.0,
-          duration_s: float = 2.0, workers: int = 1, backend: str = "local", progress: bool = False, **options):
+def sweep(
+    machine: Machine | None,
+    variants: str | os.PathLike | dict,
+    *,
+    voltage_V: float = 12.0,
+    duration_s: float = 2.0,
+    workers: int = 1,
+    backend: str = "local",
+    progress: bool = False,
+    **options,
+):
     """Dynamic design variants (a variants file or its JSON document as a dict: flywheel
     ``inertia:<joint>_kgm2``, counterweight ``mass:<part>_kg``, ``motor:<key>``, ``friction:<joint>:<key>``,
     ``voltage_V``, ...), each run from rest on the reduced model; ``.table()`` gives one row per
@@ -87,12 +141,25 @@ def sweep(machine: Machine | None, variants: str | os.PathLike | dict, *, voltag
 
     machine = machine or load_machine()
     presets = machine.description.variant_presets
-    variant_set = variants_from_document(variants, presets) if isinstance(variants, dict) else read_variants(variants, presets)
-    return run_sweep(machine, variant_set, SweepOptions(voltage_V=voltage_V, duration_s=duration_s, layers=machine.config.layers),
-                     workers=workers, backend=backend, progress=progress, **options)
+    variant_set = (
+        variants_from_document(variants, presets)
+        if isinstance(variants, dict)
+        else read_variants(variants, presets)
+    )
+    return run_sweep(
+        machine,
+        variant_set,
+        SweepOptions(voltage_V=voltage_V, duration_s=duration_s, layers=machine.config.layers),
+        workers=workers,
+        backend=backend,
+        progress=progress,
+        **options,
+    )
 
 
-def plot_sweep(result, path: str | os.PathLike, x: str | None = None, group: str | None = None) -> Path:
+def plot_sweep(
+    result, path: str | os.PathLike, x: str | None = None, group: str | None = None
+) -> Path:
     """Speed, ripple, settling time and peak current of a sweep against one parameter, a line per value of another."""
     from mechanism.inspection.sweep import plot_sweep as run
 
@@ -112,7 +179,13 @@ def view(machine: Machine | None = None, html: str | os.PathLike | None = None, 
     from mechanism.inspection.viewer import view as run
 
     machine = machine or load_machine()
-    return run(html, machine.model_path, driver=machine.shaft_joint, description=machine.description, **options)
+    return run(
+        html,
+        machine.model_path,
+        driver=machine.shaft_joint,
+        description=machine.description,
+        **options,
+    )
 
 
 def inspect(machine: Machine | None = None, out: str | os.PathLike = "inspection") -> list[Path]:
@@ -122,18 +195,28 @@ def inspect(machine: Machine | None = None, out: str | os.PathLike = "inspection
     return demo(out, machine or load_machine())
 
 
-def write_bench_recording(machine: Machine | None, effects: Sequence[str], seed: int, path: str | os.PathLike,
-                          duration_s: float = 60.0) -> Path:
+def write_bench_recording(
+    machine: Machine | None,
+    effects: Sequence[str],
+    seed: int,
+    path: str | os.PathLike,
+    duration_s: float = 60.0,
+) -> Path:
     """A virtual bench recording of ``machine`` with concealed ``effects`` (the truth JSON beside
     it, whose path is returned)."""
     from mechanism.testbench import make_recording, write_recording
 
-    recording = make_recording(list(effects), seed=seed, duration_s=duration_s, nominal=drive_nominal(machine))
+    recording = make_recording(
+        list(effects), seed=seed, duration_s=duration_s, nominal=drive_nominal(machine)
+    )
     return write_recording(recording, Path(path))[1]
 
 
-def read_recording(recording: str | os.PathLike, machine: Machine | None = None,
-                   recording_map: str | os.PathLike | None = None):
+def read_recording(
+    recording: str | os.PathLike,
+    machine: Machine | None = None,
+    recording_map: str | os.PathLike | None = None,
+):
     """A bench recording in any format the readers take (CSV/TSV plain or compressed, MATLAB,
     Parquet/Feather, TDMS, JSON), its columns and units by ``recording_map`` (a TOML with a
     ``[recording]`` table), else by the machine description's ``[recording]``, else by the
@@ -142,12 +225,18 @@ def read_recording(recording: str | os.PathLike, machine: Machine | None = None,
     from mechanism.sysid.recording_map import resolve_recording_map
 
     description = machine.description if machine is not None else None
-    return run(recording, resolve_recording_map(description, recording_map),
-               motor_joint=machine.motor_joint if machine is not None else None)
+    return run(
+        recording,
+        resolve_recording_map(description, recording_map),
+        motor_joint=machine.motor_joint if machine is not None else None,
+    )
 
 
-def inspect_recording(recording: str | os.PathLike, machine: Machine | None = None,
-                      recording_map: str | os.PathLike | None = None) -> dict:
+def inspect_recording(
+    recording: str | os.PathLike,
+    machine: Machine | None = None,
+    recording_map: str | os.PathLike | None = None,
+) -> dict:
     """What a recording holds before any fit: columns found and chosen, units, rate, duration,
     each signal's range, the encoder step, gaps, and whether it excites the machine enough to
     identify each parameter (``mechanism inspect-recording``)."""
@@ -158,16 +247,29 @@ def inspect_recording(recording: str | os.PathLike, machine: Machine | None = No
     return run(recording, resolve_recording_map(description, recording_map))
 
 
-def identify(machine: Machine | None, recording: str | os.PathLike, recording_map: str | os.PathLike | None = None, **options):
+def identify(
+    machine: Machine | None,
+    recording: str | os.PathLike,
+    recording_map: str | os.PathLike | None = None,
+    **options,
+):
     """Fit the machine's lumped baseline (inertia, friction) to a bench recording (any
     format :func:`read_recording` takes)."""
     from mechanism.sysid.identification import identify as run
 
-    return run(read_recording(recording, machine, recording_map), nominal=drive_nominal(machine), **options)
+    return run(
+        read_recording(recording, machine, recording_map), nominal=drive_nominal(machine), **options
+    )
 
 
-def diagnose(machine: Machine | None, recording: str | os.PathLike, recording_map: str | os.PathLike | None = None, *,
-             recording_name: str | None = None, **options):
+def diagnose(
+    machine: Machine | None,
+    recording: str | os.PathLike,
+    recording_map: str | os.PathLike | None = None,
+    *,
+    recording_name: str | None = None,
+    **options,
+):
     """Find the physics the machine's model is missing from a bench recording, model it, show the fit improve.
     ``recording_name``: how the outputs name the recording (default: the path as given), e.g. its
     path relative to the folder the outputs go to."""
@@ -196,12 +298,18 @@ def drive_nominal(machine: Machine | None):
     shipped = load_machine()
     description, n = shipped.description, shipped.motor_ratio
     lumped, motor = description.section("lumped"), description.motor
-    constants = MotorConstants(motor["resistance_ohm"], motor["torque_constant_Nm_per_A"], motor["back_emf_V_s_per_rad"], n)
-    return DriveNominal(constants, inertia_kgm2=lumped["inertia_motor_side_kgm2"] * n**2,
-                        coulomb_shaft_Nm=lumped["coulomb_shaft_Nm"],
-                        viscous_shaft_Nm_s_per_rad=lumped["viscous_motor_side_Nm_s_per_rad"] * n**2,
-                        joint_ratios=machine_drive_nominal(shipped).joint_ratios,
-                        supply_V=description.section("supply")["voltage_V"], zero_meaning="needle top dead centre")
+    constants = MotorConstants(
+        motor["resistance_ohm"], motor["torque_constant_Nm_per_A"], motor["back_emf_V_s_per_rad"], n
+    )
+    return DriveNominal(
+        constants,
+        inertia_kgm2=lumped["inertia_motor_side_kgm2"] * n**2,
+        coulomb_shaft_Nm=lumped["coulomb_shaft_Nm"],
+        viscous_shaft_Nm_s_per_rad=lumped["viscous_motor_side_Nm_s_per_rad"] * n**2,
+        joint_ratios=machine_drive_nominal(shipped).joint_ratios,
+        supply_V=description.section("supply")["voltage_V"],
+        zero_meaning="needle top dead centre",
+    )
 
 
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:
@@ -212,7 +320,38 @@ def diagnosis_report(result, folder: str | os.PathLike) -> Path:
 
 
 __all__ = [
-    "Machine", "MachineConfig", "NeedleMotion", "SimulationResult", "VoltageProfile", "atomic_dir", "clearance",
-    "conversion_summary", "convert", "diagnose", "inspect_recording", "read_recording", "driven_inertia_kgm2", "diagnosis_report", "identify", "inspect", "write_bench_recording", "load_machine", "needle_motion", "plot_needle", "plot_simulation", "probe", "read_table",
-    "plot_sweep", "shipped_export", "shipped_folder", "shipped_machines", "shipped_model", "shipped_scene", "simulate", "sweep", "view", "write_needle_csv", "write_table",
+    "Machine",
+    "MachineConfig",
+    "NeedleMotion",
+    "SimulationResult",
+    "VoltageProfile",
+    "atomic_dir",
+    "clearance",
+    "conversion_summary",
+    "convert",
+    "diagnose",
+    "inspect_recording",
+    "read_recording",
+    "driven_inertia_kgm2",
+    "diagnosis_report",
+    "identify",
+    "inspect",
+    "write_bench_recording",
+    "load_machine",
+    "needle_motion",
+    "plot_needle",
+    "plot_simulation",
+    "probe",
+    "read_table",
+    "plot_sweep",
+    "shipped_export",
+    "shipped_folder",
+    "shipped_machines",
+    "shipped_model",
+    "shipped_scene",
+    "simulate",
+    "sweep",
+    "view",
+    "write_needle_csv",
+    "write_table",
 ]

@@ -22,9 +22,16 @@ import mechanism
 
 DEMO_EFFECT = "torque_ripple"  # the concealed effect of the demo's bench recording
 DEMO_SEED = 3
-STEPS_V = (np.array([0.0, 1.5, 3.0, 4.5, 5.5]), np.array([0.2, 0.5, 0.8, 0.0, 0.3]))  # fractions of the top voltage
+STEPS_V = (
+    np.array([0.0, 1.5, 3.0, 4.5, 5.5]),
+    np.array([0.2, 0.5, 0.8, 0.0, 0.3]),
+)  # fractions of the top voltage
 TOP_VOLTAGE_V = 24.0
-FLYWHEEL_MULTIPLE, FLYWHEEL_STEPS, FLYWHEEL_RUN_S = 4.0, 9, 3.0  # added inertia up to 4x the shaft side's own
+FLYWHEEL_MULTIPLE, FLYWHEEL_STEPS, FLYWHEEL_RUN_S = (
+    4.0,
+    9,
+    3.0,
+)  # added inertia up to 4x the shaft side's own
 
 
 class _Steps:
@@ -39,13 +46,22 @@ class _Steps:
 def _convert(machine: mechanism.Machine, out: Path, final: Path) -> dict:
     export = mechanism.shipped_export(machine.name)
     if export is None:
-        return {"lines": [f"{machine.name}: no CAD export shipped; the model is {machine.model_path.name}"]}
+        return {
+            "lines": [
+                f"{machine.name}: no CAD export shipped; the model is {machine.model_path.name}"
+            ]
+        }
     report = mechanism.convert(export, out / "model")
     lines = [line.replace(str(out), str(final)) for line in mechanism.conversion_summary(report)]
     (out / "model" / "conversion.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    counts = {"parts": report.n_parts, "bodies": report.n_bodies, "joints": report.n_joints,
-              "loop_closures": report.n_loop_closures, "couplings": report.n_couplings,
-              "degrees_of_freedom": report.degrees_of_freedom}
+    counts = {
+        "parts": report.n_parts,
+        "bodies": report.n_bodies,
+        "joints": report.n_joints,
+        "loop_closures": report.n_loop_closures,
+        "couplings": report.n_couplings,
+        "degrees_of_freedom": report.degrees_of_freedom,
+    }
     return {"lines": lines, "mjcf": f"model/{report.mjcf_path.name}", "counts": counts}
 
 
@@ -55,9 +71,13 @@ def _tool(machine: mechanism.Machine, out: Path) -> dict | None:
     motion = mechanism.needle_motion(machine)
     mechanism.write_needle_csv(motion, out / "tool.csv")
     mechanism.plot_needle(motion, out / "tool.png")
-    return {"stroke_mm": motion.stroke_mm, "hook_passage_deg": motion.hook_passage_angle_deg,
-            "needle_rise_at_passage_mm": motion.needle_rise_at_passage_mm,
-            "hook_point_clearance_mm": motion.hook_point_clearance_mm, "summary": motion.summary_lines()}
+    return {
+        "stroke_mm": motion.stroke_mm,
+        "hook_passage_deg": motion.hook_passage_angle_deg,
+        "needle_rise_at_passage_mm": motion.needle_rise_at_passage_mm,
+        "hook_point_clearance_mm": motion.hook_point_clearance_mm,
+        "summary": motion.summary_lines(),
+    }
 
 
 def steady_speeds(machine: mechanism.Machine) -> list[dict]:
@@ -68,12 +88,25 @@ def steady_speeds(machine: mechanism.Machine) -> list[dict]:
         return []
     table = mechanism.read_table(path, required=["motor_voltage_V", "warm_s", "speed_rpm"])
     rows, machines = [], {}
-    for volts, warm_s, measured in zip(table["motor_voltage_V"], table["warm_s"], table["speed_rpm"]):
+    for volts, warm_s, measured in zip(
+        table["motor_voltage_V"], table["warm_s"], table["speed_rpm"]
+    ):
         if warm_s not in machines:
-            machines[warm_s] = mechanism.load_machine(machine.description, needle=False, warm_s=float(warm_s))
-        model = mechanism.simulate(machines[warm_s], voltage_V=float(volts), duration_s=3.0).mean_speed_rpm
-        rows.append({"motor_voltage_V": float(volts), "warm_s": float(warm_s), "measured_rpm": float(measured),
-                     "model_rpm": model, "error_percent": (model / measured - 1) * 100})
+            machines[warm_s] = mechanism.load_machine(
+                machine.description, needle=False, warm_s=float(warm_s)
+            )
+        model = mechanism.simulate(
+            machines[warm_s], voltage_V=float(volts), duration_s=3.0
+        ).mean_speed_rpm
+        rows.append(
+            {
+                "motor_voltage_V": float(volts),
+                "warm_s": float(warm_s),
+                "measured_rpm": float(measured),
+                "model_rpm": model,
+                "error_percent": (model / measured - 1) * 100,
+            }
+        )
     return rows
 
 
@@ -81,18 +114,30 @@ def _simulate(machine: mechanism.Machine, out: Path) -> dict:
     facts: dict = {"steady_speeds": steady_speeds(machine)}
     if facts["steady_speeds"]:
         rows = facts["steady_speeds"]
-        mechanism.write_table(out / "steady_speeds.csv", {key: [row[key] for row in rows] for key in rows[0]},
-                              comments=["measured steady shaft speeds (no tool load) against the full multibody model"])
+        mechanism.write_table(
+            out / "steady_speeds.csv",
+            {key: [row[key] for row in rows] for key in rows[0]},
+            comments=[
+                "measured steady shaft speeds (no tool load) against the full multibody model"
+            ],
+        )
     times, fractions = STEPS_V
     steps = mechanism.VoltageProfile(times, fractions * TOP_VOLTAGE_V)
     run = mechanism.simulate(machine, voltage_V=steps, duration_s=7.0)
-    mechanism.write_table(out / "simulate_steps.csv", run.columns(),
-                          comments=["voltage steps " + " / ".join(f"{v:g}" for v in steps.voltage_V) + " V"])
+    mechanism.write_table(
+        out / "simulate_steps.csv",
+        run.columns(),
+        comments=["voltage steps " + " / ".join(f"{v:g}" for v in steps.voltage_V) + " V"],
+    )
     mechanism.plot_simulation(run, out / "simulate_steps.png")
     facts["steps_final_rpm"] = run.mean_speed_rpm
     if machine.fabric_capable:
-        sewing = mechanism.simulate(mechanism.load_machine(machine.description, layers=12), voltage_V=7.0, duration_s=3.0)
-        mechanism.write_table(out / "sewing_12_layers.csv", sewing.columns(), comments=["7 V, through 12 layers"])
+        sewing = mechanism.simulate(
+            mechanism.load_machine(machine.description, layers=12), voltage_V=7.0, duration_s=3.0
+        )
+        mechanism.write_table(
+            out / "sewing_12_layers.csv", sewing.columns(), comments=["7 V, through 12 layers"]
+        )
         mechanism.plot_simulation(sewing, out / "sewing_12_layers.png")
         facts["sewing_mean_rpm"] = sewing.mean_speed_rpm
     return facts
@@ -105,34 +150,54 @@ def _flywheel(machine: mechanism.Machine, out: Path) -> dict | None:
     if not voltages:
         return None
     own = mechanism.driven_inertia_kgm2(machine)
-    document = {"parameters": {"added_inertia_kgm2": f"inertia:{machine.shaft_joint}_kgm2", "voltage_V": "voltage_V"},
-                "sweep": {"added_inertia_kgm2": list(np.linspace(0.0, FLYWHEEL_MULTIPLE * own, FLYWHEEL_STEPS)),
-                          "voltage_V": list(voltages)}}
+    document = {
+        "parameters": {
+            "added_inertia_kgm2": f"inertia:{machine.shaft_joint}_kgm2",
+            "voltage_V": "voltage_V",
+        },
+        "sweep": {
+            "added_inertia_kgm2": list(np.linspace(0.0, FLYWHEEL_MULTIPLE * own, FLYWHEEL_STEPS)),
+            "voltage_V": list(voltages),
+        },
+    }
     result = mechanism.sweep(machine, document, duration_s=FLYWHEEL_RUN_S)
     rows = result.table()[1:]  # the grid; row 0 is the nominal machine at the default voltage
-    mechanism.write_table(out / "flywheel.csv", {key: [row[key] for row in rows] for key in rows[0] if key not in ("variant", "note")},
-                          comments=[f"flywheel on {machine.shaft_joint}: added inertia 0-{FLYWHEEL_MULTIPLE:g}x the shaft side's own "
-                                    f"({own:.3g} kg m^2), each run {FLYWHEEL_RUN_S:g} s from rest"])
+    mechanism.write_table(
+        out / "flywheel.csv",
+        {key: [row[key] for row in rows] for key in rows[0] if key not in ("variant", "note")},
+        comments=[
+            f"flywheel on {machine.shaft_joint}: added inertia 0-{FLYWHEEL_MULTIPLE:g}x the shaft side's own "
+            f"({own:.3g} kg m^2), each run {FLYWHEEL_RUN_S:g} s from rest"
+        ],
+    )
     mechanism.plot_sweep(result, out / "flywheel.png", x="added_inertia_kgm2", group="voltage_V")
     by_voltage = {}
     for volts in voltages:
         mine = [row for row in rows if row["voltage_V"] == volts]
         bare, biggest = mine[0], mine[-1]
-        by_voltage[f"{volts:g}"] = {"ripple_pp_rad_s": [bare["ripple_pp_rad_s"], biggest["ripple_pp_rad_s"]],
-                                    "settling_s": [bare["settling_s"], biggest["settling_s"]]}
+        by_voltage[f"{volts:g}"] = {
+            "ripple_pp_rad_s": [bare["ripple_pp_rad_s"], biggest["ripple_pp_rad_s"]],
+            "settling_s": [bare["settling_s"], biggest["settling_s"]],
+        }
     return {"own_inertia_kgm2": own, "multiple": FLYWHEEL_MULTIPLE, "by_voltage_V": by_voltage}
 
 
 def _diagnose(machine: mechanism.Machine, out: Path) -> dict:
     recording = out / f"bench_{DEMO_EFFECT}_seed{DEMO_SEED}.csv"
     truth = mechanism.write_bench_recording(machine, [DEMO_EFFECT], DEMO_SEED, recording)
-    result = mechanism.diagnose(machine, recording, recording_name=recording.name)  # beside the outputs, not in staging
+    result = mechanism.diagnose(
+        machine, recording, recording_name=recording.name
+    )  # beside the outputs, not in staging
     document = result.to_json()
     (out / "diagnosis.json").write_text(json.dumps(document, indent=2), encoding="utf-8")
     mechanism.diagnosis_report(result, out / "diagnosis")
-    return {"recording": recording.name, "found": [e["name"] for e in document["effects"]],
-            "concealed": json.loads(truth.read_text())["effects"],
-            "baseline_rmse": document["baseline"]["rmse"], "final_rmse": document["final"]["rmse"]}
+    return {
+        "recording": recording.name,
+        "found": [e["name"] for e in document["effects"]],
+        "concealed": json.loads(truth.read_text())["effects"],
+        "baseline_rmse": document["baseline"]["rmse"],
+        "final_rmse": document["final"]["rmse"],
+    }
 
 
 def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
@@ -165,7 +230,9 @@ def run(out: str | os.PathLike = "out", machines: list[str] | None = None) -> Pa
     with mechanism.atomic_dir(out) as work:
         for name in names:
             facts[name] = machine_section(name, work, out, step)
-        (work / "demo.json").write_text(json.dumps(facts, indent=2, default=float), encoding="utf-8")
+        (work / "demo.json").write_text(
+            json.dumps(facts, indent=2, default=float), encoding="utf-8"
+        )
         for name, machine_facts in facts.items():
             (work / name / "tour.md").write_text(tour_table(machine_facts), encoding="utf-8")
         (work / "index.html").write_text(_index(facts), encoding="utf-8")
@@ -180,11 +247,17 @@ def _clearance_facts(out: Path) -> dict:
     facts: dict = {"pairs": [], "variants": 0, "failing_variants": 0}
     if (out / "clearance.json").is_file():
         document = json.loads((out / "clearance.json").read_text(encoding="utf-8"))
-        facts["pairs"] = [{"a": p["part_a"], "b": p["part_b"], "min_mm": p["min_distance_mm"]} for p in document["pairs"]]
+        facts["pairs"] = [
+            {"a": p["part_a"], "b": p["part_b"], "min_mm": p["min_distance_mm"]}
+            for p in document["pairs"]
+        ]
     if (out / "variants.csv").is_file():
         with open(out / "variants.csv", encoding="utf-8") as handle:
             rows = list(csv.DictReader(line for line in handle if not line.startswith("#")))
-        facts["variants"], facts["failing_variants"] = len(rows), sum(row["pass"] == "0" for row in rows)
+        facts["variants"], facts["failing_variants"] = (
+            len(rows),
+            sum(row["pass"] == "0" for row in rows),
+        )
     return facts
 
 
@@ -194,21 +267,29 @@ def tour_table(f: dict) -> str:
     name, rows = f["name"], []
     if "counts" in f["conversion"]:
         c = f["conversion"]["counts"]
-        rows.append(("convert the shipped CAD export",
-                     f"`{name}/{f['conversion']['mjcf']}` (+ meshes): {c['parts']} parts, {c['bodies']} bodies, "
-                     f"{c['joints']} joints, {c['loop_closures']} loop closures, {c['couplings']} belt/gear couplings, "
-                     f"{c['degrees_of_freedom']} degree{'' if c['degrees_of_freedom'] == 1 else 's'} of freedom"))
+        rows.append(
+            (
+                "convert the shipped CAD export",
+                f"`{name}/{f['conversion']['mjcf']}` (+ meshes): {c['parts']} parts, {c['bodies']} bodies, "
+                f"{c['joints']} joints, {c['loop_closures']} loop closures, {c['couplings']} belt/gear couplings, "
+                f"{c['degrees_of_freedom']} degree{'' if c['degrees_of_freedom'] == 1 else 's'} of freedom",
+            )
+        )
     if f["tool"]:
         t = f["tool"]
         text = f"`tool.csv/png`: {t['stroke_mm']:.3f} mm stroke"
         if t.get("hook_passage_deg") is not None:
-            text += (f"; the hook point passes the needle {t['needle_rise_at_passage_mm']:.1f} mm above bottom dead centre, "
-                     f"{t['hook_point_clearance_mm']:.2f} mm clear")
+            text += (
+                f"; the hook point passes the needle {t['needle_rise_at_passage_mm']:.1f} mm above bottom dead centre, "
+                f"{t['hook_point_clearance_mm']:.2f} mm clear"
+            )
         rows.append(("tool motion", text))
     sim, dynamics = f["simulation"], []
     if sim["steady_speeds"]:
         worst = max(abs(r["error_percent"]) for r in sim["steady_speeds"])
-        dynamics.append(f"`steady_speeds.csv`: all {len(sim['steady_speeds'])} measured steady speeds within {worst:.1f} %")
+        dynamics.append(
+            f"`steady_speeds.csv`: all {len(sim['steady_speeds'])} measured steady speeds within {worst:.1f} %"
+        )
     dynamics.append("`simulate_steps.png`")
     if "sewing_mean_rpm" in sim:
         dynamics.append(f"`sewing_12_layers.png` (mean {sim['sewing_mean_rpm']:.0f} rpm at 7 V)")
@@ -216,14 +297,26 @@ def tour_table(f: dict) -> str:
     clear = f.get("clearance") or {}
     if clear.get("pairs"):
         pairs = ", ".join(f"{p['a']} vs {p['b']} {p['min_mm']:.2f} mm" for p in clear["pairs"])
-        rows.append(("probes, clearance", f"`probes.csv/png`, `clearance.csv/json`, `variants.csv`: {pairs}; "
-                                          f"{clear['failing_variants']} of {clear['variants']} design variants interfere"))
+        rows.append(
+            (
+                "probes, clearance",
+                f"`probes.csv/png`, `clearance.csv/json`, `variants.csv`: {pairs}; "
+                f"{clear['failing_variants']} of {clear['variants']} design variants interfere",
+            )
+        )
     rows.append(("3-D", "`machine.html`: self-contained meshcat animation, opens offline"))
     d = f["diagnosis"]
-    rows.append(("diagnosis", f"`diagnosis/index.html`, `diagnosis.json`: a virtual bench recording with a concealed "
-                              f"{', '.join(d['concealed'])}; found {', '.join(d['found']) or 'nothing'}, velocity rmse "
-                              f"{d['baseline_rmse']:.2g} -> {d['final_rmse']:.2g} rad/s"))
-    return "| step | what you get |\n| --- | --- |\n" + "".join(f"| {step} | {text} |\n" for step, text in rows)
+    rows.append(
+        (
+            "diagnosis",
+            f"`diagnosis/index.html`, `diagnosis.json`: a virtual bench recording with a concealed "
+            f"{', '.join(d['concealed'])}; found {', '.join(d['found']) or 'nothing'}, velocity rmse "
+            f"{d['baseline_rmse']:.2g} -> {d['final_rmse']:.2g} rad/s",
+        )
+    )
+    return "| step | what you get |\n| --- | --- |\n" + "".join(
+        f"| {step} | {text} |\n" for step, text in rows
+    )
 
 
 def _index(facts: dict) -> str:
@@ -246,35 +339,61 @@ def _section(f: dict) -> str:
     def img(path):
         return f'<p><img src="{html.escape(name)}/{html.escape(path)}" style="max-width:900px;width:100%"></p>'
 
-    parts = [f'<h2 id="{html.escape(name)}">{html.escape(name)}</h2>',
-             f"<h3>CAD export to MuJoCo</h3><pre>{html.escape(chr(10).join(f['conversion']['lines']))}</pre>"]
+    parts = [
+        f'<h2 id="{html.escape(name)}">{html.escape(name)}</h2>',
+        f"<h3>CAD export to MuJoCo</h3><pre>{html.escape(chr(10).join(f['conversion']['lines']))}</pre>",
+    ]
     if "mjcf" in f["conversion"]:
-        parts.append(f"<p>{link(f['conversion']['mjcf'], 'converted MJCF')} &middot; {link('machine.html', '3-D animation (opens offline)')}</p>")
+        parts.append(
+            f"<p>{link(f['conversion']['mjcf'], 'converted MJCF')} &middot; {link('machine.html', '3-D animation (opens offline)')}</p>"
+        )
     if f["tool"]:
-        parts.append(f"<h3>Tool motion</h3><pre>{html.escape(chr(10).join(f['tool']['summary']))}</pre>{link('tool.csv')}{img('tool.png')}")
+        parts.append(
+            f"<h3>Tool motion</h3><pre>{html.escape(chr(10).join(f['tool']['summary']))}</pre>{link('tool.csv')}{img('tool.png')}"
+        )
     sim = f["simulation"]
     if sim["steady_speeds"]:
-        rows = "".join(f"<tr><td>{r['motor_voltage_V']:.2f}</td><td>{r['warm_s']:g}</td><td>{r['measured_rpm']:.0f}</td>"
-                       f"<td>{r['model_rpm']:.0f}</td><td>{r['error_percent']:+.1f}</td></tr>" for r in sim["steady_speeds"])
-        parts.append("<h3>Steady speeds against the measurements</h3><table><tr><th>motor V</th><th>warm s</th>"
-                     f"<th>measured rpm</th><th>model rpm</th><th>error %</th></tr>{rows}</table><p>{link('steady_speeds.csv')}</p>")
-    parts.append(f"<h3>Voltage steps</h3><p>{link('simulate_steps.csv')}</p>{img('simulate_steps.png')}")
+        rows = "".join(
+            f"<tr><td>{r['motor_voltage_V']:.2f}</td><td>{r['warm_s']:g}</td><td>{r['measured_rpm']:.0f}</td>"
+            f"<td>{r['model_rpm']:.0f}</td><td>{r['error_percent']:+.1f}</td></tr>"
+            for r in sim["steady_speeds"]
+        )
+        parts.append(
+            "<h3>Steady speeds against the measurements</h3><table><tr><th>motor V</th><th>warm s</th>"
+            f"<th>measured rpm</th><th>model rpm</th><th>error %</th></tr>{rows}</table><p>{link('steady_speeds.csv')}</p>"
+        )
+    parts.append(
+        f"<h3>Voltage steps</h3><p>{link('simulate_steps.csv')}</p>{img('simulate_steps.png')}"
+    )
     if "sewing_mean_rpm" in sim:
-        parts.append(f"<p>Sewing 12 layers at 7 V: mean {sim['sewing_mean_rpm']:.0f} rpm, a dip each time the needle "
-                     f"pierces. {link('sewing_12_layers.csv')}</p>{img('sewing_12_layers.png')}")
+        parts.append(
+            f"<p>Sewing 12 layers at 7 V: mean {sim['sewing_mean_rpm']:.0f} rpm, a dip each time the needle "
+            f"pierces. {link('sewing_12_layers.csv')}</p>{img('sewing_12_layers.png')}"
+        )
     if f.get("flywheel"):
         fly = f["flywheel"]
-        rows = "".join(f"<tr><td>{v}</td><td>{d['ripple_pp_rad_s'][0]:.2f}</td><td>{d['ripple_pp_rad_s'][1]:.2f}</td>"
-                       f"<td>{d['settling_s'][0]:.2f}</td><td>{d['settling_s'][1]:.2f}</td></tr>" for v, d in fly["by_voltage_V"].items())
-        parts.append(f"<h3>A bigger flywheel?</h3><p>Inertia added on the shaft, up to {fly['multiple']:g}x the shaft side's own "
-                     f"({fly['own_inertia_kgm2']:.3g} kg m&sup2;): the speed ripple falls, the start takes longer.</p>"
-                     "<table><tr><th>motor V</th><th>ripple p-p rad/s, bare</th><th>with flywheel</th><th>settling s, bare</th>"
-                     f"<th>with flywheel</th></tr>{rows}</table><p>{link('flywheel.csv')}</p>{img('flywheel.png')}")
+        rows = "".join(
+            f"<tr><td>{v}</td><td>{d['ripple_pp_rad_s'][0]:.2f}</td><td>{d['ripple_pp_rad_s'][1]:.2f}</td>"
+            f"<td>{d['settling_s'][0]:.2f}</td><td>{d['settling_s'][1]:.2f}</td></tr>"
+            for v, d in fly["by_voltage_V"].items()
+        )
+        parts.append(
+            f"<h3>A bigger flywheel?</h3><p>Inertia added on the shaft, up to {fly['multiple']:g}x the shaft side's own "
+            f"({fly['own_inertia_kgm2']:.3g} kg m&sup2;): the speed ripple falls, the start takes longer.</p>"
+            "<table><tr><th>motor V</th><th>ripple p-p rad/s, bare</th><th>with flywheel</th><th>settling s, bare</th>"
+            f"<th>with flywheel</th></tr>{rows}</table><p>{link('flywheel.csv')}</p>{img('flywheel.png')}"
+        )
     if f["inspection"]:
-        parts.append("<h3>Probes and clearance</h3><p>" + " &middot; ".join(link(p) for p in f["inspection"] if not p.endswith(".png")) + "</p>")
+        parts.append(
+            "<h3>Probes and clearance</h3><p>"
+            + " &middot; ".join(link(p) for p in f["inspection"] if not p.endswith(".png"))
+            + "</p>"
+        )
         parts += [img(p) for p in f["inspection"] if p.endswith(".png")]
     d = f["diagnosis"]
-    parts.append(f"<h3>Diagnosis of a bench recording</h3><p>{link(d['recording'])}: concealed {', '.join(d['concealed']) or 'nothing'}; "
-                 f"found {', '.join(d['found']) or 'nothing'}; velocity rmse {d['baseline_rmse']:.3f} -> {d['final_rmse']:.3f} rad/s. "
-                 f"{link('diagnosis/index.html', 'report')} &middot; {link('diagnosis.json')}</p>")
+    parts.append(
+        f"<h3>Diagnosis of a bench recording</h3><p>{link(d['recording'])}: concealed {', '.join(d['concealed']) or 'nothing'}; "
+        f"found {', '.join(d['found']) or 'nothing'}; velocity rmse {d['baseline_rmse']:.3f} -> {d['final_rmse']:.3f} rad/s. "
+        f"{link('diagnosis/index.html', 'report')} &middot; {link('diagnosis.json')}</p>"
+    )
     return "".join(parts)

@@ -19,6 +19,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 # pytest >= 9.2 no longer reads: the mark alone is silently ignored and two workers would run Ray
 # tests at once. The controller sees only node ids, so the name carries the group to it.
 
+
 def _is_ray_test(nodeid: str) -> bool:
     """The test's name has the word "ray" (or "rays") between underscores; "array" does not count."""
     name = nodeid.rpartition("::")[2].partition("[")[0].lower()
@@ -27,7 +28,9 @@ def _is_ray_test(nodeid: str) -> bool:
 
 def pytest_runtest_setup(item):
     if item.get_closest_marker("xdist_group") and not _is_ray_test(item.nodeid):
-        pytest.fail(f"{item.nodeid}: a test in the Ray group needs 'ray' in its name (the scheduler groups by name)")
+        pytest.fail(
+            f"{item.nodeid}: a test in the Ray group needs 'ray' in its name (the scheduler groups by name)"
+        )
 
 
 try:
@@ -35,6 +38,7 @@ try:
 except ImportError:  # without pytest-xdist the tests run one after another anyway
     pass
 else:
+
     class _RayTestsTogether(LoadScopeScheduling):
         """Every test a unit of its own, as ``--dist load``, except the Ray tests: one unit, one worker."""
 
@@ -60,7 +64,9 @@ def shared_dir() -> Path | None:
 def shared() -> Path:
     path = shared_dir()
     if path is None:
-        pytest.skip("the shared folder (../shared or $MECHANISM_SHARED) with the CAD export fixtures is not present")
+        pytest.skip(
+            "the shared folder (../shared or $MECHANISM_SHARED) with the CAD export fixtures is not present"
+        )
     return path
 
 
@@ -80,7 +86,9 @@ class CliResult:
         return error_lines[0]
 
 
-def run_cli(*args: str, timeout: float = 600, cwd: Path | None = None, env: dict | None = None) -> CliResult:
+def run_cli(
+    *args: str, timeout: float = 600, cwd: Path | None = None, env: dict | None = None
+) -> CliResult:
     """Run ``python -m mechanism ARGS`` in a fresh process, as a user would."""
     full_env = dict(os.environ)
     full_env.pop("MECHANISM_DEBUG", None)
@@ -121,6 +129,8 @@ def cli_here(capfd, monkeypatch):
         except SystemExit as exc:  # argparse: --help, or a usage error
             status = exc.code if isinstance(exc.code, int) else 2
         out, err = capfd.readouterr()
-        return CliResult(subprocess.CompletedProcess(["mechanism", *map(str, args)], status, out, err))
+        return CliResult(
+            subprocess.CompletedProcess(["mechanism", *map(str, args)], status, out, err)
+        )
 
     return run

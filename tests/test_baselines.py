@@ -24,8 +24,14 @@ def pendulum():
 
 
 def write_csv(rec, path: Path) -> Path:
-    np.savetxt(path, np.column_stack([rec.time_s, rec.voltage_V, rec.arm_angle_rad]), delimiter=",",
-               header="time,voltage,arm_angle", comments="", fmt="%.9g")
+    np.savetxt(
+        path,
+        np.column_stack([rec.time_s, rec.voltage_V, rec.arm_angle_rad]),
+        delimiter=",",
+        header="time,voltage,arm_angle",
+        comments="",
+        fmt="%.9g",
+    )
     return path
 
 
@@ -39,7 +45,9 @@ def test_the_lumped_baseline_carries_the_models_gravity_when_it_matters(pendulum
     n = PENDULUM_SERVO.ratio
     assert abs(p["gravity_scale"] - 1) <= PRIOR_BOUND_SIGMAS * CAD_GRAVITY_TOLERANCE
     assert p["coulomb_arm_Nm"] == pytest.approx(PENDULUM_SERVO.coulomb_Nm, rel=0.25)
-    assert p["inertia_motor_side_kgm2"] * n * n == pytest.approx(PENDULUM_SERVO.inertia_kgm2, rel=0.25)
+    assert p["inertia_motor_side_kgm2"] * n * n == pytest.approx(
+        PENDULUM_SERVO.inertia_kgm2, rel=0.25
+    )
     # the same recording with the drive's lumped numbers alone (no model, no gravity): the
     # missing sin(theta) torque is most of the error
     without = identify(rec, nominal=PENDULUM_SERVO.nominal())
@@ -55,7 +63,9 @@ def test_a_sewing_machine_turning_one_way_gets_no_offset_and_no_gravity(tmp_path
     from mechanism.testbench import write_recording
     from tests.helpers.nominal import SAPPHIRE, bench_recording
 
-    rec = read_recording(write_recording(bench_recording("none", seed=3, duration_s=12), tmp_path / "c.csv")[0])
+    rec = read_recording(
+        write_recording(bench_recording("none", seed=3, duration_s=12), tmp_path / "c.csv")[0]
+    )
     offset, gravity, why = baseline_terms(SAPPHIRE, rec)
     assert not offset and not gravity and len(why) == 2
 
@@ -74,10 +84,22 @@ def test_multibody_baseline_uses_the_machine_given(tmp_path, cli, pendulum):
     lumped = identify(record(PENDULUM_SERVO, seed=1), nominal=pendulum)
     assert data["rmse"] < 1.5 * lumped.rmse
     # the pendulum's MJCF with --machine: the same; without --machine the shaft is unnamed
-    done = cli("identify", csv, "--machine", PENDULUM, "--model", MODELS / "geared_pendulum.xml",
-               "--baseline", "multibody", "--json", out)
+    done = cli(
+        "identify",
+        csv,
+        "--machine",
+        PENDULUM,
+        "--model",
+        MODELS / "geared_pendulum.xml",
+        "--baseline",
+        "multibody",
+        "--json",
+        out,
+    )
     assert done.returncode == 0, done.stderr
-    line = cli("identify", csv, "--model", MODELS / "geared_pendulum.xml", "--baseline", "multibody").assert_bad_input()
+    line = cli(
+        "identify", csv, "--model", MODELS / "geared_pendulum.xml", "--baseline", "multibody"
+    ).assert_bad_input()
     assert "--machine" in line and "output" in line
 
 
@@ -90,7 +112,12 @@ def test_voltage_evidence_quotes_only_levels_the_recording_has():
     u = 4.3 * np.sin(2 * np.pi * 0.5 * t)
     signals = Signals(t, u, np.zeros_like(t), np.zeros_like(t), 1e-3, ratio=1.0)
     nonlinearity = effect("voltage_nonlinearity")(SAPPHIRE)
-    values = {"supply_offset_V": 0.2, "supply_linear_V": 1.0, "supply_quadratic_V": 30.0, "supply_cubic_V": 30.0}
+    values = {
+        "supply_offset_V": 0.2,
+        "supply_linear_V": 1.0,
+        "supply_quadratic_V": 30.0,
+        "supply_cubic_V": 30.0,
+    }
     summary = nonlinearity.summary(values, signals)
     for key in ("ulo", "umid", "uhi"):
         assert abs(summary[key]) <= 4.3
@@ -99,7 +126,9 @@ def test_voltage_evidence_quotes_only_levels_the_recording_has():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("driving, backdriving, seed", [(0.25, 0.1, 4), (0.0, 0.0, 5)])
-def test_gearbox_friction_that_follows_the_load_is_named_on_a_geared_servo(pendulum, driving, backdriving, seed):
+def test_gearbox_friction_that_follows_the_load_is_named_on_a_geared_servo(
+    pendulum, driving, backdriving, seed
+):
     """A geared servo whose gearbox loses a share of the motor torque (more while driving than
     while back-driven): the diagnosis names gear_load_friction with both shares; without it,
     nothing is missing."""
@@ -108,7 +137,9 @@ def test_gearbox_friction_that_follows_the_load_is_named_on_a_geared_servo(pendu
     from mechanism.sysid.diagnosis import diagnose
 
     servo = dataclasses.replace(PENDULUM_SERVO, gear_driving=driving, gear_backdriving=backdriving)
-    result = diagnose(record(servo, seed=seed, fs=1000.0, duration_s=20.0, amplitude_rad=1.2), nominal=pendulum)
+    result = diagnose(
+        record(servo, seed=seed, fs=1000.0, duration_s=20.0, amplitude_rad=1.2), nominal=pendulum
+    )
     information = result.to_json()["identifiability"]
     assert information["identifiable"] and min(information["independent_fraction"].values()) > 0.03
     if not driving:
@@ -125,12 +156,16 @@ def test_gearbox_friction_is_a_candidate_only_for_a_gearbox(pendulum):
     from mechanism.sysid.effects import library
     from tests.helpers.nominal import SAPPHIRE
 
-    assert "gear_load_friction" in library(pendulum) and "gear_load_friction" not in library(SAPPHIRE)
+    assert "gear_load_friction" in library(pendulum) and "gear_load_friction" not in library(
+        SAPPHIRE
+    )
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("resistance", [1.2, 2.0])
-def test_a_servo_stronger_than_described_gets_its_torque_per_volt_from_the_known_gravity(pendulum, resistance):
+def test_a_servo_stronger_than_described_gets_its_torque_per_volt_from_the_known_gravity(
+    pendulum, resistance
+):
     """The pendulum's servo drawn with 0.6x the described winding resistance (1.7x the torque
     per volt, as a servo's driver can give): the model's gravity, a known load, weighs the
     torque per volt, so the baseline fits the effective resistance and nothing else is named
@@ -152,7 +187,7 @@ def test_a_servo_stronger_than_described_gets_its_torque_per_volt_from_the_known
 
 def record_scale(result) -> float:
     """The rms measured velocity of the recording (rad/s)."""
-    return float(np.sqrt(np.mean(result.recording.velocity_rad_s ** 2)))
+    return float(np.sqrt(np.mean(result.recording.velocity_rad_s**2)))
 
 
 def test_each_models_baseline_gets_its_own_gravity_table_on_shared_signals(pendulum):
@@ -166,10 +201,14 @@ def test_each_models_baseline_gets_its_own_gravity_table_on_shared_signals(pendu
     from mechanism.sysid.lumped_baseline import LumpedBaseline
 
     t = np.arange(400) * 0.005
-    signals = Signals(t, np.zeros_like(t), 0.8 * np.sin(t), 0.8 * np.cos(t), 0.005, ratio=pendulum.ratio)
+    signals = Signals(
+        t, np.zeros_like(t), 0.8 * np.sin(t), 0.8 * np.cos(t), 0.005, ratio=pendulum.ratio
+    )
     truth = pendulum.linkage.at("gravity_torque_Nm", signals.drive_angle_rad)
     for scale in (1.0, 2.0, 3.0, 0.5):
-        tables = dataclasses.replace(pendulum.linkage, gravity_torque_Nm=scale * pendulum.linkage.gravity_torque_Nm)
+        tables = dataclasses.replace(
+            pendulum.linkage, gravity_torque_Nm=scale * pendulum.linkage.gravity_torque_Nm
+        )
         baseline = LumpedBaseline(dataclasses.replace(pendulum, linkage=tables), gravity=True)
         assert np.allclose(baseline.shaft_torque({"gravity_scale": 1.0}, signals), scale * truth)
         del tables, baseline

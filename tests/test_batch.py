@@ -52,21 +52,37 @@ def _die_once(marker_dir, item):
 
 # -- local ------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("start_method", ["spawn", None])
 def test_local_pool_orders_results_and_sets_up_once_per_worker(start_method):
     seen = []
     items = list(range(40))
-    results = run_batch(_shifted, items, shared={"offset": 1000, "token": "x"}, setup=_setup, workers=2, chunk_size=3,
-                        on_result=lambda i, r: seen.append(i), progress=False, start_method=start_method)
+    results = run_batch(
+        _shifted,
+        items,
+        shared={"offset": 1000, "token": "x"},
+        setup=_setup,
+        workers=2,
+        chunk_size=3,
+        on_result=lambda i, r: seen.append(i),
+        progress=False,
+        start_method=start_method,
+    )
     assert [r["value"] for r in results] == [i + 1000 for i in items]
     assert sorted(seen) == items  # every result streamed once
-    assert all(r["setups_here"] == 1 for r in results)  # the payload was prepared once per worker, not per item
-    assert 1 <= len({r["pid"] for r in results}) <= 2 and os.getpid() not in {r["pid"] for r in results}
+    assert all(
+        r["setups_here"] == 1 for r in results
+    )  # the payload was prepared once per worker, not per item
+    assert 1 <= len({r["pid"] for r in results}) <= 2 and os.getpid() not in {
+        r["pid"] for r in results
+    }
 
 
 def test_serial_runs_in_this_process():
     _SETUPS.clear()
-    results = run_batch(_shifted, [1, 2, 3], shared={"offset": 10, "token": "s"}, setup=_setup, progress=False)
+    results = run_batch(
+        _shifted, [1, 2, 3], shared={"offset": 10, "token": "s"}, setup=_setup, progress=False
+    )
     assert [r["value"] for r in results] == [11, 12, 13]
     assert _SETUPS == ["s"] and {r["pid"] for r in results} == {os.getpid()}
 
@@ -76,7 +92,9 @@ def test_a_user_error_in_an_item_reaches_the_caller_after_the_bar(workers, capsy
     with pytest.raises(UserError, match="item 7 is bad"):
         run_batch(_refuse_seven, range(20), workers=workers, chunk_size=4)
     err = capsys.readouterr().err
-    assert err == "" or err.endswith("\n")  # the bar's line is ended: an error line printed next stands alone
+    assert err == "" or err.endswith(
+        "\n"
+    )  # the bar's line is ended: an error line printed next stands alone
 
 
 def test_bad_options_and_missing_ray(monkeypatch, capsys):
@@ -102,14 +120,29 @@ def test_ray_missing_on_the_command_line_is_one_error_line(cli, tmp_path):
 
     model.write_text(M.needle_and_plate().to_xml())
     path = os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")])
-    result = cli("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants,
-                 "--backend", "ray", "--csv", tmp_path / "out.csv", env={"PYTHONPATH": path})
+    result = cli(
+        "clearance",
+        "--model",
+        model,
+        "--driver",
+        "arm_shaft",
+        "--pairs",
+        "needle:hook",
+        "--variants",
+        variants,
+        "--backend",
+        "ray",
+        "--csv",
+        tmp_path / "out.csv",
+        env={"PYTHONPATH": path},
+    )
     assert "the ray backend needs Ray: pip install 'mechanism[ray]'" in result.assert_bad_input()
     assert result.stderr.startswith("error:")  # no progress-bar fragment before it
     assert not (tmp_path / "out.csv").exists()
 
 
 # -- Ray: a real cluster on 127.0.0.1 ---------------------------------------------------------
+
 
 def _free_port() -> int:
     with socket.socket() as s:
@@ -118,9 +151,13 @@ def _free_port() -> int:
 
 
 def _ray_cli() -> str:
-    pytest.importorskip("ray", reason="Ray is not installed (it is in the test extra: pip install -e '.[test]')")
+    pytest.importorskip(
+        "ray", reason="Ray is not installed (it is in the test extra: pip install -e '.[test]')"
+    )
     beside = Path(sys.executable).parent / "ray"
-    return str(beside) if beside.exists() else shutil.which("ray") or pytest.skip("no `ray` command")
+    return (
+        str(beside) if beside.exists() else shutil.which("ray") or pytest.skip("no `ray` command")
+    )
 
 
 class RayCluster(str):
@@ -145,19 +182,44 @@ def ray_cluster(tmp_path_factory):
     token = tmp_path_factory.mktemp("ray-auth") / "auth_token"
     token.write_text(secrets.token_hex(32))
     token.chmod(0o600)
-    temp_dir = tempfile.mkdtemp(prefix="rayc-", dir="/tmp")  # short: Ray's socket paths must fit 107 bytes
+    temp_dir = tempfile.mkdtemp(
+        prefix="rayc-", dir="/tmp"
+    )  # short: Ray's socket paths must fit 107 bytes
     ray_cli = _ray_cli()
-    driver_env = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token), "RAY_USAGE_STATS_ENABLED": "0"}
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-               **driver_env)
+    driver_env = {
+        "RAY_AUTH_MODE": "token",
+        "RAY_AUTH_TOKEN_PATH": str(token),
+        "RAY_USAGE_STATS_ENABLED": "0",
+    }
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+        **driver_env,
+    )
     env.pop("RAY_ADDRESS", None)
     port = _free_port()
-    ports = {flag: _free_port() for flag in ("--node-manager-port", "--object-manager-port", "--dashboard-agent-listen-port",
-                                             "--dashboard-agent-grpc-port", "--runtime-env-agent-port",
-                                             "--metrics-export-port")}
-    command = [ray_cli, "start", "--head", f"--port={port}", "--num-cpus=2",
-               f"--temp-dir={temp_dir}",
-               "--include-dashboard=false", "--disable-usage-stats", *(f"{flag}={value}" for flag, value in ports.items())]
+    ports = {
+        flag: _free_port()
+        for flag in (
+            "--node-manager-port",
+            "--object-manager-port",
+            "--dashboard-agent-listen-port",
+            "--dashboard-agent-grpc-port",
+            "--runtime-env-agent-port",
+            "--metrics-export-port",
+        )
+    }
+    command = [
+        ray_cli,
+        "start",
+        "--head",
+        f"--port={port}",
+        "--num-cpus=2",
+        f"--temp-dir={temp_dir}",
+        "--include-dashboard=false",
+        "--disable-usage-stats",
+        *(f"{flag}={value}" for flag, value in ports.items()),
+    ]
     started = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
     try:
         assert started.returncode == 0, started.stderr[-2000:]
@@ -171,7 +233,9 @@ def ray_cluster(tmp_path_factory):
 
 def _running(pid):
     try:
-        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"  # a zombie has ended
+        return (
+            Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
+        )  # a zombie has ended
     except OSError:
         return False
 
@@ -223,9 +287,25 @@ def test_clearance_variants_on_a_ray_cluster_by_address(cli, on_cluster, tmp_pat
     model = tmp_path / "m.xml"
     model.write_text(M.needle_and_plate().to_xml())
     variants = tmp_path / "v.json"
-    variants.write_text(json.dumps({"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, -2, 0]}}))
-    common = ("clearance", "--model", model, "--driver", "arm_shaft", "--pairs", "needle:hook", "--variants", variants)
-    on_ray = cli(*common, "--backend", "ray", "--ray-address", on_cluster, "--csv", tmp_path / "ray.csv")
+    variants.write_text(
+        json.dumps(
+            {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, -2, 0]}}
+        )
+    )
+    common = (
+        "clearance",
+        "--model",
+        model,
+        "--driver",
+        "arm_shaft",
+        "--pairs",
+        "needle:hook",
+        "--variants",
+        variants,
+    )
+    on_ray = cli(
+        *common, "--backend", "ray", "--ray-address", on_cluster, "--csv", tmp_path / "ray.csv"
+    )
     assert on_ray.returncode == 0, on_ray.stderr
     assert "warning" not in on_ray.stderr  # nothing of Ray's own logging reaches the user
     local = cli(*common, "--csv", tmp_path / "local.csv")
@@ -240,10 +320,18 @@ def test_a_dynamic_sweep_on_the_ray_cluster_equals_the_local_one(cli, on_cluster
     """`mechanism sweep` by address: the base machine (description, compiled model, tables)
     travels to the workers once and every row equals the local run's, byte for byte."""
     variants = tmp_path / "v.json"
-    variants.write_text(json.dumps({"parameters": {"fly": "inertia:arm_shaft_kgm2", "R": "motor:resistance_ohm"},
-                                    "sweep": {"fly": [0, 5e-4, 1e-3], "R": [0, 0.2]}}))
+    variants.write_text(
+        json.dumps(
+            {
+                "parameters": {"fly": "inertia:arm_shaft_kgm2", "R": "motor:resistance_ohm"},
+                "sweep": {"fly": [0, 5e-4, 1e-3], "R": [0, 0.2]},
+            }
+        )
+    )
     common = ("sweep", "--variants", variants, "--duration", "1")
-    on_ray = cli(*common, "--backend", "ray", "--ray-address", on_cluster, "--csv", tmp_path / "ray.csv")
+    on_ray = cli(
+        *common, "--backend", "ray", "--ray-address", on_cluster, "--csv", tmp_path / "ray.csv"
+    )
     assert on_ray.returncode == 0, on_ray.stderr
     local = cli(*common, "--csv", tmp_path / "local.csv")
     assert local.returncode == 0, local.stderr
@@ -264,8 +352,16 @@ def _rerun_a_dead_workers_items(shared):
     import ray
 
     seen = []
-    results = run_batch(_die_once, list(range(12)), shared=shared, workers=2, backend="ray",
-                        chunk_size=2, on_result=lambda i, r: seen.append(i), progress=False)
+    results = run_batch(
+        _die_once,
+        list(range(12)),
+        shared=shared,
+        workers=2,
+        backend="ray",
+        chunk_size=2,
+        on_result=lambda i, r: seen.append(i),
+        progress=False,
+    )
     return results, seen, ray.is_initialized()
 
 
@@ -273,11 +369,17 @@ def _rerun_a_dead_workers_items(shared):
 @pytest.mark.xdist_group("ray")  # one Ray test at a time (see conftest)
 def test_ray_reruns_the_items_of_a_worker_that_died(on_cluster, tmp_path, monkeypatch):
     pytest.importorskip("ray")
-    monkeypatch.setenv("RAY_ADDRESS", on_cluster)  # the cluster named by the environment, not the argument
-    results, seen, still_connected = _in_a_process_of_its_own(_rerun_a_dead_workers_items, str(tmp_path))
+    monkeypatch.setenv(
+        "RAY_ADDRESS", on_cluster
+    )  # the cluster named by the environment, not the argument
+    results, seen, still_connected = _in_a_process_of_its_own(
+        _rerun_a_dead_workers_items, str(tmp_path)
+    )
     items = list(range(12))
     assert (tmp_path / "died_5").exists()  # a worker process really died mid-batch
-    assert [square for square, _ in results] == [i * i for i in items]  # nothing lost, in item order
+    assert [square for square, _ in results] == [
+        i * i for i in items
+    ]  # nothing lost, in item order
     assert {address.rpartition(":")[2] for _, address in results} == {on_cluster.rpartition(":")[2]}
     assert sorted(seen) == items
     assert not still_connected  # disconnected from the cluster it did not start
@@ -287,8 +389,15 @@ def _fleet_on_the_cluster(recordings, out, address):
     from mechanism.api import drive_nominal
     from mechanism.sysid.fleet import diagnose_fleet
 
-    result = diagnose_fleet(recordings, out, backend="ray", ray_address=address, progress=False,
-                            candidates=["torque_ripple"], nominal=drive_nominal(None))
+    result = diagnose_fleet(
+        recordings,
+        out,
+        backend="ray",
+        ray_address=address,
+        progress=False,
+        candidates=["torque_ripple"],
+        nominal=drive_nominal(None),
+    )
     return result.rows
 
 
@@ -303,10 +412,16 @@ def test_a_fleet_diagnosed_on_the_ray_cluster_equals_one_diagnosis_here(on_clust
     recording = ROOT / "assets" / "recordings" / "torque_ripple_seed3.csv"
     broken = tmp_path / "broken.csv"
     broken.write_text("time,voltage,arm_angle\n0,1,0\n")
-    rows = _in_a_process_of_its_own(_fleet_on_the_cluster, [recording, broken], tmp_path / "out", str(on_cluster))
+    rows = _in_a_process_of_its_own(
+        _fleet_on_the_cluster, [recording, broken], tmp_path / "out", str(on_cluster)
+    )
     assert [row["status"] for row in rows] == ["ok", "error"] and rows[1]["error"]
-    here = diagnose(read_recording(recording), candidates=["torque_ripple"], nominal=drive_nominal(None)).to_json()
-    assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(json.dumps(here))
+    here = diagnose(
+        read_recording(recording), candidates=["torque_ripple"], nominal=drive_nominal(None)
+    ).to_json()
+    assert json.loads((tmp_path / "out" / "torque_ripple_seed3.json").read_text()) == json.loads(
+        json.dumps(here)
+    )
     assert here["final"]["effects"] == ["torque_ripple"]  # what the virtual bench concealed in it
 
 
@@ -323,8 +438,16 @@ def test_rays_temporary_folder_stays_short_whatever_the_systems(monkeypatch, tmp
 def test_the_scheduler_keeps_the_tests_named_ray_together_and_no_others():
     from tests.conftest import _is_ray_test
 
-    together = ["tests/test_batch.py::test_ray_backend", "tests/test_x.py::test_a_kill_stops_the_ray_instance[2-130]",
-                "tests/test_batch.py::test_rays_temporary_folder", "tests/test_batch.py::test_bad_options_and_missing_ray"]
-    apart = ["tests/test_x.py::test_array_shape", "tests/test_x.py::test_a_parameter_named[ray]",
-             "tests/test_ray_module.py::test_local_pool", "tests/test_x.py::test_xray_image"]
+    together = [
+        "tests/test_batch.py::test_ray_backend",
+        "tests/test_x.py::test_a_kill_stops_the_ray_instance[2-130]",
+        "tests/test_batch.py::test_rays_temporary_folder",
+        "tests/test_batch.py::test_bad_options_and_missing_ray",
+    ]
+    apart = [
+        "tests/test_x.py::test_array_shape",
+        "tests/test_x.py::test_a_parameter_named[ray]",
+        "tests/test_ray_module.py::test_local_pool",
+        "tests/test_x.py::test_xray_image",
+    ]
     assert all(_is_ray_test(n) for n in together) and not any(_is_ray_test(n) for n in apart)

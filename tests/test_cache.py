@@ -33,7 +33,9 @@ def convert_quietly(export: Path) -> tuple[Path, list[str]]:
 
 
 def entry_files(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 def truncate(entry: Path, other: Path) -> None:
@@ -56,7 +58,9 @@ def foreign(entry: Path, other: Path) -> None:
     shutil.copytree(other, entry)
 
 
-@pytest.mark.parametrize("damage", [truncate, edit, half_written, foreign], ids=lambda f: f.__name__)
+@pytest.mark.parametrize(
+    "damage", [truncate, edit, half_written, foreign], ids=lambda f: f.__name__
+)
 def test_a_damaged_model_entry_is_rebuilt_with_a_warning(tmp_path, damage):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
@@ -74,7 +78,9 @@ def test_a_damaged_model_entry_is_rebuilt_with_a_warning(tmp_path, damage):
     assert rebuilt == mjcf
     assert len(said) == 1 and "rebuilding" in said[0] and str(mjcf.parent) in said[0], said
     assert entry_files(mjcf.parent) == whole
-    assert not [p for p in mjcf.parent.parent.iterdir() if p.name.startswith(".")]  # no temporary, no lock
+    assert not [
+        p for p in mjcf.parent.parent.iterdir() if p.name.startswith(".")
+    ]  # no temporary, no lock
 
 
 def test_a_damaged_compiled_kernel_is_rebuilt_with_a_warning(own_cache):
@@ -90,7 +96,9 @@ def test_a_damaged_compiled_kernel_is_rebuilt_with_a_warning(own_cache):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         assert native.load("machine") is not None
-    assert any("truncated or edited" in str(w.message) for w in caught), [str(w.message) for w in caught]
+    assert any("truncated or edited" in str(w.message) for w in caught), [
+        str(w.message) for w in caught
+    ]
     assert cache.file_problem(library) is None
     native.load.cache_clear()
 
@@ -122,7 +130,9 @@ def test_cache_clear_empties_the_cache_in_one_line(own_cache, cli, tmp_path):
     (own_cache / "native" / "libx-0.so").write_bytes(b"\0" * 10)
     env = {"MECHANISM_CACHE": str(tmp_path / "cache")}
     shown = cli("cache", "info", env=env)
-    assert shown.returncode == 0 and "2 entries" in shown.stdout and str(own_cache) in shown.stdout, shown.stdout
+    assert (
+        shown.returncode == 0 and "2 entries" in shown.stdout and str(own_cache) in shown.stdout
+    ), shown.stdout
     cleared = cli("cache", "clear", env=env)
     assert cleared.returncode == 0 and cleared.stderr == "", cleared.stderr
     assert "removed 2 entries" in cleared.stdout

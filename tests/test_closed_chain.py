@@ -18,8 +18,13 @@ from tests.helpers.quirk_exports import INCH, proe_fourbar
 def _drive(model_path, joint: str):
     """Compile the model with a joint equality that pins ``joint`` to ``model.eq_data[drive, 0]``."""
     spec = mujoco.MjSpec.from_file(str(model_path))
-    spec.add_equality(name="drive", type=mujoco.mjtEq.mjEQ_JOINT, name1=joint, objtype=mujoco.mjtObj.mjOBJ_JOINT,
-                      data=[0.0] * 12)
+    spec.add_equality(
+        name="drive",
+        type=mujoco.mjtEq.mjEQ_JOINT,
+        name1=joint,
+        objtype=mujoco.mjtObj.mjOBJ_JOINT,
+        data=[0.0] * 12,
+    )
     model = spec.compile()
     return model, mujoco.MjData(model), model.equality("drive").id
 
@@ -38,8 +43,11 @@ def _proe_fourbar(folder):
     return built.facts["fourbar"], built.path, INCH
 
 
-@pytest.mark.parametrize("export", [_tilted_fourbar, _proe_fourbar], ids=["tilted plane, mm and g",
-                                                                         "Pro/E: inches, lbm, RootPart, axes along -z"])
+@pytest.mark.parametrize(
+    "export",
+    [_tilted_fourbar, _proe_fourbar],
+    ids=["tilted plane, mm and g", "Pro/E: inches, lbm, RootPart, axes along -z"],
+)
 def test_fourbar_follows_freudenstein_over_a_full_crank_turn(tmp_path, export):
     fourbar, path, unit = export(tmp_path)
     report = convert(path, tmp_path / "out")
@@ -62,10 +70,16 @@ def test_fourbar_follows_freudenstein_over_a_full_crank_turn(tmp_path, export):
         gap = at("coupler_end") - at("rocker_end")
         gaps.append(np.linalg.norm(gap - (gap @ fourbar.plane[:, 2]) * fourbar.plane[:, 2]))
         crank_angles.append(crank)
-    assert np.unwrap(crank_angles)[-1] - crank_angles[0] > 2 * math.pi, "a full turn about the export's joint axis"
-    print(f"four-bar: worst rocker error {math.degrees(max(errors)):.5f} deg, loop gap {max(gaps):.2e} (export length unit)")
+    assert np.unwrap(crank_angles)[-1] - crank_angles[0] > 2 * math.pi, (
+        "a full turn about the export's joint axis"
+    )
+    print(
+        f"four-bar: worst rocker error {math.degrees(max(errors)):.5f} deg, loop gap {max(gaps):.2e} (export length unit)"
+    )
     assert math.degrees(max(errors)) < 0.5
-    assert max(gaps) < 0.001 * fourbar.coupler, "the closing pin stays closed to 0.1% of the coupler length"
+    assert max(gaps) < 0.001 * fourbar.coupler, (
+        "the closing pin stays closed to 0.1% of the coupler length"
+    )
 
 
 def _spatial_loop(folder):
@@ -79,8 +93,14 @@ def _spatial_loop(folder):
     base = doc.body("base", 1000, (0, 0, -150), np.diag([1e6] * 3) * 1.0)
     doc.weld_to_ground(base, (0, 0, -150))
     arm = doc.body("arm", 200, (50, 0, 0), bar_inertia(200, 100, 10, 10))
-    link = doc.body("link", 100, (50, 0, -50), bar_inertia(100, 141, 8, 8), cg_rotation=rotation((0, 1, 0), math.pi / 4),
-                    named_frames=[("link_axis_origin", (100, 0, 0)), ("link_axis_tip", (100, 0, 20))])
+    link = doc.body(
+        "link",
+        100,
+        (50, 0, -50),
+        bar_inertia(100, 141, 8, 8),
+        cg_rotation=rotation((0, 1, 0), math.pi / 4),
+        named_frames=[("link_axis_origin", (100, 0, 0)), ("link_axis_tip", (100, 0, 20))],
+    )
     doc.joint("arm_hinge", base, arm, (0, 0, 0), [("revolute", z)])
     doc.joint("ball", base, link, (0, 0, -100), [("spherical", (0, 0, 1))])
     doc.joint("pin", arm, link, (100, 0, 0), [("revolute", z)])
@@ -110,14 +130,26 @@ def test_prismatic_loop_closure_uses_a_carrier_and_slides_freely(tmp_path):
     """A slider on two parallel rails: one rail is a tree slide, the other closes the loop
     through a carrier body. Down a 30 degree incline it must accelerate at g sin(30)."""
     doc = Gen1Export()
-    rail = rotation((0, 1, 0), math.radians(30)) @ np.array([1.0, 0, 0])  # x tilted down by 30 degrees
+    rail = rotation((0, 1, 0), math.radians(30)) @ np.array(
+        [1.0, 0, 0]
+    )  # x tilted down by 30 degrees
     base = doc.body("base", 1000, (0, 0, 0), np.diag([1e6] * 3))
     doc.weld_to_ground(base)
-    slider = doc.body("slider", 300, (0, 0, 0), bar_inertia(300, 40, 20, 20), named_frames=[("slider_mark", (0, 0, 0))])
+    slider = doc.body(
+        "slider",
+        300,
+        (0, 0, 0),
+        bar_inertia(300, 40, 20, 20),
+        named_frames=[("slider_mark", (0, 0, 0))],
+    )
     doc.joint("rail_left", base, slider, (0, -20, 0), [("prismatic", rail)])
     doc.joint("rail_right", base, slider, (0, 20, 0), [("prismatic", rail)])
     report = convert(doc.write(tmp_path / "rails.xml"), tmp_path / "out")
-    assert report.joints_by_type["slide"] == 2 and report.n_loop_closures == 1 and report.degrees_of_freedom == 1
+    assert (
+        report.joints_by_type["slide"] == 2
+        and report.n_loop_closures == 1
+        and report.degrees_of_freedom == 1
+    )
     model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
     # the carrier holds a share of the slider's own mass distribution: together they are the slider
     carrier, slider_body = model.body("rail_right_carrier"), model.body("slider")
@@ -125,7 +157,9 @@ def test_prismatic_loop_closure_uses_a_carrier_and_slides_freely(tmp_path):
     mujoco.mj_forward(model, data)
     pair_mass = carrier.mass[0] + slider_body.mass[0]
     assert pair_mass == pytest.approx(0.3, rel=1e-9) and carrier.mass[0] > 0.01 * pair_mass
-    centre = (carrier.mass[0] * data.xipos[carrier.id] + slider_body.mass[0] * data.xipos[slider_body.id]) / pair_mass
+    centre = (
+        carrier.mass[0] * data.xipos[carrier.id] + slider_body.mass[0] * data.xipos[slider_body.id]
+    ) / pair_mass
     assert np.linalg.norm(centre - data.xipos[slider_body.id]) < 1e-9
     assert abs(model.body_mass.sum() - report.export_mass_kg) < 1e-9 * report.export_mass_kg
     data = mujoco.MjData(model)
@@ -136,7 +170,9 @@ def test_prismatic_loop_closure_uses_a_carrier_and_slides_freely(tmp_path):
     t = steps * model.opt.timestep
     expected = 0.5 * 9.81 * math.sin(math.radians(30)) * t**2
     assert travelled @ rail == pytest.approx(expected, rel=0.01)
-    assert np.linalg.norm(travelled - (travelled @ rail) * rail) < 1e-5, "no motion across the rails"
+    assert np.linalg.norm(travelled - (travelled @ rail) * rail) < 1e-5, (
+        "no motion across the rails"
+    )
 
 
 def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
@@ -148,26 +184,50 @@ def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
     r, l, q0 = 30.0, 100.0, math.radians(40)
     a = np.array([r * math.cos(q0), r * math.sin(q0), 0.0])
     b = np.array([r * math.cos(q0) + math.sqrt(l * l - (r * math.sin(q0)) ** 2), 0.0, 0.0])
-    slider_pose = (rotation((0, 0, 1), math.radians(30)), b + np.array([0, 0, 5.0]))  # an arbitrary part frame
+    slider_pose = (
+        rotation((0, 0, 1), math.radians(30)),
+        b + np.array([0, 0, 5.0]),
+    )  # an arbitrary part frame
 
     def in_slider(point, frame_rotation=np.eye(3)):
         rot, origin = slider_pose
         return gen2_transform(rot.T @ frame_rotation, rot.T @ (np.asarray(point) - origin))
 
     along_x = rotation((0, 1, 0), math.pi / 2)  # maps z onto x
-    parts = "".join([gen2_part("ground", "P0", 1000, (0, 0, -10), (1e6, 1e6, 1e6, 0, 0, 0)),
-                     gen2_part("crank", "P1", 40, a / 2, (1e3, 4e3, 4e3, 0, 0, 0)),
-                     gen2_part("rod", "P2", 60, (a + b) / 2, (1e3, 5e4, 5e4, 0, 0, 0)),
-                     gen2_part("slider", "P3", 80, (0, 0, 0), (2e4, 2e4, 2e4, 0, 0, 0))])
-    instances = ('<Instance entityUid="P0" grounded="true" name="ground" uid="I0">' + gen2_transform() + "</Instance>"
-                 '<Instance entityUid="P1" name="crank" uid="I1">' + gen2_transform() + "</Instance>"
-                 '<Instance entityUid="P2" name="rod" uid="I2">' + gen2_transform() + "</Instance>"
-                 f'<Instance entityUid="P3" name="slider" uid="I3">{gen2_transform(*slider_pose)}</Instance>')
-    joints = (gen2_joint("Revolute", "crank", ["I0"], gen2_transform(), ["I1"], gen2_transform())
-              + gen2_joint("Revolute", "crank_pin", ["I1"], gen2_transform(None, a), ["I2"], gen2_transform(None, a))
-              + gen2_joint("Prismatic", "guide", ["I0"], gen2_transform(along_x, b), ["I3"], in_slider(b, along_x))
-              + gen2_joint("Revolute", "wrist_pin", ["I2"], gen2_transform(None, b), ["I3"], in_slider(b)))
-    (tmp_path / "slider_crank.xml").write_text(gen2_export(instances, joints, parts, length="millimeter", mass="gram"))
+    parts = "".join(
+        [
+            gen2_part("ground", "P0", 1000, (0, 0, -10), (1e6, 1e6, 1e6, 0, 0, 0)),
+            gen2_part("crank", "P1", 40, a / 2, (1e3, 4e3, 4e3, 0, 0, 0)),
+            gen2_part("rod", "P2", 60, (a + b) / 2, (1e3, 5e4, 5e4, 0, 0, 0)),
+            gen2_part("slider", "P3", 80, (0, 0, 0), (2e4, 2e4, 2e4, 0, 0, 0)),
+        ]
+    )
+    instances = (
+        '<Instance entityUid="P0" grounded="true" name="ground" uid="I0">'
+        + gen2_transform()
+        + "</Instance>"
+        '<Instance entityUid="P1" name="crank" uid="I1">' + gen2_transform() + "</Instance>"
+        '<Instance entityUid="P2" name="rod" uid="I2">' + gen2_transform() + "</Instance>"
+        f'<Instance entityUid="P3" name="slider" uid="I3">{gen2_transform(*slider_pose)}</Instance>'
+    )
+    joints = (
+        gen2_joint("Revolute", "crank", ["I0"], gen2_transform(), ["I1"], gen2_transform())
+        + gen2_joint(
+            "Revolute",
+            "crank_pin",
+            ["I1"],
+            gen2_transform(None, a),
+            ["I2"],
+            gen2_transform(None, a),
+        )
+        + gen2_joint(
+            "Prismatic", "guide", ["I0"], gen2_transform(along_x, b), ["I3"], in_slider(b, along_x)
+        )
+        + gen2_joint("Revolute", "wrist_pin", ["I2"], gen2_transform(None, b), ["I3"], in_slider(b))
+    )
+    (tmp_path / "slider_crank.xml").write_text(
+        gen2_export(instances, joints, parts, length="millimeter", mass="gram")
+    )
     report = convert(tmp_path / "slider_crank.xml", tmp_path / "out")
     assert report.joints_by_type == {"hinge": 2, "slide": 1, "ball": 0, "free": 0}
     assert report.n_loop_closures == 1 and report.degrees_of_freedom == 1
@@ -177,7 +237,9 @@ def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
     for step in range(steps):
         model.eq_data[drive, 0] = 2 * math.pi * step / steps
         mujoco.mj_step(model, data)
-        mujoco.mj_kinematics(model, data)  # positions of the new qpos (mj_step leaves those of the old one)
+        mujoco.mj_kinematics(
+            model, data
+        )  # positions of the new qpos (mj_step leaves those of the old one)
         q = q0 + data.qpos[model.joint("crank").qposadr[0]]
         expected = r * math.cos(q) + math.sqrt(l * l - (r * math.sin(q)) ** 2)
         x = 1000 * data.site("slider").xpos[0]

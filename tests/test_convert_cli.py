@@ -32,7 +32,9 @@ EXTERNAL_ENTITY = """<?xml version="1.0"?>
 
 def _traversal(folder):
     doc = Gen1Export()
-    doc.weld_to_ground(doc.body("base", 100, (0, 0, 0), np.eye(3) * 1e3, geometry="../../etc/passwd"))
+    doc.weld_to_ground(
+        doc.body("base", 100, (0, 0, 0), np.eye(3) * 1e3, geometry="../../etc/passwd")
+    )
     return doc.write(folder / "traversal.xml")
 
 
@@ -48,16 +50,26 @@ def _written(name, text):
         path = folder / name
         path.write_text(text)
         return path
+
     return make
 
 
 def _with_sidecar(entry):
     def make(folder):
         path = FourBar().export(folder, with_geometry=False)
-        coupling = {"name": "belt", "kind": "belt", "input": "ground--crank", "output": "crank--coupler", "ratio": 2.0}
+        coupling = {
+            "name": "belt",
+            "kind": "belt",
+            "input": "ground--crank",
+            "output": "crank--coupler",
+            "ratio": 2.0,
+        }
         coupling.update(entry)
-        (folder / "fourbar.couplings.json").write_text(json.dumps({"format": "mechanism-couplings/1", "couplings": [coupling]}))
+        (folder / "fourbar.couplings.json").write_text(
+            json.dumps({"format": "mechanism-couplings/1", "couplings": [coupling]})
+        )
         return path
+
     return make
 
 
@@ -67,7 +79,10 @@ BAD_INPUTS = {
     "path traversal": (_traversal, "points outside the export folder"),
     "truncated": (_truncated, "not well-formed XML"),
     "empty": (_written("empty.xml", ""), "file is empty"),
-    "unknown root": (_written("other.xml", "<?xml version='1.0'?><Robot><link/></Robot>"), "root element <Robot>"),
+    "unknown root": (
+        _written("other.xml", "<?xml version='1.0'?><Robot><link/></Robot>"),
+        "root element <Robot>",
+    ),
     "missing": (lambda folder: folder / "nope.xml", "no such file"),
     "sidecar joint": (_with_sidecar({"input": "ground-crank"}), "'ground-crank' does not exist"),
     "sidecar ratio": (_with_sidecar({"ratio": "2:1"}), "'ratio' must be a number"),
@@ -107,7 +122,9 @@ def test_up_axis_sets_gravity_against_it(tmp_path, cli):
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "fourbar.xml"))
     assert model.opt.gravity == pytest.approx([0, -9.81, 0])
     assert cli("convert", path, "-o", tmp_path / "down", "--up=-z").returncode == 0
-    assert mujoco.MjModel.from_xml_path(str(tmp_path / "down" / "fourbar.xml")).opt.gravity == pytest.approx([0, 0, 9.81])
+    assert mujoco.MjModel.from_xml_path(
+        str(tmp_path / "down" / "fourbar.xml")
+    ).opt.gravity == pytest.approx([0, 0, 9.81])
 
 
 @pytest.mark.slow
@@ -134,7 +151,9 @@ def test_summary_lists_bodies_joints_loops_mass_and_warnings(tmp_path, cli):
     assert any(line.startswith("total mass: ") and line.endswith(" kg)") for line in lines)
     warnings = [line for line in lines if line.startswith("warning: ")]
     assert len(warnings) == 1 and "rocker.stl" in warnings[0]
-    assert (tmp_path / "out" / "bars.xml").exists() and (tmp_path / "out" / "meshes" / "crank.stl").exists()
+    assert (tmp_path / "out" / "bars.xml").exists() and (
+        tmp_path / "out" / "meshes" / "crank.stl"
+    ).exists()
 
 
 def test_help_explains_options_and_units(cli_here):
@@ -150,7 +169,10 @@ def test_legs_cli_warns_that_meshes_are_missing(shared, tmp_path, cli):
     shutil.copytree(shared / "cad-exports" / "legs-creo-firstgen", source)
     result = cli("convert", source / "LEGS_MECHANISM.xml", "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
-    assert any(line.startswith("warning: ") and "geometry file(s) are missing" in line for line in result.stdout.splitlines())
+    assert any(
+        line.startswith("warning: ") and "geometry file(s) are missing" in line
+        for line in result.stdout.splitlines()
+    )
 
 
 @pytest.mark.slow
@@ -162,19 +184,32 @@ def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
     result = cli("convert", export, "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     expected = (5e4 + 64 * 2e3) * 1e-9  # g*mm^2 -> kg*m^2
-    line = next(l for l in result.stdout.splitlines() if l.startswith("reflected inertia at arm_shaft:"))
+    line = next(
+        l for l in result.stdout.splitlines() if l.startswith("reflected inertia at arm_shaft:")
+    )
     ratio_line = next(l for l in result.stdout.splitlines() if "referred to motor (ratio 8:1)" in l)
-    assert float(line.split(":")[1].split()[0]) == pytest.approx(expected, rel=1e-3)  # 4 significant digits
+    assert float(line.split(":")[1].split()[0]) == pytest.approx(
+        expected, rel=1e-3
+    )  # 4 significant digits
     assert float(ratio_line.split()[1]) == pytest.approx(expected / 64, rel=1e-3)
     moving = next(l for l in result.stdout.splitlines() if l.startswith("moving mass:"))
-    assert float(moving.split()[2]) == pytest.approx(0.4, rel=1e-9)  # 100 g + 300 g, the base is fixed
+    assert float(moving.split()[2]) == pytest.approx(
+        0.4, rel=1e-9
+    )  # 100 g + 300 g, the base is fixed
 
 
 @pytest.mark.slow
 def test_a_slider_at_dead_centre_is_not_reported_as_locked(tmp_path, cli):
     # The shipped sewing machine is exported at needle top dead centre, where the needle bar
     # is instantaneously immobile; it still moves, so no lock warning.
-    export = Path(__file__).resolve().parent.parent / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml"
+    export = (
+        Path(__file__).resolve().parent.parent
+        / "assets"
+        / "cad"
+        / "sapphire870"
+        / "export"
+        / "sewing_machine.xml"
+    )
     result = cli("convert", export, "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     assert "cannot move" not in result.stdout
@@ -193,10 +228,23 @@ def test_explain_names_the_mates_behind_each_joint(tmp_path, cli):
     result = cli("convert", export.path, "-o", tmp_path / "out", "--explain")
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
-    assert "joint SERVO--HORN (revolute): from mates PIN_S_axis, PIN_S_plane -> MJCF joint(s) SERVO--HORN" in lines
-    assert any(line.startswith("joint ROD--HOLDER (revolute): from mates PIN_B_axis, PIN_B_plane -> closes a loop")
-               for line in lines)
-    assert any(line.startswith("joint BEAM fixed to HOLDER by mates (weld): from mates RIGID_2 -> ") for line in lines)
+    assert (
+        "joint SERVO--HORN (revolute): from mates PIN_S_axis, PIN_S_plane -> MJCF joint(s) SERVO--HORN"
+        in lines
+    )
+    assert any(
+        line.startswith(
+            "joint ROD--HOLDER (revolute): from mates PIN_B_axis, PIN_B_plane -> closes a loop"
+        )
+        for line in lines
+    )
+    assert any(
+        line.startswith("joint BEAM fixed to HOLDER by mates (weld): from mates RIGID_2 -> ")
+        for line in lines
+    )
     assert sum(line.startswith("joint ") and "from mates" in line for line in lines) == 6
-    assert lines.index(next(line for line in lines if line.startswith("joint SERVO"))) < lines.index(
-        next(line for line in lines if line.startswith("warnings:"))), "before the warnings"
+    assert lines.index(
+        next(line for line in lines if line.startswith("joint SERVO"))
+    ) < lines.index(next(line for line in lines if line.startswith("warnings:"))), (
+        "before the warnings"
+    )

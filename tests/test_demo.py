@@ -19,15 +19,27 @@ def test_demo_writes_a_complete_linked_folder(cli, tmp_path):
     facts = json.loads((out / "demo.json").read_text())
     assert set(facts) == set(mechanism.shipped_machines())
     sapphire = facts["sapphire870"]
-    assert {f"sapphire870/{name}" for name in ("machine.html", "tool.png", "steady_speeds.csv", "diagnosis/index.html",
-                                               "probes.csv")} <= targets
+    assert {
+        f"sapphire870/{name}"
+        for name in (
+            "machine.html",
+            "tool.png",
+            "steady_speeds.csv",
+            "diagnosis/index.html",
+            "probes.csv",
+        )
+    } <= targets
     for target in targets:
         assert (out / target).is_file(), target
     for machine in facts.values():
-        assert machine["diagnosis"]["found"] == machine["diagnosis"]["concealed"] == ["torque_ripple"]
+        assert (
+            machine["diagnosis"]["found"] == machine["diagnosis"]["concealed"] == ["torque_ripple"]
+        )
         assert machine["diagnosis"]["final_rmse"] < 0.7 * machine["diagnosis"]["baseline_rmse"]
     assert all(abs(row["error_percent"]) < 5 for row in sapphire["simulation"]["steady_speeds"])
-    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], "no temporary folder left behind"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], (
+        "no temporary folder left behind"
+    )
     _check_outputs_name_real_files(out)
     _check_readme_tour_is_this_runs(out)
 
@@ -50,8 +62,14 @@ def _check_outputs_name_real_files(out):
         text = document.read_text()
         assert ".tmp/" not in text and f"/.{out.name}." not in text, document
         for path in _paths_in(json.loads(text)):
-            places = [document.parent / path, out / path, *(folder / path for folder in out.iterdir() if folder.is_dir())]
-            assert any(p.exists() for p in places), f"{document.relative_to(out)} names {path}, which is not there"
+            places = [
+                document.parent / path,
+                out / path,
+                *(folder / path for folder in out.iterdir() if folder.is_dir()),
+            ]
+            assert any(p.exists() for p in places), (
+                f"{document.relative_to(out)} names {path}, which is not there"
+            )
 
 
 def _check_readme_tour_is_this_runs(out):

@@ -30,7 +30,9 @@ def bench(tmp_path_factory):
         key = (effects, seed, duration)
         if key not in made:
             path = folder / f"{effects.replace(',', '+')}_{seed}_{int(duration)}.csv"
-            made[key] = write_recording(bench_recording(effects, seed=seed, duration_s=duration), path)[0]
+            made[key] = write_recording(
+                bench_recording(effects, seed=seed, duration_s=duration), path
+            )[0]
         return made[key]
 
     return get
@@ -59,12 +61,16 @@ def test_clean_bench_recording_yields_no_effect(bench, seed):
 
 @pytest.mark.slow
 def test_two_effect_bench_recording_yields_both_at_full_length(bench):
-    check(diagnose(read_recording(bench("torque_ripple,thermal_drift", seed=24, duration=60.0))),
-          {"torque_ripple", "thermal_drift"})
+    check(
+        diagnose(read_recording(bench("torque_ripple,thermal_drift", seed=24, duration=60.0))),
+        {"torque_ripple", "thermal_drift"},
+    )
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effects", [(), ("linkage_dynamics",), ("needle_penetration",), ("voltage_nonlinearity",)])
+@pytest.mark.parametrize(
+    "effects", [(), ("linkage_dynamics",), ("needle_penetration",), ("voltage_nonlinearity",)]
+)
 def test_independent_truth_is_named_too(effects):
     # a second truth model with different physics choices (half-sine needle pulse, another
     # PWM curve, explicit Euler): the candidates are physics, not a copy of one truth
@@ -79,9 +85,11 @@ def test_ranking_prefers_fewer_parameters_within_the_tie_band():
         return FitResult(base.structure.with_effect(EFFECTS[name]), {}, {}, rmse, rmse)
 
     # torque_ripple (6 parameters) fits slightly better than linkage_dynamics (4): a tie
-    fits = {"linkage_dynamics": result("linkage_dynamics", 0.50),
-            "torque_ripple": result("torque_ripple", 0.50 * (1 - TIE_BAND / 2)),
-            "stribeck": result("stribeck", 0.95)}
+    fits = {
+        "linkage_dynamics": result("linkage_dynamics", 0.50),
+        "torque_ripple": result("torque_ripple", 0.50 * (1 - TIE_BAND / 2)),
+        "stribeck": result("stribeck", 0.95),
+    }
     assert _rank(fits, base) == "linkage_dynamics"
     # clearly better (outside the band): the better fit wins despite more parameters
     fits["torque_ripple"] = result("torque_ripple", 0.50 * (1 - 3 * TIE_BAND))
@@ -91,8 +99,16 @@ def test_ranking_prefers_fewer_parameters_within_the_tie_band():
 @pytest.mark.slow
 def test_cli_diagnose_writes_the_json_contract_and_a_report(bench, cli, tmp_path):
     out, report = tmp_path / "d.json", tmp_path / "report"
-    done = cli("diagnose", bench("encoder_eccentricity", seed=25, duration=20.0), "--baseline", "lumped",
-               "--json", out, "--report", report)
+    done = cli(
+        "diagnose",
+        bench("encoder_eccentricity", seed=25, duration=20.0),
+        "--baseline",
+        "lumped",
+        "--json",
+        out,
+        "--report",
+        report,
+    )
     assert done.returncode == 0, done.stderr
     data = json.loads(out.read_text())
     assert {"baseline", "effects", "final"} <= set(data)
@@ -122,16 +138,30 @@ def test_a_press_is_diagnosed_like_the_sewing_machine(tmp_path, effect):
     from mechanism.testbench import write_recording
     from tests.helpers.nominal import PRESS
 
-    csv = write_recording(bench_recording(effect, seed=5, duration_s=SHORT_S, nominal=PRESS), tmp_path / "p.csv")[0]
+    csv = write_recording(
+        bench_recording(effect, seed=5, duration_s=SHORT_S, nominal=PRESS), tmp_path / "p.csv"
+    )[0]
     check(diagnose(read_recording(csv), nominal=PRESS), set() if effect == "none" else {effect})
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effects, overrides", [
-    ("stribeck", {"stribeck": {"static_over_kinetic_fraction": 0.33, "stribeck_velocity_arm_rad_s": 7.0, "model": "hess_soom"}}),
-    ("none", {}),
-    ("sensor_delay", {}),
-])
+@pytest.mark.parametrize(
+    "effects, overrides",
+    [
+        (
+            "stribeck",
+            {
+                "stribeck": {
+                    "static_over_kinetic_fraction": 0.33,
+                    "stribeck_velocity_arm_rad_s": 7.0,
+                    "model": "hess_soom",
+                }
+            },
+        ),
+        ("none", {}),
+        ("sensor_delay", {}),
+    ],
+)
 def test_no_candidate_fits_worse_than_the_model_it_extends(tmp_path, effects, overrides):
     """Every candidate contains the model it extends (its null values): after screening and
     refitting, its fit-half rmse is never above the baseline's."""
@@ -139,13 +169,19 @@ def test_no_candidate_fits_worse_than_the_model_it_extends(tmp_path, effects, ov
     from mechanism.sysid.identification import Problem, fit_baseline
     from mechanism.testbench import write_recording
 
-    csv = write_recording(bench_recording(effects, seed=8, duration_s=20, **overrides), tmp_path / "r.csv")[0]
+    csv = write_recording(
+        bench_recording(effects, seed=8, duration_s=20, **overrides), tmp_path / "r.csv"
+    )[0]
     problem = Problem(read_recording(csv), SAPPHIRE)
     base = fit_baseline(problem)
     from mechanism.sysid.effects import Located
 
-    results = _screen_and_refit(problem, base, list(EFFECTS.values()), Located(), lambda what: None, 2)
-    worse = {name: r.rmse_fit for name, r in results.items() if r.rmse_fit > base.rmse_fit * (1 + 1e-9)}
+    results = _screen_and_refit(
+        problem, base, list(EFFECTS.values()), Located(), lambda what: None, 2
+    )
+    worse = {
+        name: r.rmse_fit for name, r in results.items() if r.rmse_fit > base.rmse_fit * (1 + 1e-9)
+    }
     assert not worse, (base.rmse_fit, worse)
 
 
@@ -158,7 +194,9 @@ def test_unexplained_is_said_only_above_the_noise_floor(bench, tmp_path):
     data = clean.to_json()
     assert "unexplained" not in data
     assert clean.final.rmse_val < 2 * data["noise_floor"]["rmse_rad_s"]
-    hidden = diagnose(read_recording(bench("sensor_delay", seed=2)), candidates=["encoder_eccentricity"])
+    hidden = diagnose(
+        read_recording(bench("sensor_delay", seed=2)), candidates=["encoder_eccentricity"]
+    )
     data = hidden.to_json()
     assert data["effects"] == [] or all(e["generic"] for e in data["effects"])
     left = data["unexplained"]
@@ -178,10 +216,15 @@ def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp
     from mechanism.testbench import write_recording
 
     quarter_turn = {"cogging_per_motor_rev": 0.5, "once_per_motor_rev_Nm": 0.0, "cogging_Nm": 0.008}
-    csv = write_recording(bench_recording("torque_ripple", seed=3, duration_s=SHORT_S, torque_ripple=quarter_turn), tmp_path / "r.csv")[0]
+    csv = write_recording(
+        bench_recording("torque_ripple", seed=3, duration_s=SHORT_S, torque_ripple=quarter_turn),
+        tmp_path / "r.csv",
+    )[0]
     result = diagnose(read_recording(csv))
     data = result.to_json()
-    assert [e["name"] for e in data["effects"]] == ["generic_shaft_torque"] and data["effects"][0]["generic"]
+    assert [e["name"] for e in data["effects"]] == ["generic_shaft_torque"] and data["effects"][0][
+        "generic"
+    ]
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
     assert "4 times per shaft turn" in data["effects"][0]["evidence"]
     assert any(k.startswith("generic_shaft_order4") for k in data["effects"][0]["params"])
@@ -191,17 +234,32 @@ def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp
 def test_three_effects_at_once_are_all_named(bench):
     """No cap on the number of effects: a machine with a ripple, a warming winding and an
     eccentric encoder gets all three."""
-    check(diagnose(read_recording(bench("torque_ripple,winding_heating,encoder_eccentricity", seed=4, duration=60.0))),
-          {"torque_ripple", "winding_heating", "encoder_eccentricity"})
+    check(
+        diagnose(
+            read_recording(
+                bench("torque_ripple,winding_heating,encoder_eccentricity", seed=4, duration=60.0)
+            )
+        ),
+        {"torque_ripple", "winding_heating", "encoder_eccentricity"},
+    )
 
 
 @pytest.mark.slow
 def test_four_effects_at_once_are_all_named_in_one_run(bench):
     """Four library effects in one recording: the forward path takes each at a 10 % cut, and
     in the joint model every one still cuts the error by 30 % when added last."""
-    check(diagnose(read_recording(bench("torque_ripple,position_friction,thermal_drift,encoder_eccentricity", seed=31,
-                                        duration=60.0))),
-          {"torque_ripple", "position_friction", "thermal_drift", "encoder_eccentricity"})
+    check(
+        diagnose(
+            read_recording(
+                bench(
+                    "torque_ripple,position_friction,thermal_drift,encoder_eccentricity",
+                    seed=31,
+                    duration=60.0,
+                )
+            )
+        ),
+        {"torque_ripple", "position_friction", "thermal_drift", "encoder_eccentricity"},
+    )
 
 
 @pytest.mark.slow
@@ -209,8 +267,15 @@ def test_effects_that_pay_off_only_together_are_kept(bench):
     """Stribeck friction and a motor ripple beside a sensor delay and a warming winding: alone,
     neither ripple nor Stribeck cuts the first residual by 35 % (one effect at a time found only
     a thermal drift here); in the joint model each cuts it by more than 30 %."""
-    result = diagnose(read_recording(bench("stribeck,sensor_delay,winding_heating,torque_ripple", seed=32, duration=60.0)))
-    assert {"stribeck", "torque_ripple"} <= set(result.effect_names), (result.effect_names, result.rounds)
+    result = diagnose(
+        read_recording(
+            bench("stribeck,sensor_delay,winding_heating,torque_ripple", seed=32, duration=60.0)
+        )
+    )
+    assert {"stribeck", "torque_ripple"} <= set(result.effect_names), (
+        result.effect_names,
+        result.rounds,
+    )
     assert result.final.rmse_val <= 0.4 * result.baseline.rmse_val
     # every effect kept earns its place against the others
     assert len(result.effect_names) <= 4
@@ -222,4 +287,8 @@ def test_diagnose_help_names_every_effect_of_the_library_and_its_thresholds(cli_
 
     text = " ".join(cli_here("diagnose", "--help").stdout.split())
     assert all(name in text for name in EFFECTS)
-    assert f"{MIN_RELATIVE_GAIN:.0%}" in text and f"{KEEP_GAIN_JOINT:.0%}" in text and "{effects}" not in text
+    assert (
+        f"{MIN_RELATIVE_GAIN:.0%}" in text
+        and f"{KEEP_GAIN_JOINT:.0%}" in text
+        and "{effects}" not in text
+    )

@@ -17,13 +17,17 @@ from tests.helpers.truth_variants import VARIANTS, draw_machine, make_case, simu
 def thesis_machine(variant):
     ref = thesis()
     m = draw_machine(0, variant)
-    m.update(J_motor_kgm2=ref["identified_parameters"]["total_inertia_kgm2"],
-             viscous_motor_Nm_s=ref["identified_parameters"]["viscous_cold_Nm_s_per_rad"],
-             coulomb_arm_Nm=ref["identified_parameters"]["kinetic_friction_arm_Nm"], rest_angle_rad=0.0)
+    m.update(
+        J_motor_kgm2=ref["identified_parameters"]["total_inertia_kgm2"],
+        viscous_motor_Nm_s=ref["identified_parameters"]["viscous_cold_Nm_s_per_rad"],
+        coulomb_arm_Nm=ref["identified_parameters"]["kinetic_friction_arm_Nm"],
+        rest_angle_rad=0.0,
+    )
     return m
 
 
 # ----------------------------------------------------------------------------- the truth model itself
+
 
 @pytest.mark.slow
 @pytest.mark.parametrize("variant", ["event_long_L", "rk4_tanh"])
@@ -59,6 +63,7 @@ def test_truth_analytic_steady_state_and_breakaway():
 
 # ----------------------------------------------------------------------------- failure modes, fixed
 
+
 @pytest.mark.slow
 def test_motor_with_kt_equal_ke_is_clean():
     """A consistent SI motor (Kt = Ke = 0.0189, the geometric mean of the thesis's two) damps
@@ -69,14 +74,22 @@ def test_motor_with_kt_equal_ke_is_clean():
     result = diagnose(case.recording())
     assert result.effect_names == []
     assert "motor_back_emf_V_s_per_rad" in result.baseline.values
-    assert result.baseline.values["motor_back_emf_V_s_per_rad"] < thesis()["main_motor"]["back_emf_constant_V_s_per_rad"]
+    assert (
+        result.baseline.values["motor_back_emf_V_s_per_rad"]
+        < thesis()["main_motor"]["back_emf_constant_V_s_per_rad"]
+    )
     assert "back-emf constant fitted" in result.to_json()["baseline"]["notes"][0]
 
 
 @pytest.mark.slow
 def test_kt_equal_ke_thermal_drift_of_viscous_only():
-    case = make_case(("thermal_drift",), seed=1, variant="pwm_duty", duration_s=30.0,
-                     flavours={"thermal_drift": "viscous_only"})
+    case = make_case(
+        ("thermal_drift",),
+        seed=1,
+        variant="pwm_duty",
+        duration_s=30.0,
+        flavours={"thermal_drift": "viscous_only"},
+    )
     result = diagnose(case.recording())
     assert result.effect_names == ["thermal_drift"]
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
@@ -88,8 +101,13 @@ def test_supply_dead_band_is_not_taken_for_stribeck():
     Coulomb level, and any candidate's refit could then land in another optimum that is worse
     on the fit half but better on the validation half. Such a refit is no evidence: only the
     supply model fits both halves better."""
-    case = make_case(("voltage_nonlinearity",), seed=1, variant="stairs_noisy", duration_s=60.0,
-                     flavours={"voltage_nonlinearity": "dead_band"})
+    case = make_case(
+        ("voltage_nonlinearity",),
+        seed=1,
+        variant="stairs_noisy",
+        duration_s=60.0,
+        flavours={"voltage_nonlinearity": "dead_band"},
+    )
     result = diagnose(case.recording())
     assert result.effect_names == ["voltage_nonlinearity"]
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
@@ -97,7 +115,12 @@ def test_supply_dead_band_is_not_taken_for_stribeck():
 
 def test_supply_model_loses_voltage_but_never_reverses_it():
     supply = effects()["voltage_nonlinearity"]
-    values = {"supply_offset_V": -1.0, "supply_linear_V": 0.0, "supply_quadratic_V": 0.0, "supply_cubic_V": 0.0}
+    values = {
+        "supply_offset_V": -1.0,
+        "supply_linear_V": 0.0,
+        "supply_quadratic_V": 0.0,
+        "supply_cubic_V": 0.0,
+    }
     logged = np.array([-10.0, -0.8, 0.0, 0.3, 0.8, 10.0])
     applied = supply.applied(values, logged)
     assert applied.tolist() == pytest.approx([-9.0, 0.0, 0.0, 0.0, 0.0, 9.0])
@@ -108,8 +131,13 @@ def test_cogging_seen_only_at_starts_is_named():
     """A 12-pole cogging (96 per arm turn) shows only at starts and stops. The baseline run
     with the parameters the ripple's refit moved happens to suit the validation half better
     while fitting the fit half worse: that is no better optimum, so the ripple's gain counts."""
-    case = make_case(("torque_ripple",), seed=1, variant="rk4_tanh", duration_s=60.0,
-                     flavours={"torque_ripple": "cogging_12"})
+    case = make_case(
+        ("torque_ripple",),
+        seed=1,
+        variant="rk4_tanh",
+        duration_s=60.0,
+        flavours={"torque_ripple": "cogging_12"},
+    )
     result = diagnose(case.recording())
     assert result.effect_names == ["torque_ripple"]
     assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val

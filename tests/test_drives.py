@@ -68,17 +68,33 @@ def test_motor_tables_parse_with_the_first_as_the_main_motor(tmp_path):
     assert described.motors["spin_b"]["type"] == "current"
 
 
-@pytest.mark.parametrize("motors, fragment", [
-    ('[motor."spin_a"]\ntype = "servo"\nresistance_ohm = 4.0\ntorque_constant_Nm_per_A = 0.02\n'
-     'back_emf_V_s_per_rad = 0.02\nkp_V_per_rad = 20.0\n', "supply_V: missing"),
-    ('[motor."spin_a"]\ntype = "current"\ntorque_constant_Nm_per_A = 0.02\nresistance_ohm = 1.0\n', "not a key of a current drive"),
-    ('[motor]\ntype = "dc"\nresistance_ohm = 1.0\ntorque_constant_Nm_per_A = 0.02\nback_emf_V_s_per_rad = 0.02\n',
-     "motor_joint: missing"),
-    ('[motor]\ntype = "dc"\n[motor."spin_a"]\ntype = "current"\ntorque_constant_Nm_per_A = 0.02\n', "not both"),
-])
+@pytest.mark.parametrize(
+    "motors, fragment",
+    [
+        (
+            '[motor."spin_a"]\ntype = "servo"\nresistance_ohm = 4.0\ntorque_constant_Nm_per_A = 0.02\n'
+            "back_emf_V_s_per_rad = 0.02\nkp_V_per_rad = 20.0\n",
+            "supply_V: missing",
+        ),
+        (
+            '[motor."spin_a"]\ntype = "current"\ntorque_constant_Nm_per_A = 0.02\nresistance_ohm = 1.0\n',
+            "not a key of a current drive",
+        ),
+        (
+            '[motor]\ntype = "dc"\nresistance_ohm = 1.0\ntorque_constant_Nm_per_A = 0.02\nback_emf_V_s_per_rad = 0.02\n',
+            "motor_joint: missing",
+        ),
+        (
+            '[motor]\ntype = "dc"\n[motor."spin_a"]\ntype = "current"\ntorque_constant_Nm_per_A = 0.02\n',
+            "not both",
+        ),
+    ],
+)
 def test_bad_motor_tables_are_one_error_line(tmp_path, cli_here, motors, fragment):
     path = _machine(tmp_path, motors)
-    line = cli_here("simulate", "--machine", path, "--voltage", "5", "--duration", "0.1", "--summary").assert_bad_input()
+    line = cli_here(
+        "simulate", "--machine", path, "--voltage", "5", "--duration", "0.1", "--summary"
+    ).assert_bad_input()
     assert fragment in line
 
 
@@ -88,15 +104,33 @@ def test_a_servo_step_follows_its_loop_equation(tmp_path, cli):
     response with wn^2 = Kt kp / (R J) and 2 zeta wn = Kt (kd + Ke) / (R J)."""
     path = _machine(tmp_path, SERVO_A)
     goal = 0.05
-    result = cli("simulate", "--machine", path, "--goal", f"spin_a={goal}", "--duration", "0.4",
-                 "--csv", tmp_path / "run.csv")
+    result = cli(
+        "simulate",
+        "--machine",
+        path,
+        "--goal",
+        f"spin_a={goal}",
+        "--duration",
+        "0.4",
+        "--csv",
+        tmp_path / "run.csv",
+    )
     assert result.returncode == 0, result.stderr
-    lines = [line for line in (tmp_path / "run.csv").read_text().splitlines() if not line.startswith("#")]
+    lines = [
+        line for line in (tmp_path / "run.csv").read_text().splitlines() if not line.startswith("#")
+    ]
     header = lines[0].split(",")
     table = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
     column = {name: table[:, i] for i, name in enumerate(header)}
-    for name in ("spin_a_pos_rad", "spin_a_vel_rad_s", "spin_b_pos_rad", "spin_a_input_rad", "spin_a_current_A",
-                 "spin_b_input_A", "spin_b_current_A"):
+    for name in (
+        "spin_a_pos_rad",
+        "spin_a_vel_rad_s",
+        "spin_b_pos_rad",
+        "spin_a_input_rad",
+        "spin_a_current_A",
+        "spin_b_input_A",
+        "spin_b_current_A",
+    ):
         assert name in column, name
     t, q = column["time_s"], column["spin_a_pos_rad"]
     kt, r, kp, kd, ke = 0.02, 4.0, 20.0, 0.05, 0.02
@@ -104,12 +138,19 @@ def test_a_servo_step_follows_its_loop_equation(tmp_path, cli):
     zeta = kt * (kd + ke) / (r * INERTIA) / (2 * wn)
     assert zeta < 1  # underdamped: the test sees the overshoot
     wd = wn * math.sqrt(1 - zeta**2)
-    expected = goal * (1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t)))
+    expected = goal * (
+        1
+        - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t))
+    )
     assert np.max(np.abs(q - expected)) < 0.01 * goal
-    assert np.max(np.abs(kp * (goal - q) - kd * column["spin_a_vel_rad_s"])) < 6.0  # never saturated
+    assert (
+        np.max(np.abs(kp * (goal - q) - kd * column["spin_a_vel_rad_s"])) < 6.0
+    )  # never saturated
     assert column["spin_a_input_rad"] == pytest.approx(goal)
     # the current is the motor's: (V - Ke w) / R
-    current = (kp * (goal - q) - kd * column["spin_a_vel_rad_s"] - ke * column["spin_a_vel_rad_s"]) / r
+    current = (
+        kp * (goal - q) - kd * column["spin_a_vel_rad_s"] - ke * column["spin_a_vel_rad_s"]
+    ) / r
     assert column["spin_a_current_A"] == pytest.approx(current, abs=1e-9)
 
 
@@ -145,15 +186,29 @@ def test_two_motors_each_take_their_own_input(tmp_path, cli):
     path = _machine(tmp_path, motors)
     profile = tmp_path / "inputs.csv"
     profile.write_text("time_s,spin_a_V,spin_b_A\n0,3.0,0.2\n0.5,3.0,5.0\n")
-    result = cli("simulate", "--machine", path, "--profile", profile, "--duration", "1.0", "--csv", tmp_path / "run.csv")
+    result = cli(
+        "simulate",
+        "--machine",
+        path,
+        "--profile",
+        profile,
+        "--duration",
+        "1.0",
+        "--csv",
+        tmp_path / "run.csv",
+    )
     assert result.returncode == 0, result.stderr
-    lines = [line for line in (tmp_path / "run.csv").read_text().splitlines() if not line.startswith("#")]
+    lines = [
+        line for line in (tmp_path / "run.csv").read_text().splitlines() if not line.startswith("#")
+    ]
     header = lines[0].split(",")
     table = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
     column = {name: table[:, i] for i, name in enumerate(header)}
     t = column["time_s"]
     tau = INERTIA * 4.0 / (0.02 * 0.02)  # the mechanical time constant J R / (Kt Ke): 5 s
-    assert column["spin_a_vel_rad_s"] == pytest.approx(3.0 / 0.02 * (1 - np.exp(-t / tau)), rel=0.01, abs=1e-3)
+    assert column["spin_a_vel_rad_s"] == pytest.approx(
+        3.0 / 0.02 * (1 - np.exp(-t / tau)), rel=0.01, abs=1e-3
+    )
     first = t < 0.5
     slope = np.polyfit(t[first], column["spin_b_vel_rad_s"][first], 1)[0]
     assert slope == pytest.approx(0.05 * 0.2 / INERTIA, rel=0.01)
@@ -162,24 +217,75 @@ def test_two_motors_each_take_their_own_input(tmp_path, cli):
     assert slope == pytest.approx(0.05 * 2.0 / INERTIA, rel=0.01)  # 5 A asked, 2 A given
     assert column["spin_b_current_A"][-1] == pytest.approx(2.0)
     # the same on the command line
-    again = cli("simulate", "--machine", path, "--voltage", "spin_a=3", "--current", "spin_b=0.2", "--duration", "0.3",
-                "--summary")
+    again = cli(
+        "simulate",
+        "--machine",
+        path,
+        "--voltage",
+        "spin_a=3",
+        "--current",
+        "spin_b=0.2",
+        "--duration",
+        "0.3",
+        "--summary",
+    )
     assert again.returncode == 0, again.stderr
-    wrong = cli("simulate", "--machine", path, "--goal", "spin_b=1", "--duration", "0.3", "--summary").assert_bad_input()
+    wrong = cli(
+        "simulate", "--machine", path, "--goal", "spin_b=1", "--duration", "0.3", "--summary"
+    ).assert_bad_input()
     assert "--current spin_b=" in wrong
 
 
 @pytest.mark.slow
 def test_probe_and_view_take_the_inputs_of_every_motor(tmp_path, cli):
     path = _machine(tmp_path, SERVO_A)
-    probe = cli("probe", "--machine", path, "--part", "disk_a", "--quantity", "position", "--goal", "spin_a=0.3",
-                "--current", "spin_b=0.1", "--duration", "0.2", "--csv", tmp_path / "p.csv")
+    probe = cli(
+        "probe",
+        "--machine",
+        path,
+        "--part",
+        "disk_a",
+        "--quantity",
+        "position",
+        "--goal",
+        "spin_a=0.3",
+        "--current",
+        "spin_b=0.1",
+        "--duration",
+        "0.2",
+        "--csv",
+        tmp_path / "p.csv",
+    )
     assert probe.returncode == 0, probe.stderr
-    view = cli("view", "--machine", path, "--goal", "spin_a=0.3", "--duration", "0.2", "--frames", "10",
-               "--html", tmp_path / "v.html")
+    view = cli(
+        "view",
+        "--machine",
+        path,
+        "--goal",
+        "spin_a=0.3",
+        "--duration",
+        "0.2",
+        "--frames",
+        "10",
+        "--html",
+        tmp_path / "v.html",
+    )
     assert view.returncode == 0, view.stderr
-    line = cli("probe", "--machine", path, "--part", "disk_a", "--quantity", "position", "--voltage", "5",
-               "--duration", "0.2", "--csv", tmp_path / "q.csv").assert_bad_input()
+    line = cli(
+        "probe",
+        "--machine",
+        path,
+        "--part",
+        "disk_a",
+        "--quantity",
+        "position",
+        "--voltage",
+        "5",
+        "--duration",
+        "0.2",
+        "--csv",
+        tmp_path / "q.csv",
+    ).assert_bad_input()
     assert "--goal spin_a=" in line
 
 
@@ -197,7 +303,9 @@ def test_the_servo_limit_python_twin_matches_the_compiled_callback(tmp_path):
     model, data = machine.model, machine.data
     joint = model.joint("spin_a")
     data.qpos[joint.qposadr[0]], data.qvel[joint.dofadr[0]] = 0.1, 3.0
-    data.ctrl[model.actuator("drive_motor").id] = 2.0  # 20 (2 - 0.1) - 0.05 x 3 = 37.85 V asked of 6 V
+    data.ctrl[model.actuator("drive_motor").id] = (
+        2.0  # 20 (2 - 0.1) - 0.05 x 3 = 37.85 V asked of 6 V
+    )
     mujoco.mj_forward(model, data)
     native = data.qfrc_passive[joint.dofadr[0]]
     data.qfrc_passive[:] = 0.0

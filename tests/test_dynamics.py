@@ -29,7 +29,9 @@ def bare():
     return Machine(None, MachineConfig(needle=False))
 
 
-@pytest.mark.parametrize("row", REF["steady_state_speed_table_2"]["rows"][:5], ids=lambda r: f"{r[1]}V")
+@pytest.mark.parametrize(
+    "row", REF["steady_state_speed_table_2"]["rows"][:5], ids=lambda r: f"{r[1]}V"
+)
 def test_table_2_cold_speeds_within_5_percent(bare, row):
     _, voltage, _, _, rpm_cold, _, _ = row
     mean = simulate(voltage, 3.0, machine=bare).speed_summary(1.0)["mean_rpm"]
@@ -66,8 +68,14 @@ def test_break_away_spans_the_thesis_range_and_duty_cycles(bare):
     assert not BDC_DEG < np.degrees(angles[torque.argmin()]) < 360 - 20
     # The thesis's duty cycles: nothing starts at 11 % duty; everything starts at 15 %.
     lowest, highest = angles[torque.argmin()], angles[torque.argmax()]
-    assert abs(simulate(PWM(11), 1.0, machine=bare, start_angle_rad=lowest).arm_angle_rad[-1] - lowest) < 2e-3
-    assert simulate(PWM(15), 1.0, machine=bare, start_angle_rad=highest).arm_angle_rad[-1] - highest > 0.5
+    assert (
+        abs(simulate(PWM(11), 1.0, machine=bare, start_angle_rad=lowest).arm_angle_rad[-1] - lowest)
+        < 2e-3
+    )
+    assert (
+        simulate(PWM(15), 1.0, machine=bare, start_angle_rad=highest).arm_angle_rad[-1] - highest
+        > 0.5
+    )
 
 
 @pytest.mark.slow
@@ -94,7 +102,9 @@ def test_twelve_layers_slow_the_machine_as_the_needle_pierces(bare):
         run = simulate(7.0, 6.0, machine=m)
         window = run.window(3.0)
         bins = (np.mod(run.arm_angle_rad[window], 2 * np.pi) / (2 * np.pi) * 72).astype(int)
-        return np.bincount(bins, run.arm_velocity_rad_s[window], 72) / np.bincount(bins, minlength=72)
+        return np.bincount(bins, run.arm_velocity_rad_s[window], 72) / np.bincount(
+            bins, minlength=72
+        )
 
     loss = speed_by_angle(machine) - speed_by_angle(plain)
     # Where the needle point enters the 12-layer stack on its way down (from the kinematics).
@@ -114,9 +124,16 @@ def test_simulated_needle_height_is_the_needle_inspection_at_the_simulated_angle
 
     run = simulate(19.6, 1.0, machine=Machine())
     motion = needle_motion(samples=720)
-    expected = np.interp(np.mod(np.degrees(run.arm_angle_rad), 360), motion.arm_angle_deg, motion.needle_z_mm, period=360)
+    expected = np.interp(
+        np.mod(np.degrees(run.arm_angle_rad), 360),
+        motion.arm_angle_deg,
+        motion.needle_z_mm,
+        period=360,
+    )
     np.testing.assert_allclose(run.needle_z_mm, expected, atol=0.01)
-    assert run.needle_z_mm.max() == pytest.approx(23.1, abs=0.01) and run.needle_z_mm.min() == pytest.approx(-9.9, abs=0.01)
+    assert run.needle_z_mm.max() == pytest.approx(
+        23.1, abs=0.01
+    ) and run.needle_z_mm.min() == pytest.approx(-9.9, abs=0.01)
 
 
 def test_loops_and_belts_stiffen_with_the_time_step():
@@ -138,45 +155,66 @@ def test_loops_and_belts_stiffen_with_the_time_step():
 
 
 def test_reduced_model_matches_the_full_model_within_one_percent(bare):
-    profile = VoltageProfile(np.array([0, 2, 4, 6, 7, 9]), np.array([4.5, 12.5, 19.6, 0.0, 7.0, 15.0]))
+    profile = VoltageProfile(
+        np.array([0, 2, 4, 6, 7, 9]), np.array([4.5, 12.5, 19.6, 0.0, 7.0, 15.0])
+    )
     full = simulate(profile, 11.0, machine=bare)
     reduced = ReducedModel(bare).simulate(profile, 11.0)
     error = reduced.arm_velocity_rad_s - full.arm_velocity_rad_s
     assert np.sqrt(np.mean(error**2)) / np.sqrt(np.mean(full.arm_velocity_rad_s**2)) < 0.01
 
 
-@pytest.mark.parametrize("args, fragment", [
-    (["--voltage", "12", "--duration", "-1"], "duration must be positive"),
-    (["--voltage", "31", "--duration", "1"], "outside 0-30 V"),
-    (["--duty", "120", "--duration", "1"], "duty cycle"),
-    (["--layers", "-2", "--voltage", "5", "--duration", "1"], "fabric layers"),
-])
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--voltage", "12", "--duration", "-1"], "duration must be positive"),
+        (["--voltage", "31", "--duration", "1"], "outside 0-30 V"),
+        (["--duty", "120", "--duration", "1"], "duty cycle"),
+        (["--layers", "-2", "--voltage", "5", "--duration", "1"], "fabric layers"),
+    ],
+)
 def test_bad_simulate_arguments_are_one_error_line(cli_here, tmp_path, args, fragment):
     line = cli_here("simulate", *args, "--csv", tmp_path / "out.csv").assert_bad_input()
     assert fragment in line
     assert not (tmp_path / "out.csv").exists()
 
 
-@pytest.mark.parametrize("text, fragment", [
-    ("time_s,voltage_V\n0,3\n0.5,4\n0.5,5\n", "not strictly increasing"),
-    ("time_s,voltage_V\n0,3\n1,abc\n", "not a number"),
-    ("time_s,volts\n0,3\n", "missing required column"),
-    ("time_s,voltage_V\n0,3\n1,45\n", "outside 0-30 V"),
-])
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("time_s,voltage_V\n0,3\n0.5,4\n0.5,5\n", "not strictly increasing"),
+        ("time_s,voltage_V\n0,3\n1,abc\n", "not a number"),
+        ("time_s,volts\n0,3\n", "missing required column"),
+        ("time_s,voltage_V\n0,3\n1,45\n", "outside 0-30 V"),
+    ],
+)
 def test_malformed_profiles_are_one_error_line(cli_here, tmp_path, text, fragment):
     profile = tmp_path / "profile.csv"
     profile.write_text(text)
-    line = cli_here("simulate", "--profile", profile, "--csv", tmp_path / "out.csv").assert_bad_input()
+    line = cli_here(
+        "simulate", "--profile", profile, "--csv", tmp_path / "out.csv"
+    ).assert_bad_input()
     assert fragment in line
 
 
 @pytest.mark.slow
 def test_simulate_writes_the_contract_columns_and_a_summary(cli, tmp_path):
-    result = cli("simulate", "--duty", "50", "--duration", "2", "--csv", tmp_path / "run.csv", "--summary")
+    result = cli(
+        "simulate", "--duty", "50", "--duration", "2", "--csv", tmp_path / "run.csv", "--summary"
+    )
     assert result.returncode == 0, result.stderr
-    header = [line for line in (tmp_path / "run.csv").read_text().splitlines() if not line.startswith("#")][0]
-    for column in ["time_s", "voltage_V", "current_A", "arm_angle_rad", "arm_velocity_rad_s",
-                   "arm_acceleration_rad_s2", "needle_z_mm"]:
+    header = [
+        line for line in (tmp_path / "run.csv").read_text().splitlines() if not line.startswith("#")
+    ][0]
+    for column in [
+        "time_s",
+        "voltage_V",
+        "current_A",
+        "arm_angle_rad",
+        "arm_velocity_rad_s",
+        "arm_acceleration_rad_s2",
+        "needle_z_mm",
+    ]:
         assert column in header.split(",")
     mean = float(result.stdout.split("mean ")[1].split()[0])
     assert mean == pytest.approx(566, rel=0.05)  # 50 % duty is Table 2's 12.49 V row
@@ -192,9 +230,34 @@ def test_the_voltage_bound_is_the_described_motors_rated_voltage(cli, tmp_path):
     text = shipped_description("press").read_text()
     assert "rated_voltage_V" not in text
     machine = tmp_path / "press48.toml"
-    machine.write_text(re.sub(r'(?m)^model = .*$', f'model = "{shipped_model("press")}"',
-                              text.replace('[motor]', '[motor]\nrated_voltage_V = 48.0', 1)))
-    run = cli("simulate", "--machine", machine, "--voltage", "40", "--duration", "0.2", "--reduced", "--summary")
+    machine.write_text(
+        re.sub(
+            r"(?m)^model = .*$",
+            f'model = "{shipped_model("press")}"',
+            text.replace("[motor]", "[motor]\nrated_voltage_V = 48.0", 1),
+        )
+    )
+    run = cli(
+        "simulate",
+        "--machine",
+        machine,
+        "--voltage",
+        "40",
+        "--duration",
+        "0.2",
+        "--reduced",
+        "--summary",
+    )
     assert run.returncode == 0, run.stderr
-    line = cli("simulate", "--machine", machine, "--voltage", "50", "--duration", "0.2", "--reduced", "--summary").assert_bad_input()
+    line = cli(
+        "simulate",
+        "--machine",
+        machine,
+        "--voltage",
+        "50",
+        "--duration",
+        "0.2",
+        "--reduced",
+        "--summary",
+    ).assert_bad_input()
     assert "rated_voltage_V" in line and "0-48 V" in line

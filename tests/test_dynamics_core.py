@@ -32,7 +32,11 @@ def lumped_steady_rpm(voltage, coulomb_arm=0.18, viscous_motor=2.2e-5):
 
 
 def no_position_friction():
-    return {"arm_shaft": FrictionLaw(coulomb=0.18, static=0.2394, stribeck="tustin", stribeck_velocity=0.5)}
+    return {
+        "arm_shaft": FrictionLaw(
+            coulomb=0.18, static=0.2394, stribeck="tustin", stribeck_velocity=0.5
+        )
+    }
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +68,9 @@ def test_dcmotor_keeps_kt_and_ke_distinct():
 
 @pytest.mark.slow
 def test_machine_sticks_below_break_away_and_starts_above():
-    no_gravity = Machine(TOY_MACHINE, MachineConfig(friction={"arm_shaft": FrictionLaw(coulomb=0.18, static=0.24)}))
+    no_gravity = Machine(
+        TOY_MACHINE, MachineConfig(friction={"arm_shaft": FrictionLaw(coulomb=0.18, static=0.24)})
+    )
     no_gravity.model.opt.gravity[:] = 0
     # Stall torque at the arm is N Kt V / R: break-away at V = 0.24 R / (N Kt).
     breakaway_V = 0.24 * R / (N * KT)
@@ -75,12 +81,25 @@ def test_machine_sticks_below_break_away_and_starts_above():
 
 
 def test_python_fallback_matches_the_compiled_callback():
-    laws = {"arm_shaft": FrictionLaw(coulomb=0.18, static=0.26, stribeck="hess-soom", stribeck_velocity=2.0,
-                                     position_amplitude=0.1, static_position_amplitude=0.03, position_phase_rad=1.0)}
+    laws = {
+        "arm_shaft": FrictionLaw(
+            coulomb=0.18,
+            static=0.26,
+            stribeck="hess-soom",
+            stribeck_velocity=2.0,
+            position_amplitude=0.1,
+            static_position_amplitude=0.03,
+            position_phase_rad=1.0,
+        )
+    }
     compiled = Machine(TOY_MACHINE, MachineConfig(friction=laws))
-    reference = simulate(VoltageProfile(np.array([0.0, 0.3]), np.array([3.0, 6.0])), 0.6, machine=compiled)
+    reference = simulate(
+        VoltageProfile(np.array([0.0, 0.3]), np.array([3.0, 6.0])), 0.6, machine=compiled
+    )
     # Same model, friction stepped in Python instead of C.
-    velocities = velocities_with_passive(compiled, python_friction, lambda t: 3.0 if t < 0.3 else 6.0, 0.6)
+    velocities = velocities_with_passive(
+        compiled, python_friction, lambda t: 3.0 if t < 0.3 else 6.0, 0.6
+    )
     np.testing.assert_allclose(velocities, reference.arm_velocity_rad_s, atol=1e-6)
 
 
@@ -107,7 +126,9 @@ def test_bad_durations_and_voltages_are_user_errors(toy):
 def test_break_away_follows_the_static_position_amplitude(rest_angle):
     # Static level 0.24 (1 + 0.1 cos θ): 0.264 N m at θ = 0, 0.216 N m at θ = π; the running
     # amplitude (0.3 here) must not change when the machine starts.
-    law = FrictionLaw(coulomb=0.18, static=0.24, position_amplitude=0.3, static_position_amplitude=0.1)
+    law = FrictionLaw(
+        coulomb=0.18, static=0.24, position_amplitude=0.3, static_position_amplitude=0.1
+    )
     machine = Machine(TOY_MACHINE, MachineConfig(friction={"arm_shaft": law}))
     machine.model.opt.gravity[:] = 0
     breakaway_V = law.static_at(rest_angle) * R / (N * KT)
@@ -134,6 +155,10 @@ def test_each_compiled_kernel_has_the_python_stribeck_law_point_by_point(kernel)
     shape.argtypes = [ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_double]
     for law in ("tustin", "hess-soom", "none"):
         for vs, delta in ((0.5, 1.0), (2.0, 0.6), (7.0, 2.0)):
-            python = FrictionLaw(coulomb=0.1, static=0.2, stribeck=law, stribeck_velocity=vs, tustin_exponent=delta)
+            python = FrictionLaw(
+                coulomb=0.1, static=0.2, stribeck=law, stribeck_velocity=vs, tustin_exponent=delta
+            )
             for v in np.linspace(-30.0, 30.0, 61):
-                assert shape(STRIBECK_LAWS[law], v, vs, delta) == pytest.approx(float(python.stribeck_shape(v)), abs=1e-15)
+                assert shape(STRIBECK_LAWS[law], v, vs, delta) == pytest.approx(
+                    float(python.stribeck_shape(v)), abs=1e-15
+                )

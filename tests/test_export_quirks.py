@@ -11,14 +11,52 @@ import pytest
 from mechanism.converters import convert, read
 from mechanism.converters.names import sanitize
 from tests.helpers.exports import rotation
-from tests.helpers.quirk_exports import (INCH, X, Y, Z, ball_and_beam, ball_in_groove, circles_meet, conveyor_with_origin_mates, creo_arm,
-                           creo_ball_beam_rigid, furuta, hexapod_link, massless_link_tiny_parts, massless_skeleton_moving,
-                           onshape_copter, planar_puck, proe_fourbar, robot_shin, scara_printer, simscape_link_gen1)
+from tests.helpers.quirk_exports import (
+    INCH,
+    X,
+    Y,
+    Z,
+    ball_and_beam,
+    ball_in_groove,
+    circles_meet,
+    conveyor_with_origin_mates,
+    creo_arm,
+    creo_ball_beam_rigid,
+    furuta,
+    hexapod_link,
+    massless_link_tiny_parts,
+    massless_skeleton_moving,
+    onshape_copter,
+    planar_puck,
+    proe_fourbar,
+    robot_shin,
+    scara_printer,
+    simscape_link_gen1,
+)
 
-BUILDERS = [proe_fourbar, ball_and_beam, furuta, hexapod_link, robot_shin, creo_arm, scara_printer, onshape_copter]
-ISSUE_14 = [simscape_link_gen1, massless_link_tiny_parts, massless_skeleton_moving, planar_puck, creo_ball_beam_rigid,
-            ball_in_groove, conveyor_with_origin_mates]  # one stand-in per failure class of issue 14, in its order
-UP = {furuta: "y", planar_puck: "y"}  # furuta's world is Y-up; the puck's table stands in the xy plane: gravity along it
+BUILDERS = [
+    proe_fourbar,
+    ball_and_beam,
+    furuta,
+    hexapod_link,
+    robot_shin,
+    creo_arm,
+    scara_printer,
+    onshape_copter,
+]
+ISSUE_14 = [
+    simscape_link_gen1,
+    massless_link_tiny_parts,
+    massless_skeleton_moving,
+    planar_puck,
+    creo_ball_beam_rigid,
+    ball_in_groove,
+    conveyor_with_origin_mates,
+]  # one stand-in per failure class of issue 14, in its order
+UP = {
+    furuta: "y",
+    planar_puck: "y",
+}  # furuta's world is Y-up; the puck's table stands in the xy plane: gravity along it
 
 
 @pytest.fixture(scope="module")
@@ -32,6 +70,7 @@ def built(tmp_path_factory):
             export = builder(folder)
             cache[builder] = export, convert(export.path, folder / "out", up=UP.get(builder, "z"))
         return cache[builder]
+
     return get
 
 
@@ -46,8 +85,13 @@ def _driven(mjcf_path, *joints):
     """The model with a joint equality per joint pinning it to ``eq_data[id, 0]``, and no gravity."""
     spec = mujoco.MjSpec.from_file(str(mjcf_path))
     for joint in joints:
-        spec.add_equality(name=f"drive {joint}", type=mujoco.mjtEq.mjEQ_JOINT, name1=joint,
-                          objtype=mujoco.mjtObj.mjOBJ_JOINT, data=[0.0] * 12)
+        spec.add_equality(
+            name=f"drive {joint}",
+            type=mujoco.mjtEq.mjEQ_JOINT,
+            name1=joint,
+            objtype=mujoco.mjtObj.mjOBJ_JOINT,
+            data=[0.0] * 12,
+        )
     model = spec.compile()
     model.opt.gravity[:] = 0
     return model, mujoco.MjData(model), [model.equality(f"drive {j}").id for j in joints]
@@ -59,7 +103,9 @@ def _turned_by(start, end) -> float:
 
 
 def _loop_error(data, skip=()) -> float:
-    rows = (data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & ~np.isin(data.efc_id, list(skip))
+    rows = (data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & ~np.isin(
+        data.efc_id, list(skip)
+    )
     return float(np.abs(data.efc_pos[rows]).max(initial=0.0))
 
 
@@ -86,14 +132,23 @@ def test_proe_fourbar_in_inches_and_pounds_through_a_root_part(built):
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     o2, o4, a, b = fourbar.points()
-    for site, pin, layer in (("crank_start", o2, 1), ("crank_end", a, 1), ("coupler_end", b, 2), ("rocker_start", o4, 1)):
-        assert data.site(site).xpos == pytest.approx(fourbar.world(*pin, 4.0 * layer) * INCH, abs=1e-9)
+    for site, pin, layer in (
+        ("crank_start", o2, 1),
+        ("crank_end", a, 1),
+        ("coupler_end", b, 2),
+        ("rocker_start", o4, 1),
+    ):
+        assert data.site(site).xpos == pytest.approx(
+            fourbar.world(*pin, 4.0 * layer) * INCH, abs=1e-9
+        )
     assert data.joint("ground--crank").xaxis == pytest.approx([0, 0, -1], abs=1e-9)
     crank = model.body("crank")
     expected = fourbar.masses()["crank"] * 0.45359237
     assert crank.mass[0] == pytest.approx(expected, rel=1e-9)
     # a bar's inertia about its long axis: m (w^2 + t^2) / 12 in lbm*in^2
-    assert min(crank.inertia) == pytest.approx(expected * (6.0**2 + 3.0**2) / 12 * INCH**2, rel=1e-6)
+    assert min(crank.inertia) == pytest.approx(
+        expected * (6.0**2 + 3.0**2) / 12 * INCH**2, rel=1e-6
+    )
 
 
 def test_solidworks_ball_and_beam_mates_give_a_spatial_loop_that_moves_as_designed(built):
@@ -118,11 +173,15 @@ def test_solidworks_ball_and_beam_mates_give_a_spatial_loop_that_moves_as_design
     a, b = data.site("horn-1").xpos, data.site("fork_s-1").xpos
     alpha = angle(plane(a - s))
     assert abs(math.degrees(alpha - angle(plane(facts["A"] - s)))) == pytest.approx(20, abs=0.05)
-    expected_b = circles_meet(plane(p), facts["beam"], plane(a), facts["rod"], near=plane(facts["B"]))
+    expected_b = circles_meet(
+        plane(p), facts["beam"], plane(a), facts["rod"], near=plane(facts["B"])
+    )
     assert plane(b) == pytest.approx(expected_b, abs=1e-6)
     assert abs(b @ Y - facts["B"] @ Y) < 1e-6, "nothing leaves the plane of motion"
     tilt = _turned_by(beam_start, data.site("beam-1").xmat.reshape(3, 3))
-    expected_tilt = abs(math.remainder(angle(expected_b - plane(p)) - angle(plane(facts["B"] - p)), 2 * math.pi))
+    expected_tilt = abs(
+        math.remainder(angle(expected_b - plane(p)) - angle(plane(facts["B"] - p)), 2 * math.pi)
+    )
     assert expected_tilt > math.radians(1)
     assert math.degrees(tilt) == pytest.approx(math.degrees(expected_tilt), abs=1e-3)
 
@@ -148,15 +207,21 @@ def test_furuta_pendulum_in_a_y_up_world(built, tmp_path):
     pendulum = joints[("encoder mount-1", "pendulum-1")]
     motor = joints[("arm-1", "shaft coupling-1")]
     (swing,), (spin,) = pendulum.primitives, motor.primitives
-    assert abs(swing.axis @ X) == pytest.approx(1, abs=1e-9) and abs(spin.axis @ facts["up"]) == pytest.approx(1, abs=1e-9)
-    assert np.linalg.norm(np.cross(pendulum.base_frame.position - facts["pivot"], swing.axis)) < 1e-9
+    assert abs(swing.axis @ X) == pytest.approx(1, abs=1e-9) and abs(
+        spin.axis @ facts["up"]
+    ) == pytest.approx(1, abs=1e-9)
+    assert (
+        np.linalg.norm(np.cross(pendulum.base_frame.position - facts["pivot"], swing.axis)) < 1e-9
+    )
     model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
     assert model.opt.gravity == pytest.approx([0, -9.81, 0])
     assert model.site(sanitize(facts["hidden"])).id >= 0
     joint = sanitize(facts["pendulum"])
     assert _settle(report.mjcf_path, joint) < 1e-6, "hanging straight down: at rest"
     z_up = convert(export.path, tmp_path / "z-up")
-    assert _settle(z_up.mjcf_path, joint) > 0.05, "with gravity along -z the pendulum falls sideways"
+    assert _settle(z_up.mjcf_path, joint) > 0.05, (
+        "with gravity along -z the pendulum falls sideways"
+    )
 
 
 def test_legacy_root_with_one_rigid_subassembly_used_twice_and_cyrillic_names(built):
@@ -165,15 +230,23 @@ def test_legacy_root_with_one_rigid_subassembly_used_twice_and_cyrillic_names(bu
     export, report = built(hexapod_link)
     facts = export.facts
     assert "SimMechanicsImportXML" in report.export_format
-    assert report.n_parts == facts["n_parts"] and report.n_bodies == 1 and report.degrees_of_freedom == 0
+    assert (
+        report.n_parts == facts["n_parts"]
+        and report.n_bodies == 1
+        and report.degrees_of_freedom == 0
+    )
     assembly = read(export.path)
     assert facts["unicode_parts"] <= {p.name for p in assembly.parts.values()}
-    assert sum("by mates" in j.name for j in assembly.joints) == 4, "bracket, plate, bracket: four bolted pairs"
+    assert sum("by mates" in j.name for j in assembly.joints) == 4, (
+        "bracket, plate, bracket: four bolted pairs"
+    )
     model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     sites = {model.site(i).name for i in range(model.nsite)}
-    assert len(sites) == model.nsite == facts["n_parts"], "every part has its own site, also where names collide"
+    assert len(sites) == model.nsite == facts["n_parts"], (
+        "every part has its own site, also where names collide"
+    )
     assert {"case-1", "case-1_2", "top-1", "top-1_2"} <= sites
     assert data.site("case-1_2").xpos == pytest.approx(facts["case_b"], abs=1e-9)
 
@@ -191,14 +264,26 @@ def test_flexible_subassembly_keeps_its_own_mates_in_its_own_frame(built):
     for joint in (stroke, cap):
         assert abs(joint.primitives[-1].axis @ axis) == pytest.approx(1, abs=1e-5)
     assert report.n_loop_closures == 3, "12 joints between 10 rigid units"
-    assert report.degrees_of_freedom == 7, "the shin, the foot, four pins' and the damper cap's spins"
+    assert report.degrees_of_freedom == 7, (
+        "the shin, the foot, four pins' and the damper cap's spins"
+    )
     # the shin's face mate to the knee is a planar joint: its hinge turns the shin
     model, data, (drive,) = _driven(report.mjcf_path, "lower_knee-1--upper_shin-1_hinge")
     mujoco.mj_forward(model, data)
-    assert len({model.site_bodyid[model.site(s).id] for s in ("ankle-1", "sole-1", "spring_a-1", "spring_b-1")}) == 1
+    assert (
+        len(
+            {
+                model.site_bodyid[model.site(s).id]
+                for s in ("ankle-1", "sole-1", "spring_a-1", "spring_b-1")
+            }
+        )
+        == 1
+    )
     shin = model.body("upper_shin-1").id
     start = data.xmat[shin].reshape(3, 3).copy()
-    housing_axis = data.site("housing-1").xmat.reshape(3, 3).T @ axis  # the damper axis in the housing's frame
+    housing_axis = (
+        data.site("housing-1").xmat.reshape(3, 3).T @ axis
+    )  # the damper axis in the housing's frame
     for step in range(500):
         model.eq_data[drive, 0] = 0.3 * min(1.0, step / 400)
         mujoco.mj_step(model, data)
@@ -206,7 +291,9 @@ def test_flexible_subassembly_keeps_its_own_mates_in_its_own_frame(built):
     assert _loop_error(data, skip=[drive]) < 1e-5
     turned = math.atan2(*(start.T @ data.xmat[shin].reshape(3, 3))[[1, 0], 0])
     assert abs(turned) == pytest.approx(0.3, abs=1e-4)
-    assert data.site("upper_shin-1").xpos == pytest.approx(knee, abs=1e-6), "the shin turns about the knee pin"
+    assert data.site("upper_shin-1").xpos == pytest.approx(knee, abs=1e-6), (
+        "the shin turns about the knee pin"
+    )
     rod_eye = knee + rotation(Z, turned) @ (d - knee)
     assert data.site("stroke-1").xpos == pytest.approx(rod_eye, abs=1e-6)
     pointing = data.site("housing-1").xmat.reshape(3, 3) @ housing_axis
@@ -224,10 +311,14 @@ def test_creo_export_without_data_units_is_read_in_its_model_units(built):
         assert joint.kind == kind
         assert abs(joint.primitives[0].axis @ axis) == pytest.approx(1, abs=1e-9)
         if kind == "revolute":
-            assert np.linalg.norm(np.cross(joint.base_frame.position - point_m, axis)) < 1e-9, "on the designed axis, in metres"
+            assert np.linalg.norm(np.cross(joint.base_frame.position - point_m, axis)) < 1e-9, (
+                "on the designed axis, in metres"
+            )
     assert read(export.path).parts["5"].com == pytest.approx([0, 0, 0.0064], abs=1e-12)
     assert report.degrees_of_freedom == 6 and report.n_loop_closures == 0
-    assert any(export.facts["skeleton"] in w and "connected to nothing" in w for w in report.warnings)
+    assert any(
+        export.facts["skeleton"] in w and "connected to nothing" in w for w in report.warnings
+    )
 
 
 def test_parallel_arm_printer_moves_its_head_as_the_five_bar_says(built):
@@ -252,8 +343,13 @@ def test_parallel_arm_printer_moves_its_head_as_the_five_bar_says(built):
     turned = [float(data.joint(c).qpos[0] * (data.joint(c).xaxis @ Z)) for c in cranks]  # about +z
     assert np.abs(turned) == pytest.approx(np.abs(targets), abs=1e-4)
     tip = lambda pivot, theta: pivot + facts["crank"] * np.array([math.cos(theta), math.sin(theta)])
-    head = circles_meet(tip(facts["o1"], facts["theta_b"] + turned[0]), facts["forearm"],
-                        tip(facts["o2"], facts["theta_c"] + turned[1]), facts["forearm"], near=facts["head"])
+    head = circles_meet(
+        tip(facts["o1"], facts["theta_b"] + turned[0]),
+        facts["forearm"],
+        tip(facts["o2"], facts["theta_c"] + turned[1]),
+        facts["forearm"],
+        near=facts["head"],
+    )
     assert np.linalg.norm(head - facts["head"]) > 0.005, "the head moved"
     assert data.site("carriage-1").xpos[:2] == pytest.approx(head, abs=1e-6)
     assert math.degrees(_turned_by(head_start, data.site("carriage-1").xmat.reshape(3, 3))) < 1e-3
@@ -272,10 +368,13 @@ def test_onshape_subassembly_joints_repeat_per_instance(built):
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     for k, blade in enumerate(export.facts["blades"]):
-        assert data.site("Blade" if k == 0 else f"Blade_{k + 1}").xpos == pytest.approx(blade, abs=1e-8)
+        assert data.site("Blade" if k == 0 else f"Blade_{k + 1}").xpos == pytest.approx(
+            blade, abs=1e-8
+        )
 
 
 # -- issue 14: the classes of real exports the converter got wrong --------------------------------
+
 
 def _loop_error_under_gravity(mjcf_path, seconds=0.1, damping=0.05) -> float:
     """The largest loop-closure error (m) while the model moves under gravity for ``seconds`` from
@@ -316,12 +415,21 @@ def test_simscape_multibody_link_first_generation_root(built, tmp_path):
     fourbar = export.facts["fourbar"]
     _, _, a, _ = fourbar.points()
     assert data.site("crank_end").xpos == pytest.approx(fourbar.world(*a, 4.0) * 1e-3, abs=1e-9)
-    text = export.path.read_text(encoding="utf-8")  # the same model element written as the document's root
-    start, end = text.index("<SimscapeMultibody>"), text.index("</SimscapeMultibody>") + len("</SimscapeMultibody>")
+    text = export.path.read_text(
+        encoding="utf-8"
+    )  # the same model element written as the document's root
+    start, end = (
+        text.index("<SimscapeMultibody>"),
+        text.index("</SimscapeMultibody>") + len("</SimscapeMultibody>"),
+    )
     bare = tmp_path / "bare.xml"
     bare.write_text(text[start:end], encoding="utf-8")
     again = convert(bare, tmp_path / "bare")
-    assert (again.n_bodies, again.degrees_of_freedom, again.total_mass_kg) == (4, 1, report.total_mass_kg)
+    assert (again.n_bodies, again.degrees_of_freedom, again.total_mass_kg) == (
+        4,
+        1,
+        report.total_mass_kg,
+    )
 
 
 def test_massless_moving_part_gets_an_inertia_mujoco_accepts(built):
@@ -344,7 +452,9 @@ def test_massless_moving_skeleton_borrows_mass_so_the_total_stays_exact(built):
     assert report.total_mass_kg == pytest.approx(report.export_mass_kg, rel=1e-12)
     lever = model.body(model.site_bodyid[model.site("LEVER").id]).mass[0]
     skeleton = model.body(model.site_bodyid[model.site("SKEL").id]).mass[0]
-    assert skeleton > 0 and lever + skeleton == pytest.approx(0.2 + 0.01, rel=1e-12), "lever and its spring pin lend it"
+    assert skeleton > 0 and lever + skeleton == pytest.approx(0.2 + 0.01, rel=1e-12), (
+        "lever and its spring pin lend it"
+    )
     assert any("SKEL" in w and "taken from body LEVER" in w for w in report.warnings)
 
 
@@ -376,11 +486,17 @@ def test_creo_rigid_constraints_without_geometry_weld_their_parts(built):
         model.eq_data[drive, 0] = math.radians(10) * min(1.0, step / 300)
         mujoco.mj_step(model, data)
     mujoco.mj_forward(model, data)
-    s, p, rod = export.facts["S"], export.facts["P"], np.linalg.norm(export.facts["B"] - export.facts["A"])
+    s, p, rod = (
+        export.facts["S"],
+        export.facts["P"],
+        np.linalg.norm(export.facts["B"] - export.facts["A"]),
+    )
     a, b = data.site("ROD").xpos, data.site("HOLDER").xpos
     assert np.linalg.norm(a - s) == pytest.approx(np.linalg.norm(export.facts["A"] - s), abs=1e-6)
     assert np.linalg.norm(b - p) == pytest.approx(np.linalg.norm(export.facts["B"] - p), abs=1e-5)
-    assert np.linalg.norm(b - a) == pytest.approx(rod, abs=1e-5), "the rod joins the horn to the beam"
+    assert np.linalg.norm(b - a) == pytest.approx(rod, abs=1e-5), (
+        "the rod joins the horn to the beam"
+    )
     assert np.linalg.norm(b - export.facts["B"]) > 1e-3, "the beam moved"
 
 
@@ -389,8 +505,13 @@ def test_sphere_tangent_mates_make_no_joint(built):
     them, and neither does the converter (a warning names the ball and the beam)."""
     export, report = built(ball_in_groove)
     ball, beam = export.facts["ball"], export.facts["beam"]
-    assert not [j for j in read(export.path).joints if ball in (j.base, j.follower) and not j.synthetic]
-    assert sum(ball in w and beam in w and "Tangent" in w and "no joint" in w for w in report.warnings) == 2
+    assert not [
+        j for j in read(export.path).joints if ball in (j.base, j.follower) and not j.synthetic
+    ]
+    assert (
+        sum(ball in w and beam in w and "Tangent" in w and "no joint" in w for w in report.warnings)
+        == 2
+    )
     assert report.joints_by_type == {"hinge": 1, "slide": 0, "ball": 0, "free": 0}
 
 
@@ -403,9 +524,13 @@ def test_loose_mates_to_the_assembly_origin_make_no_joints_to_the_world(built):
     rollers = export.facts["rollers"]
     assert export.facts["instances"] >= 270
     assembly = read(export.path)
-    assert not [j for j in assembly.joints if "<ground>" in (j.base, j.follower) and not j.synthetic]
+    assert not [
+        j for j in assembly.joints if "<ground>" in (j.base, j.follower) and not j.synthetic
+    ]
     assert report.joints_by_type == {"hinge": rollers + 1, "slide": 0, "ball": 0, "free": 0}
     assert report.degrees_of_freedom == rollers + 1 and report.n_loop_closures == 0
     (warning,) = [w for w in report.warnings if "assembly origin" in w]
     assert warning.startswith(f"{rollers} part(s)") and "OnTop1" in warning
-    assert _settle(report.mjcf_path, export.facts["arm"], seconds=0.05) > 1e-3, "the arm swings under gravity"
+    assert _settle(report.mjcf_path, export.facts["arm"], seconds=0.05) > 1e-3, (
+        "the arm swings under gravity"
+    )

@@ -26,26 +26,67 @@ pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parent.parent
 EXPORT = REPO / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml"
-FUZZ = settings(max_examples=10, deadline=None, derandomize=True, database=None,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=10,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
 # verb -> (arguments with {out}, {recording}, {variants}; the outputs it writes: files, or folders ending in /)
 VERBS = {
-    "simulate": (["simulate", "--voltage", "12", "--duration", "0.3", "--csv", "{out}/run.csv", "--plot",
-                  "{out}/run.png"], ["run.csv", "run.png"]),
+    "simulate": (
+        [
+            "simulate",
+            "--voltage",
+            "12",
+            "--duration",
+            "0.3",
+            "--csv",
+            "{out}/run.csv",
+            "--plot",
+            "{out}/run.png",
+        ],
+        ["run.csv", "run.png"],
+    ),
     "needle": (["needle", "--samples", "90", "--csv", "{out}/needle.csv"], ["needle.csv"]),
-    "probe": (["probe", "--part", "needle_tip", "--quantity", "position", "--cycle", "--csv", "{out}/probe.csv"],
-              ["probe.csv"]),
-    "clearance": (["clearance", "--pairs", "needle:hook", "--csv", "{out}/c.csv", "--json", "{out}/c.json"],
-                  ["c.csv", "c.json"]),
+    "probe": (
+        [
+            "probe",
+            "--part",
+            "needle_tip",
+            "--quantity",
+            "position",
+            "--cycle",
+            "--csv",
+            "{out}/probe.csv",
+        ],
+        ["probe.csv"],
+    ),
+    "clearance": (
+        ["clearance", "--pairs", "needle:hook", "--csv", "{out}/c.csv", "--json", "{out}/c.json"],
+        ["c.csv", "c.json"],
+    ),
     "view": (["view", "--frames", "10", "--html", "{out}/view.html"], ["view.html"]),
     "convert": (["convert", str(EXPORT), "-o", "{out}/model"], ["model/"]),
     "init": (["init", str(EXPORT), "-o", "{out}/machine.toml"], ["machine.toml"]),
-    "sweep": (["sweep", "--variants", "{variants}", "--duration", "0.5", "--csv", "{out}/sweep.csv"], ["sweep.csv"]),
-    "testbench": (["testbench", "--effect", "none", "--duration", "2.5", "-o", "{out}/rec.csv"], ["rec.csv"]),
-    "stepper": (["stepper", "--sequence", "thread-cut", "--csv", "{out}/st.csv", "--json", "{out}/st.json"],
-                ["st.csv", "st.json"]),
-    "zigzag": (["zigzag", "--spm", "1000", "--rate", "1000", "--stitches", "2", "--json", "{out}/z.json"], ["z.json"]),
+    "sweep": (
+        ["sweep", "--variants", "{variants}", "--duration", "0.5", "--csv", "{out}/sweep.csv"],
+        ["sweep.csv"],
+    ),
+    "testbench": (
+        ["testbench", "--effect", "none", "--duration", "2.5", "-o", "{out}/rec.csv"],
+        ["rec.csv"],
+    ),
+    "stepper": (
+        ["stepper", "--sequence", "thread-cut", "--csv", "{out}/st.csv", "--json", "{out}/st.json"],
+        ["st.csv", "st.json"],
+    ),
+    "zigzag": (
+        ["zigzag", "--spm", "1000", "--rate", "1000", "--stitches", "2", "--json", "{out}/z.json"],
+        ["z.json"],
+    ),
     "identify": (["identify", "{recording}", "--json", "{out}/identify.json"], ["identify.json"]),
     "diagnose": (["diagnose", "{recording}", "--json", "{out}/diagnosis.json"], ["diagnosis.json"]),
     "fleet": (["diagnose", "{recording}", "{recording2}", "--out", "{out}/fleet"], ["fleet/"]),
@@ -59,10 +100,28 @@ def inputs(tmp_path_factory):
     patch = pytest.MonkeyPatch()
     patch.setenv("MECHANISM_CACHE", str(folder / "cache"))
     for name, seed in (("rec.csv", "1"), ("rec2.csv", "2")):
-        assert main(["testbench", "--effect", "none", "--duration", "3", "--seed", seed, "-o", str(folder / name)]) == 0
+        assert (
+            main(
+                [
+                    "testbench",
+                    "--effect",
+                    "none",
+                    "--duration",
+                    "3",
+                    "--seed",
+                    seed,
+                    "-o",
+                    str(folder / name),
+                ]
+            )
+            == 0
+        )
     (folder / "variants.csv").write_text("voltage_V\n8\n12\n")
-    yield {"recording": str(folder / "rec.csv"), "recording2": str(folder / "rec2.csv"),
-           "variants": str(folder / "variants.csv")}
+    yield {
+        "recording": str(folder / "rec.csv"),
+        "recording2": str(folder / "rec2.csv"),
+        "variants": str(folder / "variants.csv"),
+    }
     patch.undo()
 
 
@@ -86,8 +145,11 @@ def old_outputs(out: Path, verb: str) -> dict[str, bytes]:
 
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file, but a sweep's journal (OUT.csv.partial): kept on purpose, for --resume."""
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file() and not p.name.endswith(".partial")}
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and not p.name.endswith(".partial")
+    }
 
 
 def part(files: dict[str, bytes], output: str) -> dict[str, bytes]:
@@ -133,11 +195,17 @@ def test_a_fault_at_a_random_write_keeps_the_contract(tmp_path, capfd, inputs, v
     if fault.startswith("SIG"):
         assert code == (130 if fault == "SIGINT" else 143), (verb, fail_at, err)
         assert errors == ["error: interrupted"], err
-        states = {output: part(snapshot(out), output) == part(before, output) for output in VERBS[verb][1]}
+        states = {
+            output: part(snapshot(out), output) == part(before, output) for output in VERBS[verb][1]
+        }
         assert len(set(states.values())) == 1, (verb, fault, fail_at, states)  # all old or all new
         assert set(snapshot(out)) in (set(before), set(new)), (verb, fault, fail_at)
     else:
         assert code == 2, (verb, fault, fail_at, err)
         cause = {"ENOSPC": "disk is full", "EDQUOT": "quota", "EFBIG": "file size limit"}[fault]
-        assert len(errors) == 1 and cause in errors[0] and str(out) in errors[0], (verb, fail_at, err)
+        assert len(errors) == 1 and cause in errors[0] and str(out) in errors[0], (
+            verb,
+            fail_at,
+            err,
+        )
         assert snapshot(out) == before, (verb, fault, fail_at)

@@ -35,8 +35,14 @@ def own_cache(monkeypatch, cache):
 
 
 def environment(tmp_path: Path, **extra) -> dict[str, str]:
-    env = {**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg",
-           "MECHANISM_CACHE": str(tmp_path / "cache"), "PYTHONDONTWRITEBYTECODE": "1", **extra}
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(REPO),
+        "MPLBACKEND": "Agg",
+        "MECHANISM_CACHE": str(tmp_path / "cache"),
+        "PYTHONDONTWRITEBYTECODE": "1",
+        **extra,
+    }
     env.pop("MECHANISM_DEBUG", None)
     return env
 
@@ -49,7 +55,11 @@ def error_lines(stderr: str) -> list[str]:
 
 
 def visible(folder: Path) -> dict[str, bytes]:
-    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and not p.name.startswith(".")}
+    return {
+        p.name: p.read_bytes()
+        for p in sorted(folder.iterdir())
+        if p.is_file() and not p.name.startswith(".")
+    }
 
 
 def hidden(folder: Path) -> list[str]:
@@ -72,9 +82,12 @@ def simulate_args(folder: Path) -> list[str]:
 
 # ---------------------------------------------------------------- 1. full disk and quotas
 
+
 @pytest.mark.slow
 @pytest.mark.parametrize("limit_bytes", [0, 30000])
-def test_a_file_size_limit_ends_the_run_with_one_line_and_keeps_the_old_outputs(tmp_path, limit_bytes):
+def test_a_file_size_limit_ends_the_run_with_one_line_and_keeps_the_old_outputs(
+    tmp_path, limit_bytes
+):
     """``ulimit -f`` for real (RLIMIT_FSIZE, SIGXFSZ ignored): the write fails with EFBIG at
     the first byte (and the temporary folder's probe) or inside the plot (the CSV is ~26 kB, the
     plot ~60 kB)."""
@@ -85,8 +98,14 @@ def test_a_file_size_limit_ends_the_run_with_one_line_and_keeps_the_old_outputs(
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, resource.RLIM_INFINITY))
 
-    proc = subprocess.run([sys.executable, "-m", "mechanism", *simulate_args(out)], capture_output=True, text=True,
-                          env=environment(tmp_path), preexec_fn=limit, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "mechanism", *simulate_args(out)],
+        capture_output=True,
+        text=True,
+        env=environment(tmp_path),
+        preexec_fn=limit,
+        timeout=300,
+    )
     errors = error_lines(proc.stderr)
     assert proc.returncode == 2, proc.stderr
     assert len(errors) == 1, proc.stderr
@@ -102,7 +121,9 @@ def event_count(tmp_path: Path, args: list[str], root: Path) -> int:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("fault, spread", [("ENOSPC", 3), ("EDQUOT", 1), ("EFBIG", 1)])  # points tried
+@pytest.mark.parametrize(
+    "fault, spread", [("ENOSPC", 3), ("EDQUOT", 1), ("EFBIG", 1)]
+)  # points tried
 def test_a_full_disk_at_any_write_keeps_the_old_outputs(tmp_path, capfd, fault, spread):
     """The fault at the first write of the run, in its middle and at the last rename of
     publishing (the fault suite, test_fault_fuzz.py, draws other points at random): one line
@@ -151,6 +172,7 @@ def test_a_full_disk_in_a_folder_output_keeps_the_old_folder(tmp_path, capfd):
 
 # ---------------------------------------------------------------- 2. interrupts
 
+
 def children(pid: int) -> set[int]:
     """The processes ``pid`` started (and theirs)."""
     found, todo = set(), [pid]
@@ -175,7 +197,9 @@ def program(pid: int) -> str:
     """The file name of the program ``pid`` runs (its whole first argument: a deep install's
     paths outrun :func:`command`'s 80 characters)."""
     try:
-        return Path(Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[0].decode(errors="replace")).name
+        return Path(
+            Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[0].decode(errors="replace")
+        ).name
     except OSError:
         return ""
 
@@ -202,9 +226,25 @@ def start_sweep(tmp_path: Path, workers: int = 2):
     variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
     out = tmp_path / "out"
     before = old_outputs(out)
-    args = [sys.executable, "-m", "mechanism", "sweep", "--variants", str(variants), "--duration", "2",
-            "--workers", str(workers), "--csv", str(out / "run.csv"), "--plot", str(out / "run.png")]
-    proc = subprocess.Popen(args, env=environment(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    args = [
+        sys.executable,
+        "-m",
+        "mechanism",
+        "sweep",
+        "--variants",
+        str(variants),
+        "--duration",
+        "2",
+        "--workers",
+        str(workers),
+        "--csv",
+        str(out / "run.csv"),
+        "--plot",
+        str(out / "run.png"),
+    ]
+    proc = subprocess.Popen(
+        args, env=environment(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     journal = out / "run.csv.partial"
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and proc.poll() is None:
@@ -222,7 +262,9 @@ INTERRUPT_MARGIN_S = 5.0
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_an_interrupt_stops_a_run_and_its_workers_and_keeps_the_old_outputs(tmp_path, signum, status):
+def test_an_interrupt_stops_a_run_and_its_workers_and_keeps_the_old_outputs(
+    tmp_path, signum, status
+):
     proc, out, before = start_sweep(tmp_path)
     workers = children(proc.pid)
     assert workers, "the sweep runs on worker processes"
@@ -276,6 +318,7 @@ def test_a_signal_at_any_write_of_a_run_keeps_the_old_outputs(tmp_path, capfd, f
 
 # ---------------------------------------------------------------- 3. concurrent runs on one output
 
+
 @pytest.mark.slow
 def test_a_lock_a_killed_run_left_does_not_block_the_next_run(tmp_path, cli):
     out = tmp_path / "out"
@@ -283,8 +326,12 @@ def test_a_lock_a_killed_run_left_does_not_block_the_next_run(tmp_path, cli):
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     (out / ".run.csv.lock").write_text(f"{dead.pid}\n")
-    result = cli(*SIMULATE, "--csv", str(out / "run.csv"),
-                 env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "2"})
+    result = cli(
+        *SIMULATE,
+        "--csv",
+        str(out / "run.csv"),
+        env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "2"},
+    )
     assert result.returncode == 0, result.stderr
     assert (out / "run.csv").read_text() != "old table\n"
     assert hidden(out) == []
@@ -299,8 +346,12 @@ def test_an_output_another_live_run_holds_is_refused_with_one_line(tmp_path, cli
         handle.write(f"{os.getpid()}\n")
         handle.flush()
         fcntl.flock(handle, fcntl.LOCK_EX)
-        result = cli(*SIMULATE, "--csv", str(out / "run.csv"),
-                     env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "0.5"})
+        result = cli(
+            *SIMULATE,
+            "--csv",
+            str(out / "run.csv"),
+            env={"MECHANISM_CACHE": str(tmp_path / "cache"), "MECHANISM_LOCK_WAIT_S": "0.5"},
+        )
     line = result.assert_bad_input()
     assert f"pid {os.getpid()}" in line and "run.csv" in line, line
     assert {k: v for k, v in visible(out).items()} == before
@@ -331,10 +382,17 @@ def test_two_runs_writing_the_same_outputs_at_once_leave_one_whole_result(tmp_pa
     out = tmp_path / "out"
     out.mkdir()
     for attempt in range(4):
-        procs = [subprocess.Popen([sys.executable, "-c", WRITER, f"{tag}{attempt}", str(out)], env=environment(tmp_path))
-                 for tag in ("one", "two")]
+        procs = [
+            subprocess.Popen(
+                [sys.executable, "-c", WRITER, f"{tag}{attempt}", str(out)],
+                env=environment(tmp_path),
+            )
+            for tag in ("one", "two")
+        ]
         assert [p.wait(timeout=120) for p in procs] == [0, 0]
-        texts = {(out / f"{n}.txt").read_text() for n in "abcde"} | {(out / "folder" / "x").read_text()}
+        texts = {(out / f"{n}.txt").read_text() for n in "abcde"} | {
+            (out / "folder" / "x").read_text()
+        }
         assert len(texts) == 1, texts  # never a mix of the two runs
         assert hidden(out) == []
 
@@ -343,8 +401,16 @@ def test_two_runs_writing_the_same_outputs_at_once_leave_one_whole_result(tmp_pa
 def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path, cli):
     first, out, _ = start_sweep(tmp_path, workers=1)
     try:
-        second = cli("sweep", "--variants", str(tmp_path / "v.csv"), "--duration", "2", "--csv", str(out / "run.csv"),
-                     env={"MECHANISM_CACHE": str(tmp_path / "cache")})
+        second = cli(
+            "sweep",
+            "--variants",
+            str(tmp_path / "v.csv"),
+            "--duration",
+            "2",
+            "--csv",
+            str(out / "run.csv"),
+            env={"MECHANISM_CACHE": str(tmp_path / "cache")},
+        )
         line = second.assert_bad_input()
         assert "another sweep" in line and f"pid {first.pid}" in line, line
         assert first.poll() is None  # the first sweep goes on, its journal untouched
@@ -357,18 +423,39 @@ def test_a_second_sweep_on_the_same_csv_is_refused_while_the_first_runs(tmp_path
 
 # ---------------------------------------------------------------- 6. memory
 
+
 @pytest.mark.slow
-@pytest.mark.parametrize("args, needs", [
-    (["simulate", "--voltage", "12", "--duration", "600", "--rate", "10000"], "--duration x --rate"),
-    (["convert", str(REPO / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml")], "converting sewing_machine.xml"),
-])
-def test_a_request_larger_than_the_memory_available_is_refused_before_it_allocates(tmp_path, cli, args, needs):
+@pytest.mark.parametrize(
+    "args, needs",
+    [
+        (
+            ["simulate", "--voltage", "12", "--duration", "600", "--rate", "10000"],
+            "--duration x --rate",
+        ),
+        (
+            [
+                "convert",
+                str(REPO / "assets" / "cad" / "sapphire870" / "export" / "sewing_machine.xml"),
+            ],
+            "converting sewing_machine.xml",
+        ),
+    ],
+)
+def test_a_request_larger_than_the_memory_available_is_refused_before_it_allocates(
+    tmp_path, cli, args, needs
+):
     """The machine is told it has 100 MiB (MECHANISM_MEMORY_MB): the run is refused with what it
     would need, before any allocation (under RLIMIT_AS it would otherwise die allocating)."""
     out = tmp_path / "out"
     before = old_outputs(out)
-    target = ["--csv", str(out / "run.csv")] if args[0] == "simulate" else ["-o", str(out / "model")]
-    result = cli(*args, *target, env={"MECHANISM_MEMORY_MB": "100", "MECHANISM_CACHE": str(tmp_path / "cache")})
+    target = (
+        ["--csv", str(out / "run.csv")] if args[0] == "simulate" else ["-o", str(out / "model")]
+    )
+    result = cli(
+        *args,
+        *target,
+        env={"MECHANISM_MEMORY_MB": "100", "MECHANISM_CACHE": str(tmp_path / "cache")},
+    )
     line = result.assert_bad_input()
     assert needs in line and "would need about" in line and "100 MiB" in line, line
     assert visible(out) == before and hidden(out) == [] and not (out / "model").exists()
@@ -398,7 +485,9 @@ def marked(mark: str) -> dict[int, str]:
 
 
 @pytest.mark.slow
-@pytest.mark.xdist_group("ray")  # one Ray instance at a time on this machine (make test runs two workers)
+@pytest.mark.xdist_group(
+    "ray"
+)  # one Ray instance at a time on this machine (make test runs two workers)
 @pytest.mark.parametrize("moment", ["while ray.init starts it", "while its workers run"])
 def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     """``--backend ray`` without an address starts a private Ray instance (raylet, GCS, workers):
@@ -410,16 +499,37 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
     out = tmp_path / "out"
     before = old_outputs(out)
-    args = [sys.executable, "-m", "mechanism", "sweep", "--variants", str(variants), "--duration", "2", "--backend", "ray",
-            "--workers", "1", "--csv", str(out / "run.csv")]
+    args = [
+        sys.executable,
+        "-m",
+        "mechanism",
+        "sweep",
+        "--variants",
+        str(variants),
+        "--duration",
+        "2",
+        "--backend",
+        "ray",
+        "--workers",
+        "1",
+        "--csv",
+        str(out / "run.csv"),
+    ]
     mark = f"{tmp_path.name}-{os.getpid()}-{time.monotonic_ns()}"
-    proc = subprocess.Popen(args, env=environment(tmp_path, RAY_USAGE_STATS_ENABLED="0", MECHANISM_TEST_MARK=mark),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        args,
+        env=environment(tmp_path, RAY_USAGE_STATS_ENABLED="0", MECHANISM_TEST_MARK=mark),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     journal = out / "run.csv.partial"
 
     def ready() -> bool:
         if moment == "while ray.init starts it":
-            return any(program(pid) == "gcs_server" for pid in children(proc.pid))  # ray.init has begun
+            return any(
+                program(pid) == "gcs_server" for pid in children(proc.pid)
+            )  # ray.init has begun
         return journal.exists() and journal.read_text().count("\n") > 3
 
     deadline = time.monotonic() + 240
@@ -429,7 +539,9 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     sent = time.monotonic()
     proc.send_signal(signal.SIGTERM)
     _, stderr = proc.communicate(timeout=120)
-    assert proc.returncode == 143, stderr  # SIGTERM's, also when Ray turns it into a KeyboardInterrupt
+    assert proc.returncode == 143, (
+        stderr
+    )  # SIGTERM's, also when Ray turns it into a KeyboardInterrupt
     assert "error: interrupted" in stderr.splitlines(), stderr
     assert "WARNING" not in stderr, stderr  # none of Ray's own log lines reach the user
     assert time.monotonic() - sent < INTERRUPT_MARGIN_S
@@ -438,7 +550,9 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     while time.monotonic() < deadline and marked(mark):
         time.sleep(0.2)
     assert marked(mark) == {}
-    assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before  # the journal: for --resume
+    assert {
+        k: v for k, v in visible(out).items() if k != "run.csv.partial"
+    } == before  # the journal: for --resume
     assert hidden(out) == []
 
 
@@ -449,7 +563,9 @@ def test_a_signal_a_library_turned_into_keyboardinterrupt_keeps_its_exit_status(
 
     monkeypatch.setitem(interrupts._state, "interrupted", signal.SIGTERM)
     assert interrupts.exit_status(KeyboardInterrupt()) == 143
-    assert interrupts.exit_status(interrupts.Interrupted(signal.SIGINT)) == 130  # the exception's own signal first
+    assert (
+        interrupts.exit_status(interrupts.Interrupted(signal.SIGINT)) == 130
+    )  # the exception's own signal first
     monkeypatch.setitem(interrupts._state, "interrupted", None)
     assert interrupts.exit_status(KeyboardInterrupt()) == 130  # a Ctrl-C Python raised itself
 

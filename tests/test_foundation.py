@@ -15,7 +15,9 @@ from tests.conftest import shared_dir
 
 
 def test_table_reads_comments_header_and_ignores_unknown_columns():
-    table = parse_table("# layers: 12\n# free text\ntime,voltage,extra\n0,1,x\n0.001,2,y\n", ["time", "voltage"])
+    table = parse_table(
+        "# layers: 12\n# free text\ntime,voltage,extra\n0,1,x\n0.001,2,y\n", ["time", "voltage"]
+    )
     assert table.metadata == {"layers": "12"}
     np.testing.assert_allclose(table["voltage"], [1, 2])
     assert "extra" not in table
@@ -46,7 +48,9 @@ def test_increasing_time_check_names_the_row():
 
 
 def test_written_table_round_trips_with_units_in_names(tmp_path):
-    path = write_table(tmp_path / "out.csv", {"time_s": [0, 0.5], "needle_z_mm": [1.25, -3]}, comments=["model: x"])
+    path = write_table(
+        tmp_path / "out.csv", {"time_s": [0, 0.5], "needle_z_mm": [1.25, -3]}, comments=["model: x"]
+    )
     table = read_table(path, ["time_s", "needle_z_mm"])
     assert table.metadata == {"model": "x"}
     np.testing.assert_allclose(table["needle_z_mm"], [1.25, -3])

@@ -14,7 +14,13 @@ def _ungrounded(folder):
     """A light stand and a heavy block on a hinge between them; the export grounds nothing."""
     doc = Gen1Export()
     stand = doc.body("stand", 4.0, (0, 0, 0), np.diag([100.0, 100.0, 100.0]))
-    block = doc.body("block", 262.0, (0, 0, -40), np.diag([5e4, 5e4, 5e4]), named_frames=[("block_tip", (0, 0, -60))])
+    block = doc.body(
+        "block",
+        262.0,
+        (0, 0, -40),
+        np.diag([5e4, 5e4, 5e4]),
+        named_frames=[("block_tip", (0, 0, -60))],
+    )
     doc.joint("stand--block", stand, block, (0, 0, 0), [("revolute", (0, 1, 0))])
     return doc.write(folder / "loose.xml")
 
@@ -40,7 +46,8 @@ def test_ground_fixes_the_named_part_of_an_export_that_grounds_nothing(tmp_path)
 def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
     _ungrounded(tmp_path)
     description = tmp_path / "pendulum.toml"
-    description.write_text(textwrap.dedent("""\
+    description.write_text(
+        textwrap.dedent("""\
         [machine]
         name = "pendulum"
         model = "loose.xml"
@@ -58,7 +65,8 @@ def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
         viscous_Nm_s_per_rad = 0.001
         [tool]
         site = "block_tip"
-        """))
+        """)
+    )
     import mechanism
 
     machine = mechanism.load_machine(description)
@@ -66,17 +74,20 @@ def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
     assert machine.model.body_weldid[block] != 0
     result = cli("needle", "--machine", description, "--csv", tmp_path / "n.csv")
     assert result.returncode == 0, result.stderr
-    assert "stroke: 120.000 mm" in result.stdout  # the tip 60 mm below the hinge turns a whole revolution
+    assert (
+        "stroke: 120.000 mm" in result.stdout
+    )  # the tip 60 mm below the hinge turns a whole revolution
 
 
 def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli_here):
     from mechanism.machine.models import shipped_model
 
     description = tmp_path / "press.toml"
-    description.write_text(textwrap.dedent(f"""\
+    description.write_text(
+        textwrap.dedent(f"""\
         [machine]
         name = "press"
-        model = "{shipped_model('press')}"
+        model = "{shipped_model("press")}"
         ground = "RAM-1"
         [drive]
         motor_joint = "MOTOR_HOUSING-1--MOTOR_ROTOR-1"
@@ -87,8 +98,11 @@ def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli_here):
         resistance_ohm = 2.6
         torque_constant_Nm_per_A = 0.045
         back_emf_V_s_per_rad = 0.045
-        """))
-    line = cli_here("simulate", "--machine", description, "--voltage", "12", "--duration", "0.1", "--summary").assert_bad_input()
+        """)
+    )
+    line = cli_here(
+        "simulate", "--machine", description, "--voltage", "12", "--duration", "0.1", "--summary"
+    ).assert_bad_input()
     assert "ground" in line and "RAM-1" in line
 
 

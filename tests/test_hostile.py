@@ -23,7 +23,9 @@ REPO = Path(__file__).resolve().parent.parent
 
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file under ``folder`` (hidden temporaries included) with its bytes."""
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 def no_temporaries(folder: Path) -> bool:
@@ -46,23 +48,69 @@ def profile(tmp_path):
 
 # -- 1. non-finite and impossible numbers ---------------------------------------------------------
 
+
 @pytest.mark.slow
-@pytest.mark.parametrize("args, option", [
-    (["simulate", "--voltage", "nan", "--reduced", "--duration", "0.1", "--summary"], "--voltage"),
-    (["simulate", "--voltage", "12", "--duration", "0.1", "--inductance", "nan", "--summary"], "--inductance"),
-    (["simulate", "--voltage", "12", "--duration", "0.1", "--cogging", "inf", "--summary"], "--cogging"),
-    (["simulate", "--voltage", "12", "--duration", "0.1", "--rate", "-5", "--summary"], "--rate"),
-    (["simulate", "--voltage", "12", "--duration", "nan", "--summary"], "duration"),
-    (["probe", "--part", "needle_tip", "--quantity", "position", "--voltage", "nan", "--duration", "0.1"], "--voltage"),
-    (["view", "--voltage", "inf", "--duration", "0.1"], "--voltage"),
-    (["stepper", "--sequence", "thread-cut", "--rate", "1e12"], "--rate"),
-    (["zigzag", "--spm", "inf"], "--spm"),
-    (["clearance", "--pairs", "needle:hook", "--resolution", "nan"], "--resolution"),
-])
-def test_non_finite_and_impossible_numbers_are_refused_naming_the_option(cli, tmp_path, args, option):
+@pytest.mark.parametrize(
+    "args, option",
+    [
+        (
+            ["simulate", "--voltage", "nan", "--reduced", "--duration", "0.1", "--summary"],
+            "--voltage",
+        ),
+        (
+            [
+                "simulate",
+                "--voltage",
+                "12",
+                "--duration",
+                "0.1",
+                "--inductance",
+                "nan",
+                "--summary",
+            ],
+            "--inductance",
+        ),
+        (
+            ["simulate", "--voltage", "12", "--duration", "0.1", "--cogging", "inf", "--summary"],
+            "--cogging",
+        ),
+        (
+            ["simulate", "--voltage", "12", "--duration", "0.1", "--rate", "-5", "--summary"],
+            "--rate",
+        ),
+        (["simulate", "--voltage", "12", "--duration", "nan", "--summary"], "duration"),
+        (
+            [
+                "probe",
+                "--part",
+                "needle_tip",
+                "--quantity",
+                "position",
+                "--voltage",
+                "nan",
+                "--duration",
+                "0.1",
+            ],
+            "--voltage",
+        ),
+        (["view", "--voltage", "inf", "--duration", "0.1"], "--voltage"),
+        (["stepper", "--sequence", "thread-cut", "--rate", "1e12"], "--rate"),
+        (["zigzag", "--spm", "inf"], "--spm"),
+        (["clearance", "--pairs", "needle:hook", "--resolution", "nan"], "--resolution"),
+    ],
+)
+def test_non_finite_and_impossible_numbers_are_refused_naming_the_option(
+    cli, tmp_path, args, option
+):
     out = tmp_path / "out.csv"
-    extra = {"simulate": ["--csv", out], "probe": ["--csv", out], "stepper": ["--csv", out],
-             "clearance": ["--csv", out], "view": ["--html", tmp_path / "v.html"], "zigzag": []}[args[0]]
+    extra = {
+        "simulate": ["--csv", out],
+        "probe": ["--csv", out],
+        "stepper": ["--csv", out],
+        "clearance": ["--csv", out],
+        "view": ["--html", tmp_path / "v.html"],
+        "zigzag": [],
+    }[args[0]]
     line = cli(*args, *extra).assert_bad_input()
     assert option in line
     assert list(tmp_path.iterdir()) == []
@@ -76,10 +124,15 @@ def test_a_description_with_a_non_finite_motor_number_is_refused(cli, tmp_path):
     model_line = next(line for line in text.splitlines() if line.startswith("model"))
     model = (Path(DEFAULT_DESCRIPTION).parent / re.search(r'"([^"]+)"', model_line)[1]).resolve()
     text = text.replace(model_line, f'model = "{model}"')
-    lines = [("resistance_ohm = nan" if line.startswith("resistance_ohm") else line) for line in text.splitlines()]
+    lines = [
+        ("resistance_ohm = nan" if line.startswith("resistance_ohm") else line)
+        for line in text.splitlines()
+    ]
     description = tmp_path / "m.toml"
     description.write_text("\n".join(lines) + "\n")
-    line = cli("simulate", "--machine", description, "--voltage", "12", "--duration", "0.1", "--summary").assert_bad_input()
+    line = cli(
+        "simulate", "--machine", description, "--voltage", "12", "--duration", "0.1", "--summary"
+    ).assert_bad_input()
     assert "resistance" in line
 
 
@@ -92,7 +145,8 @@ def test_a_rollout_that_blows_up_ends_with_the_time_and_the_likely_cause(tmp_pat
 
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><option timestep="0.001"/><worldbody><body><joint name="j"/><geom size=".1" mass="1"/></body>'
-        '</worldbody><actuator><motor joint="j" gear="1"/></actuator></mujoco>')
+        '</worldbody><actuator><motor joint="j" gear="1"/></actuator></mujoco>'
+    )
     data = mujoco.MjData(model)
     control = np.zeros((50, 1))
     control[20:] = 1e300  # MuJoCo resets the state and goes on: the run must not
@@ -101,6 +155,7 @@ def test_a_rollout_that_blows_up_ends_with_the_time_and_the_likely_cause(tmp_pat
 
 
 # -- 2. outputs never overwrite inputs --------------------------------------------------------------
+
 
 @pytest.mark.slow
 def test_simulate_refuses_to_write_over_its_voltage_profile(cli, profile):
@@ -135,6 +190,7 @@ def test_a_report_folder_that_holds_the_recording_is_refused(cli, tmp_path):
 
 # -- 3. a failed run never destroys the previous good output ------------------------------------------
 
+
 @pytest.mark.slow
 def test_testbench_keeps_the_previous_recording_when_the_truth_cannot_be_written(cli, tmp_path):
     recording = tmp_path / "r.csv"
@@ -142,7 +198,9 @@ def test_testbench_keeps_the_previous_recording_when_the_truth_cannot_be_written
     good = recording.read_bytes()
     (tmp_path / "r.truth.json").unlink()
     (tmp_path / "r.truth.json").mkdir()
-    cli("testbench", "--effect", "none", "--duration", "3", "--seed", "1", "-o", recording).assert_bad_input()
+    cli(
+        "testbench", "--effect", "none", "--duration", "3", "--seed", "1", "-o", recording
+    ).assert_bad_input()
     assert recording.read_bytes() == good and no_temporaries(tmp_path)
 
 
@@ -168,17 +226,36 @@ def test_convert_keeps_the_previous_conversion_when_the_new_one_cannot_be_publis
 
 # -- 4. a failed run leaves nothing of its own ---------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_an_unknown_plot_format_fails_before_the_csv_is_written(cli, tmp_path):
-    line = cli("simulate", "--voltage", "12", "--reduced", "--duration", "0.1", "--csv", tmp_path / "a.csv",
-               "--plot", tmp_path / "a.bmp").assert_bad_input()
+    line = cli(
+        "simulate",
+        "--voltage",
+        "12",
+        "--reduced",
+        "--duration",
+        "0.1",
+        "--csv",
+        tmp_path / "a.csv",
+        "--plot",
+        tmp_path / "a.bmp",
+    ).assert_bad_input()
     assert ".bmp" in line and list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.slow
 def test_an_unwritable_json_path_leaves_no_csv(cli, tmp_path):
     (tmp_path / "taken.json").mkdir()
-    cli("stepper", "--sequence", "thread-cut", "--csv", tmp_path / "a.csv", "--json", tmp_path / "taken.json").assert_bad_input()
+    cli(
+        "stepper",
+        "--sequence",
+        "thread-cut",
+        "--csv",
+        tmp_path / "a.csv",
+        "--json",
+        tmp_path / "taken.json",
+    ).assert_bad_input()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.json"]
 
 
@@ -200,8 +277,12 @@ def kill_during_publish(args, folder: Path, old, new, cleanup):
     the old or the new one, whole (after the next run's cleanup)."""
     outcomes = set()
     for kill_at in range(10):
-        run = subprocess.run([sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)], capture_output=True,
-                             text=True, env=SUBPROCESS_ENV)
+        run = subprocess.run(
+            [sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)],
+            capture_output=True,
+            text=True,
+            env=SUBPROCESS_ENV,
+        )
         for path in cleanup:
             from mechanism.files.outputs import clean_leftovers
 
@@ -245,8 +326,19 @@ def test_convert_killed_while_publishing_leaves_the_old_or_the_new_conversion(cl
 def test_clearance_killed_while_publishing_leaves_each_output_old_or_new(cli, tmp_path, model_file):
     out = tmp_path / "out"
     out.mkdir()
-    args = ["clearance", "--model", model_file, "--pairs", "needle:hook", "--resolution", "10",
-            "--csv", out / "c.csv", "--json", out / "c.json"]
+    args = [
+        "clearance",
+        "--model",
+        model_file,
+        "--pairs",
+        "needle:hook",
+        "--resolution",
+        "10",
+        "--csv",
+        out / "c.csv",
+        "--json",
+        out / "c.json",
+    ]
     old = {"c.csv": b"old csv\n", "c.json": b"{}\n"}
     restore(out, old)
     assert cli(*args).returncode == 0
@@ -254,8 +346,12 @@ def test_clearance_killed_while_publishing_leaves_each_output_old_or_new(cli, tm
     restore(out, old)
     outcomes = set()
     for kill_at in range(6):
-        run = subprocess.run([sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)], capture_output=True,
-                             text=True, env=SUBPROCESS_ENV)
+        run = subprocess.run(
+            [sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)],
+            capture_output=True,
+            text=True,
+            env=SUBPROCESS_ENV,
+        )
         from mechanism.files.outputs import clean_leftovers
 
         for name in old:
@@ -272,16 +368,25 @@ def test_clearance_killed_while_publishing_leaves_each_output_old_or_new(cli, tm
 
 # -- 6. limits checked before the memory is spent ---------------------------------------------------
 
+
 @pytest.mark.slow
 def test_a_recording_read_from_a_pipe_stops_at_the_input_limit(cli, tmp_path):
     fifo = tmp_path / "rec.csv"
     os.mkfifo(fifo)
-    writer = subprocess.Popen([sys.executable, "-c", f"import sys\nwith open({str(fifo)!r}, 'w') as f:\n"
-                               "    f.write('time,voltage,arm_angle\\n')\n    try:\n"
-                               "        [f.write('0,1,0\\n' * 100000) for _ in range(10)]\n    except BrokenPipeError: pass"],
-                              stderr=subprocess.DEVNULL)
+    writer = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"import sys\nwith open({str(fifo)!r}, 'w') as f:\n"
+            "    f.write('time,voltage,arm_angle\\n')\n    try:\n"
+            "        [f.write('0,1,0\\n' * 100000) for _ in range(10)]\n    except BrokenPipeError: pass",
+        ],
+        stderr=subprocess.DEVNULL,
+    )
     try:
-        line = cli("identify", fifo, "--json", tmp_path / "x.json", env={"MECHANISM_MAX_INPUT_MB": "1"}).assert_bad_input()
+        line = cli(
+            "identify", fifo, "--json", tmp_path / "x.json", env={"MECHANISM_MAX_INPUT_MB": "1"}
+        ).assert_bad_input()
     finally:
         writer.kill()
         writer.wait()
@@ -291,28 +396,53 @@ def test_a_recording_read_from_a_pipe_stops_at_the_input_limit(cli, tmp_path):
 def test_a_billion_variants_are_refused_before_any_is_built(tmp_path):
     variants = tmp_path / "v.json"
     axis = {"start": -1, "stop": 1, "num": 1000}
-    variants.write_text(json.dumps({"parameters": {"a": "body:x:x_mm", "b": "body:y:y_mm", "c": "body:z:z_mm"},
-                                    "sweep": {"a": axis, "b": axis, "c": axis}}))
-    script = ("import resource, sys\nresource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))\n"
-              "from mechanism.inspection.variants import read_variants\nfrom mechanism.errors import UserError\n"
-              f"try:\n    read_variants({str(variants)!r})\nexcept UserError as exc:\n    print(exc)\n")
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
-                         env={**os.environ, "PYTHONPATH": str(REPO)})
+    variants.write_text(
+        json.dumps(
+            {
+                "parameters": {"a": "body:x:x_mm", "b": "body:y:y_mm", "c": "body:z:z_mm"},
+                "sweep": {"a": axis, "b": axis, "c": axis},
+            }
+        )
+    )
+    script = (
+        "import resource, sys\nresource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))\n"
+        "from mechanism.inspection.variants import read_variants\nfrom mechanism.errors import UserError\n"
+        f"try:\n    read_variants({str(variants)!r})\nexcept UserError as exc:\n    print(exc)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
     assert "1000000001 variants requested, at most" in run.stdout, run.stderr[-500:]
 
 
 @pytest.mark.slow
 def test_a_long_run_at_a_high_rate_is_refused_before_allocating(cli, tmp_path):
-    line = cli("simulate", "--voltage", "12", "--duration", "3600", "--rate", "100000", "--csv",
-               tmp_path / "a.csv").assert_bad_input()
+    line = cli(
+        "simulate",
+        "--voltage",
+        "12",
+        "--duration",
+        "3600",
+        "--rate",
+        "100000",
+        "--csv",
+        tmp_path / "a.csv",
+    ).assert_bad_input()
     assert "GiB" in line and "MECHANISM_MAX_ELEMENTS" in line
 
 
 # -- 7. nothing stray on stderr -----------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_mechanism_debug_zero_is_off(cli, tmp_path):
-    result = cli("simulate", "--voltage", "12", "--duration", "-1", "--summary", env={"MECHANISM_DEBUG": "0"})
+    result = cli(
+        "simulate", "--voltage", "12", "--duration", "-1", "--summary", env={"MECHANISM_DEBUG": "0"}
+    )
     result.assert_bad_input()
 
 
@@ -323,12 +453,14 @@ def test_huge_stl_coordinates_are_one_error_line_without_numpy_or_mujoco_text(cl
     data = bytearray(stl.read_bytes())
     for i in range(int.from_bytes(data[80:84], "little")):
         start = 84 + 50 * i + 12
-        vertices = np.frombuffer(bytes(data[start:start + 36]), "<f4") * np.float32(1e37)
-        data[start:start + 36] = vertices.astype("<f4").tobytes()
+        vertices = np.frombuffer(bytes(data[start : start + 36]), "<f4") * np.float32(1e37)
+        data[start : start + 36] = vertices.astype("<f4").tobytes()
     stl.write_bytes(bytes(data))
     result = cli("convert", export, "-o", tmp_path / "out")
     lines = [line for line in result.stderr.splitlines() if line.strip()]
-    assert result.returncode == 2 and len(lines) == 1 and lines[0].startswith("error:"), result.stderr
+    assert result.returncode == 2 and len(lines) == 1 and lines[0].startswith("error:"), (
+        result.stderr
+    )
     assert not (tmp_path / "out").exists()
 
 
@@ -338,8 +470,10 @@ def test_text_c_code_prints_on_stderr_is_captured(capfd, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
     from mechanism.files.capture import UNSTABLE_MARKERS, captured_stderr
 
-    model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><joint name="j"/><geom size=".1"/></body>'
-                                           '</worldbody><actuator><motor joint="j"/></actuator></mujoco>')
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body><joint name="j"/><geom size=".1"/></body>'
+        '</worldbody><actuator><motor joint="j"/></actuator></mujoco>'
+    )
     data = mujoco.MjData(model)
     data.ctrl[0] = np.nan
     with captured_stderr() as captured:

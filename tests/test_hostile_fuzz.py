@@ -22,15 +22,23 @@ from tests.helpers.exports import FourBar  # noqa: E402
 from mechanism.cli import main  # noqa: E402
 from mechanism.errors import UserError  # noqa: E402
 
-FUZZ = settings(max_examples=12, deadline=None, derandomize=True, database=None,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=12,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
 hostile_floats = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
     st.sampled_from([0.0, -0.0, -1.0, 1e-300, 1e300, -1e300, 1e38, float("nan"), float("inf")]),
     st.floats(min_value=-100, max_value=100),
 )
-cells = st.one_of(hostile_floats.map(repr), st.sampled_from(["", " ", "x", "1,2", '"', "0x10", "1e999", "\x00", "é"]))
+cells = st.one_of(
+    hostile_floats.map(repr),
+    st.sampled_from(["", " ", "x", "1,2", '"', "0x10", "1e999", "\x00", "é"]),
+)
 
 
 def run(capfd, *args) -> tuple[int, str]:
@@ -43,7 +51,9 @@ def run(capfd, *args) -> tuple[int, str]:
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 def assert_contract(code: int, stderr: str, out: Path, expect_on_success=()) -> None:
@@ -63,13 +73,34 @@ def assert_contract(code: int, stderr: str, out: Path, expect_on_success=()) -> 
 
 # -- recordings ---------------------------------------------------------------------------------
 
+
 @st.composite
 def recordings(draw) -> str:
-    names = draw(st.lists(st.sampled_from(["time", "time_s", "voltage", "voltage_V", "arm_angle", "shaft_angle",
-                                           "current", "junk"]), min_size=0, max_size=5))
+    names = draw(
+        st.lists(
+            st.sampled_from(
+                [
+                    "time",
+                    "time_s",
+                    "voltage",
+                    "voltage_V",
+                    "arm_angle",
+                    "shaft_angle",
+                    "current",
+                    "junk",
+                ]
+            ),
+            min_size=0,
+            max_size=5,
+        )
+    )
     width = len(names)
-    rows = draw(st.lists(st.lists(cells, min_size=max(width - 1, 0), max_size=width + 1), max_size=30))
-    comments = draw(st.lists(st.text(max_size=20).map(lambda t: "# " + t.replace("\n", " ")), max_size=2))
+    rows = draw(
+        st.lists(st.lists(cells, min_size=max(width - 1, 0), max_size=width + 1), max_size=30)
+    )
+    comments = draw(
+        st.lists(st.text(max_size=20).map(lambda t: "# " + t.replace("\n", " ")), max_size=2)
+    )
     return "\n".join([*comments, ",".join(names), *(",".join(r) for r in rows)]) + "\n"
 
 
@@ -89,26 +120,61 @@ def test_identify_holds_the_contract_on_any_recording(tmp_path_factory, capfd, t
 # -- variant files (library: read before any model is touched) ------------------------------------
 
 json_values = st.recursive(
-    st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12), hostile_floats, st.text(max_size=12)),
-    lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
-    max_leaves=20)
+    st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(10**12), 10**12),
+        hostile_floats,
+        st.text(max_size=12),
+    ),
+    lambda children: (
+        st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4)
+    ),
+    max_leaves=20,
+)
 
 
 @st.composite
 def variant_documents(draw):
-    params = draw(st.dictionaries(st.sampled_from(["a", "b", "timing"]),
-                                  st.one_of(st.none(), st.sampled_from(["body:x:x_mm", "coupling:c:j_deg", "bad"]),
-                                            json_values), max_size=3))
-    axis = st.one_of(st.lists(hostile_floats, max_size=4),
-                     st.fixed_dictionaries({"start": hostile_floats, "stop": hostile_floats,
-                                            "num": st.integers(-5, 10**6)}), json_values)
-    document = {"format": draw(st.sampled_from(["mechanism-variants/1", "x"])), "parameters": params}
+    params = draw(
+        st.dictionaries(
+            st.sampled_from(["a", "b", "timing"]),
+            st.one_of(
+                st.none(), st.sampled_from(["body:x:x_mm", "coupling:c:j_deg", "bad"]), json_values
+            ),
+            max_size=3,
+        )
+    )
+    axis = st.one_of(
+        st.lists(hostile_floats, max_size=4),
+        st.fixed_dictionaries(
+            {"start": hostile_floats, "stop": hostile_floats, "num": st.integers(-5, 10**6)}
+        ),
+        json_values,
+    )
+    document = {
+        "format": draw(st.sampled_from(["mechanism-variants/1", "x"])),
+        "parameters": params,
+    }
     if draw(st.booleans()):
-        document["sweep"] = draw(st.dictionaries(st.sampled_from(["a", "b", "timing"]), axis, max_size=3))
+        document["sweep"] = draw(
+            st.dictionaries(st.sampled_from(["a", "b", "timing"]), axis, max_size=3)
+        )
     if draw(st.booleans()):
-        document["samples"] = draw(st.one_of(json_values, st.fixed_dictionaries({
-            "count": st.integers(-1, 10**7), "seed": st.integers(-1, 5),
-            "tolerances": st.dictionaries(st.sampled_from(["a", "b"]), json_values, max_size=2)})))
+        document["samples"] = draw(
+            st.one_of(
+                json_values,
+                st.fixed_dictionaries(
+                    {
+                        "count": st.integers(-1, 10**7),
+                        "seed": st.integers(-1, 5),
+                        "tolerances": st.dictionaries(
+                            st.sampled_from(["a", "b"]), json_values, max_size=2
+                        ),
+                    }
+                ),
+            )
+        )
     return document
 
 
@@ -132,8 +198,14 @@ def test_variant_files_are_read_or_refused_in_one_line(tmp_path_factory, documen
 
 # -- machine descriptions -----------------------------------------------------------------------
 
-NUMBER_KEYS = ["resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad", "series_resistance_ohm",
-               "voltage_V", "timestep_ms"]
+NUMBER_KEYS = [
+    "resistance_ohm",
+    "torque_constant_Nm_per_A",
+    "back_emf_V_s_per_rad",
+    "series_resistance_ohm",
+    "voltage_V",
+    "timestep_ms",
+]
 
 
 def shipped_description() -> str:
@@ -141,7 +213,9 @@ def shipped_description() -> str:
 
     text = Path(DEFAULT_DESCRIPTION).read_text()
     model = re.search(r'^model = "([^"]+)"', text, re.M)[1]
-    return text.replace(f'model = "{model}"', f'model = "{(Path(DEFAULT_DESCRIPTION).parent / model).resolve()}"')
+    return text.replace(
+        f'model = "{model}"', f'model = "{(Path(DEFAULT_DESCRIPTION).parent / model).resolve()}"'
+    )
 
 
 def toml_number(value: float) -> str:
@@ -157,14 +231,32 @@ def toml_number(value: float) -> str:
 @given(key=st.sampled_from(NUMBER_KEYS), value=hostile_floats)
 @example(key="back_emf_V_s_per_rad", value=1e-300)  # once a MuJoCo ValueError
 @example(key="resistance_ohm", value=1.5)  # a legal one: exit 0 with finite results
-def test_simulate_holds_the_contract_on_any_motor_or_supply_number(tmp_path_factory, capfd, key, value):
+def test_simulate_holds_the_contract_on_any_motor_or_supply_number(
+    tmp_path_factory, capfd, key, value
+):
     folder = tmp_path_factory.mktemp("machine")
-    text = re.sub(rf"^{key} = [^\n#]*", f"{key} = {toml_number(value)} ", shipped_description(), count=1, flags=re.M)
+    text = re.sub(
+        rf"^{key} = [^\n#]*",
+        f"{key} = {toml_number(value)} ",
+        shipped_description(),
+        count=1,
+        flags=re.M,
+    )
     description = folder / "m.toml"
     description.write_text(text)
     out = folder / "out"
-    code, stderr = run(capfd, "simulate", "--machine", description, "--voltage", "12", "--duration", "0.02",
-                       "--csv", out / "run.csv")
+    code, stderr = run(
+        capfd,
+        "simulate",
+        "--machine",
+        description,
+        "--voltage",
+        "12",
+        "--duration",
+        "0.02",
+        "--csv",
+        out / "run.csv",
+    )
     assert_contract(code, stderr, out, expect_on_success=["run.csv"])
     if code == 0:
         data = (out / "run.csv").read_text()
@@ -172,6 +264,7 @@ def test_simulate_holds_the_contract_on_any_motor_or_supply_number(tmp_path_fact
 
 
 # -- CAD exports: XML and STL bytes ----------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def clean_export(tmp_path_factory) -> Path:
@@ -192,14 +285,16 @@ def mutated_exports(draw, original: dict[str, bytes]):
     if how == "number" and name.endswith(".xml"):
         matches = list(NUMBER.finditer(data))
         match = matches[draw(st.integers(0, len(matches) - 1))]
-        data = data[:match.start()] + toml_number(draw(hostile_floats)).encode() + data[match.end():]
+        data = (
+            data[: match.start()] + toml_number(draw(hostile_floats)).encode() + data[match.end() :]
+        )
     elif how == "truncate":
-        data = data[:draw(st.integers(0, len(data)))]
+        data = data[: draw(st.integers(0, len(data)))]
     elif how == "stl-floats" and name.endswith(".stl") and len(data) > 84 + 50:
         start = 84 + 12 + 50 * draw(st.integers(0, (len(data) - 84) // 50 - 1))
         import struct
 
-        data = data[:start] + struct.pack("<f", draw(st.floats(width=32))) + data[start + 4:]
+        data = data[:start] + struct.pack("<f", draw(st.floats(width=32))) + data[start + 4 :]
     else:
         at = draw(st.integers(0, len(data)))
         data = data[:at] + draw(st.binary(max_size=16)) + data[at:]
@@ -210,7 +305,9 @@ def mutated_exports(draw, original: dict[str, bytes]):
 @pytest.mark.slow
 @FUZZ
 @given(data=st.data())
-def test_convert_holds_the_contract_on_any_damaged_export(tmp_path_factory, capfd, clean_export, data):
+def test_convert_holds_the_contract_on_any_damaged_export(
+    tmp_path_factory, capfd, clean_export, data
+):
     files = data.draw(mutated_exports(snapshot(clean_export)))
     folder = tmp_path_factory.mktemp("export")
     for name, content in files.items():
@@ -223,6 +320,7 @@ def test_convert_holds_the_contract_on_any_damaged_export(tmp_path_factory, capf
 
 
 # -- recording files in every format (issue 26) -----------------------------------------------
+
 
 def _valid_recording_files(folder: Path) -> dict[str, bytes]:
     """One small valid recording per reader, written by the format's own library."""
@@ -237,9 +335,18 @@ def _valid_recording_files(folder: Path) -> dict[str, bytes]:
 
     t = np.arange(300) / 100.0
     columns = {"time": t, "voltage": np.where(t < 1.5, 3.0, 9.0), "arm_angle": 2.0 * t}
-    text = "time,voltage,arm_angle\n" + "\n".join(",".join(f"{c[i]:.6g}" for c in columns.values()) for i in range(len(t))) + "\n"
-    files = {".csv.gz": gzip.compress(text.encode()), ".csv.bz2": bz2.compress(text.encode()),
-             ".json": json.dumps([dict(zip(columns, map(float, row))) for row in zip(*columns.values())]).encode()}
+    text = (
+        "time,voltage,arm_angle\n"
+        + "\n".join(",".join(f"{c[i]:.6g}" for c in columns.values()) for i in range(len(t)))
+        + "\n"
+    )
+    files = {
+        ".csv.gz": gzip.compress(text.encode()),
+        ".csv.bz2": bz2.compress(text.encode()),
+        ".json": json.dumps(
+            [dict(zip(columns, map(float, row))) for row in zip(*columns.values())]
+        ).encode(),
+    }
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
         archive.writestr("r.csv", text)

@@ -25,7 +25,12 @@ def test_a_swinging_pendulum_servo_is_identifiable(seed):
     assert travel(rec) < 2.5 * math.pi and np.ptp(rec.arm_angle_rad) < 2 * math.pi
     info = check_information(rec, PENDULUM_SERVO.nominal())
     assert info.identifiable, info.reason
-    assert info.turns_both_ways and set(info.independent_fraction) == {"inertia", "viscous", "coulomb", "offset"}
+    assert info.turns_both_ways and set(info.independent_fraction) == {
+        "inertia",
+        "viscous",
+        "coulomb",
+        "offset",
+    }
     result = identify(rec, nominal=PENDULUM_SERVO.nominal())
     assert np.isfinite(result.rmse)
 

@@ -17,7 +17,10 @@ from tests.helpers.nominal import SAPPHIRE, bench_recording, identify
 
 def thesis_table2():
     ref = thesis()
-    return table2(ref["steady_state_speed_table_2"], SAPPHIRE.motor, ref["main_motor"]["model_validity_V"][1])
+    return table2(
+        ref["steady_state_speed_table_2"], SAPPHIRE.motor, ref["main_motor"]["model_validity_V"][1]
+    )
+
 
 from tests.helpers.synthetic_truth import simulate_truth
 
@@ -27,7 +30,9 @@ def clean_bench(tmp_path_factory):
     from mechanism.testbench import write_recording
 
     folder = tmp_path_factory.mktemp("bench")
-    csv, truth = write_recording(bench_recording("none", seed=11, duration_s=30), folder / "clean.csv")
+    csv, truth = write_recording(
+        bench_recording("none", seed=11, duration_s=30), folder / "clean.csv"
+    )
     return csv, json.loads(truth.read_text())["baseline"]
 
 
@@ -38,10 +43,16 @@ def equivalent(truth, motor):
     gain_true = truth["torque_constant_Nm_per_A"] / truth["resistance_ohm"]
     gain_data = motor.torque_constant_Nm_per_A / motor.resistance_ohm
     k = gain_data / gain_true
-    damping_true = truth["torque_constant_Nm_per_A"] * truth["back_emf_constant_V_s_per_rad"] / truth["resistance_ohm"] + truth["viscous_motor_side_Nm_s_per_rad"]
+    damping_true = (
+        truth["torque_constant_Nm_per_A"]
+        * truth["back_emf_constant_V_s_per_rad"]
+        / truth["resistance_ohm"]
+        + truth["viscous_motor_side_Nm_s_per_rad"]
+    )
     return {
         "inertia_motor_side_kgm2": truth["inertia_motor_side_kgm2"] * k,
-        "viscous_motor_side_Nm_s_per_rad": damping_true * k - motor.torque_constant_Nm_per_A * motor.back_emf_V_s_per_rad / motor.resistance_ohm,
+        "viscous_motor_side_Nm_s_per_rad": damping_true * k
+        - motor.torque_constant_Nm_per_A * motor.back_emf_V_s_per_rad / motor.resistance_ohm,
         "coulomb_arm_Nm": truth["coulomb_arm_Nm"] * k,
         "electrical_time_constant_s": truth["inductance_H"] / truth["resistance_ohm"],
         "total_damping": damping_true * k * n * n,
@@ -53,15 +64,21 @@ def test_identify_recovers_the_bench_machine(clean_bench):
     result = identify(read_recording(csv))
     expect = equivalent(truth, SAPPHIRE.motor)
     p = result.params
-    assert p["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
+    assert p["inertia_motor_side_kgm2"] == pytest.approx(
+        expect["inertia_motor_side_kgm2"], rel=0.03
+    )
     assert p["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
     motor = SAPPHIRE.motor
     total = motor.emf_damping_arm + 64 * p["viscous_motor_side_Nm_s_per_rad"]
     assert total == pytest.approx(expect["total_damping"], rel=0.02)
-    assert p["electrical_time_constant_s"] == pytest.approx(expect["electrical_time_constant_s"], rel=0.25)
+    assert p["electrical_time_constant_s"] == pytest.approx(
+        expect["electrical_time_constant_s"], rel=0.25
+    )
     assert result.rmse < 0.03  # down to the encoder's noise floor
-    assert all(np.isfinite(result.fit.uncertainties[k]) and result.fit.uncertainties[k] > 0
-               for k in ("inertia_motor_side_kgm2", "coulomb_arm_Nm"))
+    assert all(
+        np.isfinite(result.fit.uncertainties[k]) and result.fit.uncertainties[k] > 0
+        for k in ("inertia_motor_side_kgm2", "coulomb_arm_Nm")
+    )
     data = result.to_json()
     assert data["rmse"] == result.rmse and data["split"]["segments_validation"] > 5
 
@@ -80,8 +97,14 @@ def test_identify_cli_writes_json_and_report(clean_bench, cli, tmp_path):
     done = cli("identify", csv, "--json", out, "--report", tmp_path / "rep")
     assert done.returncode == 0, done.stderr
     data = json.loads(out.read_text())
-    assert set(data["params"]) >= {"inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm"}
-    assert (tmp_path / "rep" / "index.html").exists() and (tmp_path / "rep" / "velocity.png").exists()
+    assert set(data["params"]) >= {
+        "inertia_motor_side_kgm2",
+        "viscous_motor_side_Nm_s_per_rad",
+        "coulomb_arm_Nm",
+    }
+    assert (tmp_path / "rep" / "index.html").exists() and (
+        tmp_path / "rep" / "velocity.png"
+    ).exists()
     assert "coulomb_arm_Nm" in done.stdout
 
 
@@ -109,7 +132,9 @@ def test_thesis_table2_friction_and_what_24V_says():
     ref = thesis()
     cold, warm30, warm2 = columns["cold"], columns["warm_30s"], columns["warm_2min"]
     # the cold Coulomb friction agrees with the thesis's separately measured kinetic friction (0.18 N m)
-    assert cold.fit.coulomb_arm_Nm == pytest.approx(ref["identified_parameters"]["kinetic_friction_arm_Nm"], rel=0.15)
+    assert cold.fit.coulomb_arm_Nm == pytest.approx(
+        ref["identified_parameters"]["kinetic_friction_arm_Nm"], rel=0.15
+    )
     # the fit reproduces the 4.5-19.6 V points it was fitted on to within 5 % (Table 2 scatters: 7 V sits low)
     for col in columns.values():
         assert np.allclose(col.fit.speed_rpm(col.valid_voltage_V), col.valid_rpm, rtol=0.05)
@@ -128,8 +153,14 @@ def test_multibody_baseline_carries_the_cad_linkage(tmp_path):
     from mechanism.testbench import write_recording
 
     toy = Path(__file__).parent / "models" / "toy_sewing_machine.xml"
-    linkage = read_recording(write_recording(bench_recording("linkage_dynamics", seed=12, duration_s=20), tmp_path / "l.csv")[0])
-    clean = read_recording(write_recording(bench_recording("none", seed=12, duration_s=20), tmp_path / "c.csv")[0])
+    linkage = read_recording(
+        write_recording(
+            bench_recording("linkage_dynamics", seed=12, duration_s=20), tmp_path / "l.csv"
+        )[0]
+    )
+    clean = read_recording(
+        write_recording(bench_recording("none", seed=12, duration_s=20), tmp_path / "c.csv")[0]
+    )
     # the CAD's needle-bar linkage (toy model: TDC at 0, tens of grams on a ~15 mm crank)
     # explains half of a linkage recording, with masses of the right order
     with_linkage = identify(linkage, "multibody", model_path=toy)
@@ -151,7 +182,9 @@ def test_multibody_without_a_model_is_a_user_error(tmp_path, cli_here):
     from mechanism.testbench import write_recording
 
     rec = write_recording(bench_recording("none", seed=13, duration_s=12), tmp_path / "c.csv")[0]
-    line = cli_here("identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml").assert_bad_input()
+    line = cli_here(
+        "identify", rec, "--baseline", "multibody", "--model", tmp_path / "missing.xml"
+    ).assert_bad_input()
     assert "missing.xml" in line
 
 
@@ -162,7 +195,9 @@ def test_table2_cli(cli, tmp_path):
     assert done.returncode == 0, done.stderr
     data = json.loads(out.read_text())
     assert set(data) == {"cold", "warm_30s", "warm_2min"}
-    assert data["cold"]["coulomb_arm_Nm"] == pytest.approx(thesis_table2()["cold"].fit.coulomb_arm_Nm)
+    assert data["cold"]["coulomb_arm_Nm"] == pytest.approx(
+        thesis_table2()["cold"].fit.coulomb_arm_Nm
+    )
     assert "cold" in done.stdout
     cli("identify").assert_bad_input()
 
@@ -173,14 +208,20 @@ def test_identify_a_press_as_well_as_the_sewing_machine(tmp_path):
     from mechanism.testbench import write_recording
     from tests.helpers.nominal import PRESS
 
-    csv, truth_path = write_recording(bench_recording("none", seed=11, duration_s=30, nominal=PRESS), tmp_path / "p.csv")
+    csv, truth_path = write_recording(
+        bench_recording("none", seed=11, duration_s=30, nominal=PRESS), tmp_path / "p.csv"
+    )
     truth = json.loads(truth_path.read_text())["baseline"]
     result = identify(read_recording(csv), nominal=PRESS)
     expect = equivalent(truth, PRESS.motor)
     p = result.params
-    assert p["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
+    assert p["inertia_motor_side_kgm2"] == pytest.approx(
+        expect["inertia_motor_side_kgm2"], rel=0.03
+    )
     assert p["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
-    assert PRESS.motor.emf_damping_arm + 144 * p["viscous_motor_side_Nm_s_per_rad"] == pytest.approx(expect["total_damping"], rel=0.02)
+    assert PRESS.motor.emf_damping_arm + 144 * p[
+        "viscous_motor_side_Nm_s_per_rad"
+    ] == pytest.approx(expect["total_damping"], rel=0.02)
     assert result.rmse < 0.03
 
 
@@ -198,7 +239,9 @@ def test_a_long_recording_is_fitted_on_segments_spread_over_it(tmp_path):
     assert problem.scored["all"].max() > 0.9 * len(rec)
     result = identify(rec)
     expect = equivalent(bench.truth["baseline"], SAPPHIRE.motor)
-    assert result.params["inertia_motor_side_kgm2"] == pytest.approx(expect["inertia_motor_side_kgm2"], rel=0.03)
+    assert result.params["inertia_motor_side_kgm2"] == pytest.approx(
+        expect["inertia_motor_side_kgm2"], rel=0.03
+    )
     assert result.params["coulomb_arm_Nm"] == pytest.approx(expect["coulomb_arm_Nm"], rel=0.05)
     assert result.rmse < 0.03
 
@@ -226,7 +269,9 @@ def test_parallel_fits_are_safe_under_overflow_as_error():
     from mechanism.sysid.parameters import Parameter
 
     structure = SimpleNamespace(parameters=[Parameter("a", 0.5, 0.0, 1.0)])
-    jobs = [(_Overflowing(), structure, [{"a": 0.95}, {"a": 0.9}], {"scout_nfev": 0, "max_nfev": 10})] * 4
+    jobs = [
+        (_Overflowing(), structure, [{"a": 0.95}, {"a": 0.9}], {"scout_nfev": 0, "max_nfev": 10})
+    ] * 4
     with warnings.catch_warnings():
         warnings.filterwarnings("error", message="overflow encountered", category=RuntimeWarning)
         for _ in range(25):

@@ -18,11 +18,24 @@ def test_init_guesses_the_roles_the_shipped_description_names(name, cli, tmp_pat
     result = cli("init", export, "-o", draft)
     assert result.returncode == 0, result.stderr
     guessed = tomllib.loads(draft.read_text())
-    assert guessed["drive"] == {"motor_joint": shipped.motor_joint, "shaft_joint": shipped.shaft_joint,
-                                "zero_site": shipped.zero_site}
+    assert guessed["drive"] == {
+        "motor_joint": shipped.motor_joint,
+        "shaft_joint": shipped.shaft_joint,
+        "zero_site": shipped.zero_site,
+    }
     assert guessed["tool"]["plate"] == shipped.section("tool")["plate"]
     assert "GUESS" in draft.read_text() and "TODO" in draft.read_text()
-    run = cli("simulate", "--machine", draft, "--voltage", "12", "--duration", "0.5", "--summary", "--reduced")
+    run = cli(
+        "simulate",
+        "--machine",
+        draft,
+        "--voltage",
+        "12",
+        "--duration",
+        "0.5",
+        "--summary",
+        "--reduced",
+    )
     assert run.returncode == 0, run.stderr
     assert "shaft speed" in run.stdout
 

@@ -6,7 +6,9 @@ import pytest
 
 from mechanism.machine.models import DEFAULT_MODEL
 
-pytestmark = pytest.mark.skipif(not DEFAULT_MODEL.exists(), reason="the shipped sewing machine MJCF is not in assets/mjcf")
+pytestmark = pytest.mark.skipif(
+    not DEFAULT_MODEL.exists(), reason="the shipped sewing machine MJCF is not in assets/mjcf"
+)
 
 RPM = 600.0
 
@@ -31,18 +33,32 @@ def test_needle_tip_probe_reproduces_the_needle_inspection(needle):
     from mechanism.machine.models import load_spec
     from mechanism.inspection.probes import Probe, probe_cycle
 
-    probes = [Probe("needle_tip", "position"), Probe("needle_tip", "velocity"), Probe("needle_tip", "acceleration")]
-    columns = probe_cycle(load_spec(), probes, speed_rpm=RPM, resolution_deg=1.0, driver="arm_shaft").columns
-    np.testing.assert_allclose(np.degrees(columns["arm_shaft_angle_rad"]), needle.arm_angle_deg, atol=1e-9)
+    probes = [
+        Probe("needle_tip", "position"),
+        Probe("needle_tip", "velocity"),
+        Probe("needle_tip", "acceleration"),
+    ]
+    columns = probe_cycle(
+        load_spec(), probes, speed_rpm=RPM, resolution_deg=1.0, driver="arm_shaft"
+    ).columns
+    np.testing.assert_allclose(
+        np.degrees(columns["arm_shaft_angle_rad"]), needle.arm_angle_deg, atol=1e-9
+    )
     model = mujoco.MjModel.from_xml_path(str(DEFAULT_MODEL))
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     plate_mm = plate_top(model, data, "needle_plate") * 1e3
     np.testing.assert_allclose(columns["needle_tip_z_mm"] - plate_mm, needle.needle_z_mm, atol=0.01)
     omega = RPM * 2 * np.pi / 60
-    np.testing.assert_allclose(columns["needle_tip_vz_m_s"] * 1e3 / omega, needle.needle_velocity_mm_per_rad, atol=1e-6)
+    np.testing.assert_allclose(
+        columns["needle_tip_vz_m_s"] * 1e3 / omega, needle.needle_velocity_mm_per_rad, atol=1e-6
+    )
     # the inspection differentiates spectrally, the probe by central differences of exact velocities
-    np.testing.assert_allclose(columns["needle_tip_az_m_s2"] * 1e3 / omega**2, needle.needle_acceleration_mm_per_rad2, atol=1e-3)
+    np.testing.assert_allclose(
+        columns["needle_tip_az_m_s2"] * 1e3 / omega**2,
+        needle.needle_acceleration_mm_per_rad2,
+        atol=1e-3,
+    )
 
 
 def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(model, needle):
@@ -54,7 +70,9 @@ def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(m
     sweep = ClearanceSweep(model, [Pair("needle", "hook")], driver="arm_shaft")
     result = sweep.run(full_curve=True)[0]
     angle = np.radians(needle.hook_passage_angle_deg)
-    start = pose_sweep(model, np.linspace(0.0, angle, 100), "arm_shaft")[-1]  # walk there: same assembly branch
+    start = pose_sweep(model, np.linspace(0.0, angle, 100), "arm_shaft")[
+        -1
+    ]  # walk there: same assembly branch
     distance, _, _ = sweep.distance_at(Pair("needle", "hook"), angle, start)
     assert distance * 1e3 == pytest.approx(needle.hook_point_clearance_mm, abs=0.01)
     # household practice: 0-0.1 mm between hook point and needle (Janome 1600P service manual)
@@ -65,11 +83,15 @@ def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(m
 def test_shipped_machine_passes_at_nominal_dimensions(model):
     from mechanism.inspection.clearance import check_clearance, parse_pairs
 
-    report = check_clearance(model, parse_pairs("needle:hook,needle:needle_plate", model), driver="arm_shaft")
+    report = check_clearance(
+        model, parse_pairs("needle:hook,needle:needle_plate", model), driver="arm_shaft"
+    )
     hook, plate = report.results
     assert report.passed
     assert 0.0 < hook.min_distance_mm <= 0.1 + 1e-3  # household range: 0-0.1 mm (Janome 1600P)
-    assert 195.0 < hook.angle_deg < 215.0  # just after bottom dead centre, the needle rising (loop lift)
+    assert (
+        195.0 < hook.angle_deg < 215.0
+    )  # just after bottom dead centre, the needle rising (loop lift)
     assert plate.min_distance_mm > 0.1
 
 
@@ -78,8 +100,14 @@ def test_mistimed_hook_collides_with_the_needle(model):
     from mechanism.inspection.clearance import Pair
     from mechanism.inspection.variants import VariantSet, parameter, run_variants
 
-    variants = VariantSet([parameter("hook_timing_deg", "coupling:hook_worm_gear:hook_deg")], ["nominal", "early hook"], np.array([[0.0], [40.0]]))  # the shipped description's mistimed variant
-    batch = run_variants(model, variants, [Pair("needle", "hook")], driver="arm_shaft", progress=False)
+    variants = VariantSet(
+        [parameter("hook_timing_deg", "coupling:hook_worm_gear:hook_deg")],
+        ["nominal", "early hook"],
+        np.array([[0.0], [40.0]]),
+    )  # the shipped description's mistimed variant
+    batch = run_variants(
+        model, variants, [Pair("needle", "hook")], driver="arm_shaft", progress=False
+    )
     early = batch.rows[1]
     assert early["pass"] == 0 and early["needle_vs_hook_min_mm"] < -0.01
     # 40 deg early on the hook = 20 deg early on the arm: the point reaches the needle near bottom dead centre

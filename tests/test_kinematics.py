@@ -73,7 +73,9 @@ def test_velocity_ratios_are_the_analytic_derivative(model):
 
 def test_unreachable_pose_and_unknown_joint_are_user_errors(model):
     data = mujoco.MjData(model)
-    with pytest.raises(PoseError):  # pulling the slider beyond the rod's reach cannot close the loop
+    with pytest.raises(
+        PoseError
+    ):  # pulling the slider beyond the rod's reach cannot close the loop
         solve_pose(model, data, {"arm_shaft": 0.0, "bushing": 0.02})
     with pytest.raises(UserError, match="close matches: arm_shaft"):
         solve_pose(model, data, {"arm_shft": 0.0})

@@ -15,15 +15,25 @@ MAPPED = {"mechanism.converters": REPO / "converters"}
 
 # room -> layer; a room may import rooms of lower layers and itself only.
 LAYERS = {
-    "errors": 0, "tolerances": 0, "lazy": 0,
-    "files": 1, "data": 1,
-    "native": 2, "batch": 2, "converters": 2,  # native keeps its kernels in the files room's cache
-    "kinematics": 3, "physics": 3,
+    "errors": 0,
+    "tolerances": 0,
+    "lazy": 0,
+    "files": 1,
+    "data": 1,
+    "native": 2,
+    "batch": 2,
+    "converters": 2,  # native keeps its kernels in the files room's cache
+    "kinematics": 3,
+    "physics": 3,
     "machine": 4,
     "dynamics": 5,
-    "inspection": 6, "sysid": 6,
-    "steppers": 7, "testbench": 7,
-    "api": 8, "demo": 8, "__init__": 8,
+    "inspection": 6,
+    "sysid": 6,
+    "steppers": 7,
+    "testbench": 7,
+    "api": 8,
+    "demo": 8,
+    "__init__": 8,
     "cli": 9,
     "__main__": 10,
 }
@@ -40,20 +50,28 @@ def module_name(path: Path) -> str:
 
 
 def sources() -> list[Path]:
-    return [*PACKAGE.rglob("*.py"), *(p for folder in MAPPED.values() for p in folder.rglob("*.py"))]
+    return [
+        *PACKAGE.rglob("*.py"),
+        *(p for folder in MAPPED.values() for p in folder.rglob("*.py")),
+    ]
 
 
 def imports(path: Path) -> set[str]:
     tree = ast.parse(path.read_text(), str(path))
     found = set()
-    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    package = (
+        module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    )
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
-                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+                base = ".".join(
+                    package.split(".")[: len(package.split(".")) - node.level + 1]
+                    + ([base] if base else [])
+                )
             found |= {f"{base}.{alias.name}" for alias in node.names}
             found.add(base)  # `from package import name` runs the package's __init__ too
     return {name for name in found if name == "mechanism" or name.startswith("mechanism.")}
@@ -70,7 +88,9 @@ def graph() -> nx.DiGraph:
     for name, path in modules.items():
         g.add_node(name)
         for target in imports(path):
-            while target not in modules and "." in target:  # `from mechanism.x import name` names a symbol
+            while (
+                target not in modules and "." in target
+            ):  # `from mechanism.x import name` names a symbol
                 target = target.rpartition(".")[0]
             if target != name and target in modules and target != "mechanism":
                 g.add_edge(name, target)
@@ -80,7 +100,9 @@ def graph() -> nx.DiGraph:
 @pytest.mark.slow
 def test_every_room_has_a_layer():
     rooms = {room(m) for m in graph().nodes}
-    assert rooms <= set(LAYERS), f"give these a layer in this test and docs/architecture.md: {sorted(rooms - set(LAYERS))}"
+    assert rooms <= set(LAYERS), (
+        f"give these a layer in this test and docs/architecture.md: {sorted(rooms - set(LAYERS))}"
+    )
 
 
 @pytest.mark.slow
@@ -106,9 +128,13 @@ def test_the_converter_and_the_test_bench_stay_independent():
     g = graph()
     for source, target in g.edges:
         if room(source) == "converters" and room(target) != "converters":
-            assert LAYERS[room(target)] < LAYERS["converters"], f"{source} imports {target}: converters never import the simulator"
+            assert LAYERS[room(target)] < LAYERS["converters"], (
+                f"{source} imports {target}: converters never import the simulator"
+            )
         if room(source) == "testbench":
-            assert room(target) != "sysid", f"{source} imports {target}: the truth model must not know the diagnosis"
+            assert room(target) != "sysid", (
+                f"{source} imports {target}: the truth model must not know the diagnosis"
+            )
 
 
 def test_every_subpackage_names_a_curated_api_that_resolves():
@@ -118,17 +144,32 @@ def test_every_subpackage_names_a_curated_api_that_resolves():
     import subprocess
     import sys
 
-    rooms = ["dynamics", "files", "inspection", "kinematics", "machine", "physics", "sysid", "steppers", "batch",
-             "converters", "testbench"]
+    rooms = [
+        "dynamics",
+        "files",
+        "inspection",
+        "kinematics",
+        "machine",
+        "physics",
+        "sysid",
+        "steppers",
+        "batch",
+        "converters",
+        "testbench",
+    ]
     for room in rooms:
         package = importlib.import_module(f"mechanism.{room}")
         names = getattr(package, "__all__", None)
         assert names, f"mechanism.{room} lists no public API"
         for name in names:
             assert getattr(package, name) is not None, f"mechanism.{room}.{name}"
-    probe = ("import sys, mechanism.inspection, mechanism.sysid; "
-             "print(any(m in sys.modules for m in ('fcl', 'mechanism.inspection.clearance', 'mechanism.sysid.diagnosis')))")
-    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=PACKAGE.parent)
+    probe = (
+        "import sys, mechanism.inspection, mechanism.sysid; "
+        "print(any(m in sys.modules for m in ('fcl', 'mechanism.inspection.clearance', 'mechanism.sysid.diagnosis')))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, cwd=PACKAGE.parent
+    )
     assert out.stdout.strip() == "False", out.stderr
 
 
@@ -141,14 +182,25 @@ def test_the_wheel_maps_the_design_cards_top_level_into_the_package():
     for package, folder in MAPPED.items():
         assert setuptools["package-dir"][package] == folder.name
     assert setuptools["package-dir"]["mechanism.assets"] == "assets"
-    for entry in ("pyproject.toml", "mechanism", "assets/mjcf", "assets/meshes", "converters", "tests", "README.md"):
+    for entry in (
+        "pyproject.toml",
+        "mechanism",
+        "assets/mjcf",
+        "assets/meshes",
+        "converters",
+        "tests",
+        "README.md",
+    ):
         assert (REPO / entry).exists(), entry
     assert not (PACKAGE / "converters").exists() and not (PACKAGE / "models").exists()
 
 
 def test_ci_installs_with_the_home_folder_and_tests_with_an_empty_one():
     script = (REPO / ".ci" / "run").read_text()
-    install, test = script.index("make .venv/.installed"), script.index('HOME="$fresh_home" make test')
+    install, test = (
+        script.index("make .venv/.installed"),
+        script.index('HOME="$fresh_home" make test'),
+    )
     assert install < test and "mktemp -d" in script
 
 
@@ -156,13 +208,30 @@ def test_test_helpers_live_in_their_package_and_bench_edits_no_import_path():
     """Helpers are imported as ``tests.helpers.<module>`` by tests, their subprocesses and bench/
     alike; a helper loose in tests/ or a ``sys.path`` edit in bench/ works only from some folders."""
     tests = REPO / "tests"
-    loose = [p.name for p in tests.glob("*.py") if not p.name.startswith("test_") and p.name not in ("conftest.py", "__init__.py")]
+    loose = [
+        p.name
+        for p in tests.glob("*.py")
+        if not p.name.startswith("test_") and p.name not in ("conftest.py", "__init__.py")
+    ]
     assert not loose, f"move these helpers into tests/helpers/: {loose}"
     assert (tests / "__init__.py").is_file() and (tests / "helpers" / "__init__.py").is_file()
     import re
 
-    bare = [p.name for p in tests.rglob("*.py")
-            if re.search(r"^\s*(from|import) (test_\w+|conftest|helpers|support)\b", p.read_text(), re.M)]
-    assert not bare, f"import test modules and helpers by their package (tests.<module>), not a bare name: {bare}"
-    edits = [str(p.relative_to(REPO)) for p in (REPO / "bench").rglob("*.py") if "sys.path" in p.read_text()]
-    assert not edits, f"bench/ runs as `python -m bench` from the repository root, where tests.helpers imports as is: {edits}"
+    bare = [
+        p.name
+        for p in tests.rglob("*.py")
+        if re.search(
+            r"^\s*(from|import) (test_\w+|conftest|helpers|support)\b", p.read_text(), re.M
+        )
+    ]
+    assert not bare, (
+        f"import test modules and helpers by their package (tests.<module>), not a bare name: {bare}"
+    )
+    edits = [
+        str(p.relative_to(REPO))
+        for p in (REPO / "bench").rglob("*.py")
+        if "sys.path" in p.read_text()
+    ]
+    assert not edits, (
+        f"bench/ runs as `python -m bench` from the repository root, where tests.helpers imports as is: {edits}"
+    )

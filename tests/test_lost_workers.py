@@ -34,8 +34,13 @@ class RaySystemError(RayError):
 def fake_ray(results_before_loss: int):
     """Ray's interface, tasks run here at once; after ``results_before_loss`` results every
     wait fails as a driver's does when the head node is gone."""
-    exceptions = types.SimpleNamespace(RayError=RayError, RayTaskError=RayTaskError, WorkerCrashedError=RaySystemError,
-                                       NodeDiedError=RaySystemError, ObjectLostError=RaySystemError)
+    exceptions = types.SimpleNamespace(
+        RayError=RayError,
+        RayTaskError=RayTaskError,
+        WorkerCrashedError=RaySystemError,
+        NodeDiedError=RaySystemError,
+        ObjectLostError=RaySystemError,
+    )
     state = {"served": 0, "built": {}}
 
     class Ref:
@@ -51,7 +56,9 @@ def fake_ray(results_before_loss: int):
 
     def wait(refs, num_returns=1):
         if state["served"] >= results_before_loss:
-            raise RaySystemError("System error: Failed to get the GCS address: the head node died\nmore text")
+            raise RaySystemError(
+                "System error: Failed to get the GCS address: the head node died\nmore text"
+            )
         state["served"] += 1
         return refs[:1], refs[1:]
 
@@ -59,9 +66,16 @@ def fake_ray(results_before_loss: int):
         return lambda function: types.SimpleNamespace(remote=remote_task)
 
     return types.SimpleNamespace(
-        exceptions=exceptions, is_initialized=lambda: True, put=Ref, remote=remote, wait=wait,
-        get=lambda ref: ref.value, cancel=lambda ref, force=False: None, cluster_resources=lambda: {"CPU": 2},
-        shutdown=lambda: None)
+        exceptions=exceptions,
+        is_initialized=lambda: True,
+        put=Ref,
+        remote=remote,
+        wait=wait,
+        get=lambda ref: ref.value,
+        cancel=lambda ref, force=False: None,
+        cluster_resources=lambda: {"CPU": 2},
+        shutdown=lambda: None,
+    )
 
 
 def square(state, item):
@@ -72,8 +86,14 @@ def test_a_lost_head_names_the_items_that_did_not_finish(monkeypatch):
     monkeypatch.setattr(runner, "_import_ray", lambda: fake_ray(results_before_loss=2))
     seen = []
     with pytest.raises(BatchLost) as lost:
-        run_batch(square, list(range(10)), backend="ray", chunk_size=2, progress=False,
-                  on_result=lambda i, r: seen.append(i))
+        run_batch(
+            square,
+            list(range(10)),
+            backend="ray",
+            chunk_size=2,
+            progress=False,
+            on_result=lambda i, r: seen.append(i),
+        )
     assert sorted(seen) == [0, 1, 2, 3]  # what finished reached the caller
     assert lost.value.unfinished == [4, 5, 6, 7, 8, 9]
     message = str(lost.value)
@@ -87,7 +107,9 @@ def test_a_sweep_whose_head_died_resumes_to_the_whole_table(monkeypatch, tmp_pat
     from mechanism.inspection.variants import VariantSet, parameter
 
     values = np.linspace(6, 12, 7)[:, None]
-    variants = VariantSet([parameter("V", "voltage_V")], [f"v{i}" for i in range(len(values))], values)
+    variants = VariantSet(
+        [parameter("V", "voltage_V")], [f"v{i}" for i in range(len(values))], values
+    )
     options = SweepOptions(duration_s=0.5)
     journal = journal_path(tmp_path / "sweep.csv")
     monkeypatch.setattr(runner, "_import_ray", lambda: fake_ray(results_before_loss=3))
@@ -96,7 +118,9 @@ def test_a_sweep_whose_head_died_resumes_to_the_whole_table(monkeypatch, tmp_pat
     assert "--resume" in str(lost.value) and str(journal) in str(lost.value)
     assert journal.read_text().count("\n") == 1 + 3  # the header and the finished rows
     monkeypatch.setattr(runner, "_import_ray", lambda: fake_ray(results_before_loss=10**6))
-    resumed = run_sweep(machine, variants, options, backend="ray", journal=journal, resume=True, progress=False)
+    resumed = run_sweep(
+        machine, variants, options, backend="ray", journal=journal, resume=True, progress=False
+    )
     assert resumed.resumed == 3
     fresh = run_sweep(machine, variants, options, progress=False)
     assert resumed.table() == fresh.table()

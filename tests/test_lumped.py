@@ -5,8 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from mechanism.dynamics.lumped import (Drive, MotorConstants, Segments, Signals, lagged_voltage,
-                              simulate, simulate_numpy)
+from mechanism.dynamics.lumped import (
+    Drive,
+    MotorConstants,
+    Segments,
+    Signals,
+    lagged_voltage,
+    simulate,
+    simulate_numpy,
+)
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.data.reference import thesis
 
@@ -22,14 +29,18 @@ def one_segment(n):
 def signals_for(voltage, angle=None):
     n = len(voltage)
     t = np.arange(n) * DT
-    return Signals(t, np.asarray(voltage, float), np.zeros(n) if angle is None else angle, np.zeros(n), DT, 8.0)
+    return Signals(
+        t, np.asarray(voltage, float), np.zeros(n) if angle is None else angle, np.zeros(n), DT, 8.0
+    )
 
 
 def thesis_drive(voltage, warm=False):
     ref = thesis()["identified_parameters"]
     s = signals_for(voltage)
     d = ref["viscous_warm_Nm_s_per_rad" if warm else "viscous_cold_Nm_s_per_rad"]
-    return Drive.constant(s, s.voltage_V, ref["total_inertia_kgm2"] * 64, d * 64, ref["kinetic_friction_arm_Nm"])
+    return Drive.constant(
+        s, s.voltage_V, ref["total_inertia_kgm2"] * 64, d * 64, ref["kinetic_friction_arm_Nm"]
+    )
 
 
 def test_steady_state_speeds_match_the_formula_and_thesis_table_2():
@@ -54,7 +65,9 @@ def test_step_response_time_constant_is_J_over_total_damping():
     c = motor.emf_damping_arm + drive.viscous_Nm_s[0]
     tau = drive.inertia_kgm2[0] / c
     t = np.arange(2000) * DT
-    np.testing.assert_allclose(w, motor.gain_arm * 12 / c * (1 - np.exp(-t / tau)), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        w, motor.gain_arm * 12 / c * (1 - np.exp(-t / tau)), rtol=1e-9, atol=1e-9
+    )
 
 
 def test_stick_below_breakaway_and_stop_at_zero_voltage():
@@ -81,13 +94,30 @@ def test_native_kernel_equals_numpy_fallback_with_every_term_and_a_belt():
     drive.static_excess_Nm += 0.05
     drive.quadratic_Nm_s2 += 1e-5 * np.cos(2 * angle)
     drive.inertia_kgm2 += 2e-5 * np.sin(2 * angle)
-    seg = Segments(np.array([0, 1000, 2500]), 1400, np.array([0, 100, 100]), np.array([1100, 1200, 1400]), np.array([True] * 3))
+    seg = Segments(
+        np.array([0, 1000, 2500]),
+        1400,
+        np.array([0, 100, 100]),
+        np.array([1100, 1200, 1400]),
+        np.array([True] * 3),
+    )
     w0 = np.array([0.0, 30.0, 5.0])
     motor = SAPPHIRE.motor
     native = simulate(drive, motor, seg, w0, DT)
-    np.testing.assert_allclose(native, simulate_numpy(drive, motor, seg, w0, DT), rtol=1e-10, atol=1e-10)
-    drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s, drive.motor_inertia_kgm2 = 40.0, 0.01, 5e-4
-    np.testing.assert_allclose(simulate(drive, motor, seg, w0, DT), simulate_numpy(drive, motor, seg, w0, DT), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        native, simulate_numpy(drive, motor, seg, w0, DT), rtol=1e-10, atol=1e-10
+    )
+    drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s, drive.motor_inertia_kgm2 = (
+        40.0,
+        0.01,
+        5e-4,
+    )
+    np.testing.assert_allclose(
+        simulate(drive, motor, seg, w0, DT),
+        simulate_numpy(drive, motor, seg, w0, DT),
+        rtol=1e-9,
+        atol=1e-9,
+    )
 
 
 def test_belt_rings_at_its_analytic_resonance():
@@ -155,5 +185,7 @@ def test_baseline_bounds_scale_with_the_described_machine():
     large = {p.name: p for p in LumpedBaseline(PRESS).parameters}
     k = 20 * 64 / 144
     for key in ("nominal", "lower", "upper"):
-        assert getattr(large["inertia_motor_side_kgm2"], key) == pytest.approx(k * getattr(small["inertia_motor_side_kgm2"], key))
+        assert getattr(large["inertia_motor_side_kgm2"], key) == pytest.approx(
+            k * getattr(small["inertia_motor_side_kgm2"], key)
+        )
     assert large["coulomb_arm_Nm"].upper == pytest.approx(6 * small["coulomb_arm_Nm"].upper)

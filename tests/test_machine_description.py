@@ -60,17 +60,32 @@ def reexport(tmp_path_factory):
     for name in sorted(names, key=len, reverse=True):
         text = text.replace(f'"{name}"', f'"{cad_name(name)}"')
     meshdir = re.search(r'meshdir="([^"]+)"', text).group(1)
-    text = text.replace(f'meshdir="{meshdir}"', f'meshdir="{(DEFAULT_MODEL.parent / meshdir).resolve()}"')
+    text = text.replace(
+        f'meshdir="{meshdir}"', f'meshdir="{(DEFAULT_MODEL.parent / meshdir).resolve()}"'
+    )
     shaft, motor, lower = cad_name("arm_shaft"), cad_name("motor"), cad_name("lower_shaft")
-    text = text.replace(f'<joint name="{shaft}"/>', f'<joint name="{shaft}" axis="0 0 -1" ref="{-SHAFT_ZERO_RAD}"/>')
+    text = text.replace(
+        f'<joint name="{shaft}"/>', f'<joint name="{shaft}" axis="0 0 -1" ref="{-SHAFT_ZERO_RAD}"/>'
+    )
     assert 'axis="0 0 -1" ref=' in text
-    text = re.sub(rf'(joint1="{re.escape(motor)}" joint2="{re.escape(shaft)}" polycoef="0) 8', r"\1 -8", text)
-    text = re.sub(rf'(joint1="{re.escape(shaft)}" joint2="{re.escape(lower)}" polycoef="0) 1', r"\1 -1", text)
+    text = re.sub(
+        rf'(joint1="{re.escape(motor)}" joint2="{re.escape(shaft)}" polycoef="0) 8', r"\1 -8", text
+    )
+    text = re.sub(
+        rf'(joint1="{re.escape(shaft)}" joint2="{re.escape(lower)}" polycoef="0) 1', r"\1 -1", text
+    )
     folder = tmp_path_factory.mktemp("reexport")
     (folder / "machine.xml").write_text(text)
     description = folder / "machine.toml"
-    description.write_text(CONTRACT.format(model="machine.xml", motor=motor, shaft=shaft, zero=cad_name("needle_tip"),
-                                           plate=cad_name("needle_plate")))
+    description.write_text(
+        CONTRACT.format(
+            model="machine.xml",
+            motor=motor,
+            shaft=shaft,
+            zero=cad_name("needle_tip"),
+            plate=cad_name("needle_plate"),
+        )
+    )
     return description
 
 
@@ -79,8 +94,15 @@ def shipped_contract(tmp_path_factory):
     """The shipped machine described with the contract keys only (same friction as above)."""
     folder = tmp_path_factory.mktemp("shipped")
     description = folder / "machine.toml"
-    description.write_text(CONTRACT.format(model=DEFAULT_MODEL, motor="motor", shaft="arm_shaft", zero="needle_tip",
-                                           plate="needle_plate"))
+    description.write_text(
+        CONTRACT.format(
+            model=DEFAULT_MODEL,
+            motor="motor",
+            shaft="arm_shaft",
+            zero="needle_tip",
+            plate="needle_plate",
+        )
+    )
     return description
 
 
@@ -88,11 +110,22 @@ def test_shipped_description_gives_the_thesis_drive():
     machine = mechanism.load_machine()
     reference = thesis()
     assert machine.frame.zero_rad == 0.0 and machine.frame.direction == 1.0
-    assert machine.motor_ratio == pytest.approx(reference["mechanism"]["motor_to_arm_ratio"], abs=1e-9)
-    assert machine.ratio("hook") == pytest.approx(reference["mechanism"]["lower_shaft_to_hook_ratio"], abs=1e-9)
+    assert machine.motor_ratio == pytest.approx(
+        reference["mechanism"]["motor_to_arm_ratio"], abs=1e-9
+    )
+    assert machine.ratio("hook") == pytest.approx(
+        reference["mechanism"]["lower_shaft_to_hook_ratio"], abs=1e-9
+    )
     motor = reference["main_motor"]
-    assert (machine.motor.resistance_ohm, machine.motor.torque_constant_Nm_A, machine.motor.back_emf_V_s_rad) == (
-        motor["resistance_ohm"], motor["torque_constant_Nm_per_A"], motor["back_emf_constant_V_s_per_rad"])
+    assert (
+        machine.motor.resistance_ohm,
+        machine.motor.torque_constant_Nm_A,
+        machine.motor.back_emf_V_s_rad,
+    ) == (
+        motor["resistance_ohm"],
+        motor["torque_constant_Nm_per_A"],
+        motor["back_emf_constant_V_s_per_rad"],
+    )
 
 
 def test_shipped_lumped_numbers_are_the_thesis_identification():
@@ -101,9 +134,11 @@ def test_shipped_lumped_numbers_are_the_thesis_identification():
 
     lumped = mechanism.load_machine().description.section("lumped")
     identified = thesis()["identified_parameters"]
-    assert lumped == {"inertia_motor_side_kgm2": identified["total_inertia_kgm2"],
-                      "coulomb_shaft_Nm": identified["kinetic_friction_arm_Nm"],
-                      "viscous_motor_side_Nm_s_per_rad": identified["viscous_cold_Nm_s_per_rad"]}
+    assert lumped == {
+        "inertia_motor_side_kgm2": identified["total_inertia_kgm2"],
+        "coulomb_shaft_Nm": identified["kinetic_friction_arm_Nm"],
+        "viscous_motor_side_Nm_s_per_rad": identified["viscous_cold_Nm_s_per_rad"],
+    }
     nominal = drive_nominal(None)
     n = thesis()["mechanism"]["motor_to_arm_ratio"]
     assert nominal.inertia_kgm2 == pytest.approx(identified["total_inertia_kgm2"] * n**2, rel=1e-12)
@@ -111,15 +146,19 @@ def test_shipped_lumped_numbers_are_the_thesis_identification():
 
 
 def test_shipped_steady_speed_measurements_are_the_thesis_table_2():
-    table = mechanism.read_table(mechanism.shipped_folder("measurements", "sapphire870") / "steady_speeds.csv",
-                                 required=["motor_voltage_V", "warm_s", "speed_rpm"])
+    table = mechanism.read_table(
+        mechanism.shipped_folder("measurements", "sapphire870") / "steady_speeds.csv",
+        required=["motor_voltage_V", "warm_s", "speed_rpm"],
+    )
     rows = thesis()["steady_state_speed_table_2"]["rows"]
     expected = [(r[1], w, r[4 + k]) for k, w in enumerate((0, 30, 120)) for r in rows]
     assert list(zip(table["motor_voltage_V"], table["warm_s"], table["speed_rpm"])) == expected
 
 
 @pytest.mark.slow
-def test_a_renamed_reexport_with_its_shaft_flipped_and_zeroed_elsewhere_gives_the_same_machine(reexport, shipped_contract):
+def test_a_renamed_reexport_with_its_shaft_flipped_and_zeroed_elsewhere_gives_the_same_machine(
+    reexport, shipped_contract
+):
     renamed, shipped = mechanism.load_machine(reexport), mechanism.load_machine(shipped_contract)
     assert renamed.frame.direction == -1.0
     assert renamed.frame.zero_rad == pytest.approx(-SHAFT_ZERO_RAD, abs=1e-9)
@@ -130,7 +169,9 @@ def test_a_renamed_reexport_with_its_shaft_flipped_and_zeroed_elsewhere_gives_th
     np.testing.assert_allclose(motion.needle_z_mm, reference.needle_z_mm, atol=1e-6)
     for voltage in (4.48, 12.49):
         ours = mechanism.simulate(renamed, voltage_V=voltage, duration_s=3.0).mean_speed_rpm
-        assert ours == pytest.approx(mechanism.simulate(shipped, voltage_V=voltage, duration_s=3.0).mean_speed_rpm, rel=1e-3)
+        assert ours == pytest.approx(
+            mechanism.simulate(shipped, voltage_V=voltage, duration_s=3.0).mean_speed_rpm, rel=1e-3
+        )
 
 
 @pytest.mark.slow
@@ -170,9 +211,13 @@ def test_supply_limit_follows_the_motor_equation_with_the_series_resistance():
 
     run = mechanism.simulate(limited, voltage_V=24.0, duration_s=4.0)
     assert run.mean_speed_rpm == pytest.approx(lumped_rpm(24.0, r + series), rel=0.01)
-    assert run.current_A[-500:].mean() == pytest.approx((coulomb / n + viscous * run.motor_velocity_rad_s[-500:].mean()) / kt, rel=0.02)
+    assert run.current_A[-500:].mean() == pytest.approx(
+        (coulomb / n + viscous * run.motor_velocity_rad_s[-500:].mean()) / kt, rel=0.02
+    )
     low = mechanism.simulate(limited, voltage_V=7.0, duration_s=3.0).mean_speed_rpm
-    assert low == pytest.approx(mechanism.simulate(machine, voltage_V=7.0, duration_s=3.0).mean_speed_rpm, rel=1e-6)
+    assert low == pytest.approx(
+        mechanism.simulate(machine, voltage_V=7.0, duration_s=3.0).mean_speed_rpm, rel=1e-6
+    )
     reduced = mechanism.simulate(limited, voltage_V=24.0, duration_s=4.0, reduced=True)
     assert reduced.mean_speed_rpm == pytest.approx(run.mean_speed_rpm, rel=0.005)
 
@@ -181,20 +226,52 @@ def _with_supply(path, volts, series):
     from dataclasses import replace
 
     description = read_description(path)
-    return replace(description, sections={**description.sections,
-                                          "supply": {"voltage_V": volts, "series_resistance_ohm": series}})
+    return replace(
+        description,
+        sections={
+            **description.sections,
+            "supply": {"voltage_V": volts, "series_resistance_ohm": series},
+        },
+    )
 
 
 BAD = [
-    ("missing key", lambda t: t.replace('back_emf_V_s_per_rad = 0.021\n', ""), "[motor] back_emf_V_s_per_rad: missing"),
-    ("unknown key", lambda t: t.replace("resistance_ohm = 1.1", "resistance_ohms = 1.1"), "did you mean resistance_ohm"),
-    ("negative resistance", lambda t: t.replace("resistance_ohm = 1.1", "resistance_ohm = -1.1"), "out of range"),
+    (
+        "missing key",
+        lambda t: t.replace("back_emf_V_s_per_rad = 0.021\n", ""),
+        "[motor] back_emf_V_s_per_rad: missing",
+    ),
+    (
+        "unknown key",
+        lambda t: t.replace("resistance_ohm = 1.1", "resistance_ohms = 1.1"),
+        "did you mean resistance_ohm",
+    ),
+    (
+        "negative resistance",
+        lambda t: t.replace("resistance_ohm = 1.1", "resistance_ohm = -1.1"),
+        "out of range",
+    ),
     ("nan", lambda t: t.replace("resistance_ohm = 1.1", "resistance_ohm = nan"), "finite"),
-    ("unknown joint", lambda t: t.replace('shaft_joint = "arm_shaft"', 'shaft_joint = "arm_shaf"'), "close matches: arm_shaft"),
-    ("unknown site", lambda t: t.replace('zero_site = "needle_tip"', 'zero_site = "needle_top"'), "no site 'needle_top'"),
-    ("motor joint that does not move", lambda t: t.replace('motor_joint = "motor"', 'motor_joint = "brake_lever"'),
-     "does not move"),
-    ("shaft without a zero", lambda t: t.replace('zero_site = "needle_tip"', 'zero_site = "hook_centre"'), "no zero"),
+    (
+        "unknown joint",
+        lambda t: t.replace('shaft_joint = "arm_shaft"', 'shaft_joint = "arm_shaf"'),
+        "close matches: arm_shaft",
+    ),
+    (
+        "unknown site",
+        lambda t: t.replace('zero_site = "needle_tip"', 'zero_site = "needle_top"'),
+        "no site 'needle_top'",
+    ),
+    (
+        "motor joint that does not move",
+        lambda t: t.replace('motor_joint = "motor"', 'motor_joint = "brake_lever"'),
+        "does not move",
+    ),
+    (
+        "shaft without a zero",
+        lambda t: t.replace('zero_site = "needle_tip"', 'zero_site = "hook_centre"'),
+        "no zero",
+    ),
     ("not TOML", lambda t: t.replace("[motor]", "[motor"), "not valid TOML"),
 ]
 
@@ -202,11 +279,15 @@ BAD = [
 @pytest.mark.parametrize("case", BAD, ids=[c[0] for c in BAD])
 def test_bad_descriptions_are_one_error_line_and_nothing_written(case, cli_here, tmp_path):
     _, edit, expected = case
-    text = TOY_MACHINE.read_text().replace('model = "toy_sewing_machine.xml"', f'model = "{TOY_MACHINE.with_suffix(".xml")}"')
+    text = TOY_MACHINE.read_text().replace(
+        'model = "toy_sewing_machine.xml"', f'model = "{TOY_MACHINE.with_suffix(".xml")}"'
+    )
     bad = tmp_path / "bad.toml"
     bad.write_text(edit(text))
     out = tmp_path / "run.csv"
-    line = cli_here("simulate", "--machine", bad, "--voltage", "5", "--duration", "0.1", "--csv", out).assert_bad_input()
+    line = cli_here(
+        "simulate", "--machine", bad, "--voltage", "5", "--duration", "0.1", "--csv", out
+    ).assert_bad_input()
     assert str(bad) in line
     if expected:
         assert expected in line
@@ -220,7 +301,9 @@ def test_docs_list_every_key_of_the_schema():
 
     docs = (Path(__file__).resolve().parent.parent / "docs" / "machine.md").read_text()
     marker = "tests/test_machine_description.py keeps it current -->\n\n"
-    assert docs.split(marker, 1)[1] == schema_markdown(), "regenerate the key tables of docs/machine.md from schema_markdown()"
+    assert docs.split(marker, 1)[1] == schema_markdown(), (
+        "regenerate the key tables of docs/machine.md from schema_markdown()"
+    )
 
 
 @pytest.mark.slow
@@ -229,9 +312,19 @@ def test_supply_limit_python_twin_matches_the_compiled_callback():
     from mechanism.physics.motor import python_supply_limit
 
     limited = mechanism.load_machine(_with_supply(TOY_MACHINE, 10.0, 0.8))
-    reference = mechanism.simulate(limited, voltage_V=12.0, duration_s=0.4)  # commanded above the supply: limited
+    reference = mechanism.simulate(
+        limited, voltage_V=12.0, duration_s=0.4
+    )  # commanded above the supply: limited
     velocities = velocities_with_passive(
-        limited, lambda m, d: (machine_module.python_friction(m, d), python_supply_limit(m, d)), lambda t: 12.0, 0.4)
+        limited,
+        lambda m, d: (machine_module.python_friction(m, d), python_supply_limit(m, d)),
+        lambda t: 12.0,
+        0.4,
+    )
     np.testing.assert_allclose(velocities, reference.arm_velocity_rad_s, atol=1e-6)
-    unlimited = mechanism.simulate(mechanism.load_machine(TOY_MACHINE), voltage_V=12.0, duration_s=0.4)
-    assert reference.arm_velocity_rad_s[-1] < 0.95 * unlimited.arm_velocity_rad_s[-1]  # the limit acted
+    unlimited = mechanism.simulate(
+        mechanism.load_machine(TOY_MACHINE), voltage_V=12.0, duration_s=0.4
+    )
+    assert (
+        reference.arm_velocity_rad_s[-1] < 0.95 * unlimited.arm_velocity_rad_s[-1]
+    )  # the limit acted

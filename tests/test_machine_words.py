@@ -28,8 +28,15 @@ def test_report_traces_carry_the_machines_ratio_and_zero():
     from mechanism.sysid.report import Traces, _plots
 
     t = np.linspace(0, 1, 2000)
-    traces = Traces(t, 10 * t, np.full_like(t, 12.0), np.full_like(t, 10.0), {"model": np.full_like(t, 10.0)},
-                    ratio=20.0, zero_meaning="RAM-1 at its top")
+    traces = Traces(
+        t,
+        10 * t,
+        np.full_like(t, 12.0),
+        np.full_like(t, 10.0),
+        {"model": np.full_like(t, 10.0)},
+        ratio=20.0,
+        zero_meaning="RAM-1 at its top",
+    )
     import matplotlib
 
     matplotlib.use("Agg")
@@ -50,7 +57,9 @@ def test_report_traces_carry_the_machines_ratio_and_zero():
         import warnings
 
         with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings():
-            warnings.simplefilter("error")  # a residual of zero (an exact fit) plots without matplotlib's complaints
+            warnings.simplefilter(
+                "error"
+            )  # a residual of zero (an exact fit) plots without matplotlib's complaints
             _plots(traces, Path(folder))
     finally:
         plt.Axes.set = original

@@ -33,8 +33,9 @@ def test_winding_inductance_gives_the_electrical_time_constant():
     for _ in range(int(round(tau / model.opt.timestep))):
         mujoco.mj_step(model, data)
     # i(t) = V/R (1 - exp(-t/tau)): 63.2 % of the stall current after one time constant
-    assert motor_current(model, data, thesis_motor(inductance_H=inductance), "motor") == pytest.approx(
-        5.0 / R * (1 - np.exp(-1)), rel=0.01)
+    assert motor_current(
+        model, data, thesis_motor(inductance_H=inductance), "motor"
+    ) == pytest.approx(5.0 / R * (1 - np.exp(-1)), rel=0.01)
 
 
 @pytest.mark.parametrize("angle", [0.0, 0.05, 0.2, 1.0])
@@ -57,4 +58,6 @@ def test_winding_heats_to_rth_times_copper_loss_and_the_current_falls():
     # steady state: dT = Rth * V^2 / R(T) with R(T) = R (1 + alpha dT)
     rise = brentq(lambda t: t - thermal.resistance_K_W * 1.5**2 / (R * (1 + alpha * t)), 0.0, 500.0)
     assert data.act[0] == pytest.approx(rise, rel=0.01)
-    assert motor_current(model, data, motor, "motor") == pytest.approx(1.5 / (R * (1 + alpha * rise)), rel=0.01)
+    assert motor_current(model, data, motor, "motor") == pytest.approx(
+        1.5 / (R * (1 + alpha * rise)), rel=0.01
+    )

@@ -18,7 +18,8 @@ OFFSET_DEG = 70.0
 
 def _description(folder, model, name):
     path = folder / f"{name}.toml"
-    path.write_text(textwrap.dedent(f"""\
+    path.write_text(
+        textwrap.dedent(f"""\
         [machine]
         name = "{name}"
         model = "{model}"
@@ -37,7 +38,8 @@ def _description(folder, model, name):
         [tool]
         site = "RAM-1"
         plate = "DIE_PLATE-1"
-        """))
+        """)
+    )
     return path
 
 
@@ -57,7 +59,10 @@ def presses(tmp_path_factory):
 def _rows(path):
     lines = [line for line in path.read_text().splitlines() if not line.startswith("#")]
     header = lines[0].split(",")
-    return {name: np.array([float(line.split(",")[i]) for line in lines[1:]]) for i, name in enumerate(header)}
+    return {
+        name: np.array([float(line.split(",")[i]) for line in lines[1:]])
+        for i, name in enumerate(header)
+    }
 
 
 def _answers(description, folder, cli):
@@ -66,22 +71,53 @@ def _answers(description, folder, cli):
     answers = {}
     needle = cli("needle", "--machine", description, "--csv", folder / f"{name}_needle.csv")
     assert needle.returncode == 0, needle.stderr
-    line = next(line for line in needle.stdout.splitlines() if line.startswith("bottom dead centre"))
+    line = next(
+        line for line in needle.stdout.splitlines() if line.startswith("bottom dead centre")
+    )
     answers["needle"] = float(line.split("shaft angle ")[1].split(" deg")[0])
     top = next(line for line in needle.stdout.splitlines() if line.startswith("top dead centre"))
     answers["needle top"] = float(top.split("shaft angle ")[1].split(" deg")[0])
-    probe = cli("probe", "--machine", description, "--part", "RAM-1", "--quantity", "position", "--cycle",
-                "--resolution", "0.25", "--csv", folder / f"{name}_probe.csv")
+    probe = cli(
+        "probe",
+        "--machine",
+        description,
+        "--part",
+        "RAM-1",
+        "--quantity",
+        "position",
+        "--cycle",
+        "--resolution",
+        "0.25",
+        "--csv",
+        folder / f"{name}_probe.csv",
+    )
     assert probe.returncode == 0, probe.stderr
     rows = _rows(folder / f"{name}_probe.csv")
     z = rows["RAM-1_z_mm"]
     answers["probe"] = math.degrees(rows["shaft_angle_rad"][int(np.argmin(z))])
     answers["probe top"] = math.degrees(rows["shaft_angle_rad"][int(np.argmax(z))])
-    clearance = cli("clearance", "--machine", description, "--pairs", "RAM-1:DIE_PLATE-1", "--csv", folder / f"{name}_c.csv")
+    clearance = cli(
+        "clearance",
+        "--machine",
+        description,
+        "--pairs",
+        "RAM-1:DIE_PLATE-1",
+        "--csv",
+        folder / f"{name}_c.csv",
+    )
     assert clearance.returncode == 0, clearance.stderr
     answers["clearance"] = float(clearance.stdout.split(" at ")[1].split(" deg")[0])
-    simulate = cli("simulate", "--machine", description, "--voltage", "12", "--duration", "0.01",
-                   "--csv", folder / f"{name}_run.csv")
+    simulate = cli(
+        "simulate",
+        "--machine",
+        description,
+        "--voltage",
+        "12",
+        "--duration",
+        "0.01",
+        "--csv",
+        folder / f"{name}_run.csv",
+    )
     assert simulate.returncode == 0, simulate.stderr
     answers["simulate start"] = math.degrees(_rows(folder / f"{name}_run.csv")["arm_angle_rad"][0])
     return answers

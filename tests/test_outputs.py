@@ -21,7 +21,9 @@ REPO = Path(__file__).resolve().parent.parent
 
 def tree(folder: Path) -> dict[str, str]:
     """Every file under ``folder`` (hidden ones too) with its text."""
-    return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 def hidden(folder: Path) -> list[str]:
@@ -50,8 +52,12 @@ def test_a_run_publishes_all_its_outputs_together(tmp_path):
         assert not (tmp_path / "table.csv").exists(), "nothing is published before the run ends"
     assert (tmp_path / "table.csv").read_text() == "new"
     write_run(tmp_path, "one")
-    assert tree(tmp_path) == {"table.csv": "table one\n", "plot.png": "plot one", "report/index.html": "report one",
-                              "report/sub/a.txt": "one"}
+    assert tree(tmp_path) == {
+        "table.csv": "table one\n",
+        "plot.png": "plot one",
+        "report/index.html": "report one",
+        "report/sub/a.txt": "one",
+    }
 
 
 def test_a_failed_run_changes_nothing_and_leaves_no_temporary(tmp_path):
@@ -101,29 +107,38 @@ def test_a_kept_folder_update_never_writes_through_to_the_old_files(tmp_path):
     assert os.stat(folder / "mesh.stl").st_ino != old_inode
 
 
-@pytest.mark.parametrize("files, folders, message", [
-    ([("--csv", "in.csv")], [], "would overwrite the input"),
-    ([], [("--report", "data")], "would overwrite the input"),
-    ([("--csv", "a.csv"), ("--json", "a.csv")], [], "also the output of --csv"),
-    ([("--csv", "data")], [], "is a folder"),
-    ([("--csv", "plain/x.csv")], [], "is a file, not a folder"),
-    ([("--csv", "r/x.csv")], [("--report", "r")], "lies inside it"),
-])
-def test_outputs_are_checked_against_inputs_and_each_other_before_work(tmp_path, monkeypatch, files, folders, message):
+@pytest.mark.parametrize(
+    "files, folders, message",
+    [
+        ([("--csv", "in.csv")], [], "would overwrite the input"),
+        ([], [("--report", "data")], "would overwrite the input"),
+        ([("--csv", "a.csv"), ("--json", "a.csv")], [], "also the output of --csv"),
+        ([("--csv", "data")], [], "is a folder"),
+        ([("--csv", "plain/x.csv")], [], "is a file, not a folder"),
+        ([("--csv", "r/x.csv")], [("--report", "r")], "lies inside it"),
+    ],
+)
+def test_outputs_are_checked_against_inputs_and_each_other_before_work(
+    tmp_path, monkeypatch, files, folders, message
+):
     monkeypatch.chdir(tmp_path)
     Path("in.csv").write_text("x")
     Path("data").mkdir()
     Path("data/rec.csv").write_text("x")
     Path("plain").write_text("x")
     with pytest.raises(UserError, match=message):
-        check_outputs(inputs=[("rec", "in.csv"), ("rec", "data/rec.csv")], files=files, folders=folders)
+        check_outputs(
+            inputs=[("rec", "in.csv"), ("rec", "data/rec.csv")], files=files, folders=folders
+        )
 
 
 def test_a_link_to_an_input_is_the_input(tmp_path):
     (tmp_path / "in.csv").write_text("x")
     (tmp_path / "link.csv").symlink_to(tmp_path / "in.csv")
     with pytest.raises(UserError, match="would overwrite the input"):
-        check_outputs(inputs=[("rec", tmp_path / "in.csv")], files=[("--csv", tmp_path / "link.csv")])
+        check_outputs(
+            inputs=[("rec", tmp_path / "in.csv")], files=[("--csv", tmp_path / "link.csv")]
+        )
 
 
 # -- killed while publishing ---------------------------------------------------------------------
@@ -160,8 +175,12 @@ def test_a_kill_at_any_instant_of_publishing_leaves_the_old_or_the_new_output(tm
     for kill_at in range(8):
         target = tmp_path / f"{mode}{kill_at}"
         old_state(target)
-        run = subprocess.run([sys.executable, "-c", KILLER, str(kill_at), mode, str(target)], capture_output=True,
-                             text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+        run = subprocess.run(
+            [sys.executable, "-c", KILLER, str(kill_at), mode, str(target)],
+            capture_output=True,
+            text=True,
+            env={**os.environ, "PYTHONPATH": str(REPO)},
+        )
         killed = run.returncode != 0
         outputs.clean_leftovers(target / "folder")  # what the next run does first
         outputs.clean_leftovers(target / "file.txt")
@@ -173,7 +192,9 @@ def test_a_kill_at_any_instant_of_publishing_leaves_the_old_or_the_new_output(tm
         if not killed:
             assert folder == new and (target / "file.txt").read_text() == "new file"
             break
-    assert (False, True) in seen and (True, True) in seen, "kills before and after the folder swap were both tried"
+    assert (False, True) in seen and (True, True) in seen, (
+        "kills before and after the folder swap were both tried"
+    )
 
 
 def test_files_written_inside_a_folder_being_built_can_be_read_back_at_once(tmp_path):

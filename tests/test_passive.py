@@ -38,9 +38,12 @@ ARM_MJCF = """\
 def _arm(folder, extra="", bob_deg=0.0):
     """``bob_deg``: the pendulum's bob placed that far about the swing axis (its pose at swing = 0)."""
     angle = math.radians(bob_deg)
-    (folder / "arm.xml").write_text(ARM_MJCF.replace("{bob}", f"{0.1 * math.sin(angle):.9g} 0 {-0.1 * math.cos(angle):.9g}"))
+    (folder / "arm.xml").write_text(
+        ARM_MJCF.replace("{bob}", f"{0.1 * math.sin(angle):.9g} 0 {-0.1 * math.cos(angle):.9g}")
+    )
     path = folder / "arm.toml"
-    path.write_text(textwrap.dedent("""\
+    path.write_text(
+        textwrap.dedent("""\
         [machine]
         name = "arm"
         model = "arm.xml"
@@ -56,7 +59,9 @@ def _arm(folder, extra="", bob_deg=0.0):
         [limits."shoulder"]
         lower_deg = 0.0
         upper_deg = 30.0
-        """) + textwrap.dedent(extra))
+        """)
+        + textwrap.dedent(extra)
+    )
     return path
 
 
@@ -88,7 +93,9 @@ def test_a_limited_or_damped_passive_joint_is_not_warned_about(tmp_path):
         machine = mechanism.load_machine(_arm(tmp_path, extra))
     assert not [w for w in caught if "passive joint" in str(w.message)]
     roll = machine.model.joint("roll").id
-    assert machine.model.jnt_limited[roll] and machine.model.jnt_range[roll] == pytest.approx([-0.09, 0.09])
+    assert machine.model.jnt_limited[roll] and machine.model.jnt_range[roll] == pytest.approx(
+        [-0.09, 0.09]
+    )
 
 
 @pytest.mark.slow
@@ -113,12 +120,16 @@ def test_a_held_ball_stays_and_the_pendulum_swings_at_its_period(tmp_path):
         lower_mm = -90.0
         upper_mm = 90.0
         """
-    machine = mechanism.load_machine(_arm(tmp_path, extra, bob_deg=27.0))  # 3 deg off hanging on the arm tilted 30 deg
+    machine = mechanism.load_machine(
+        _arm(tmp_path, extra, bob_deg=27.0)
+    )  # 3 deg off hanging on the arm tilted 30 deg
     swing = machine.model.joint("swing")
     result = simulate(0.0, 2.0, machine=machine, start_angle_rad=math.radians(30.0))
     assert np.degrees(result.arm_angle_rad) == pytest.approx(30.0, abs=1.0)  # held by its stop
     angle = result.state[:, 1 + swing.qposadr[0]] + math.radians(3.0)  # 0 where it hangs
-    assert np.max(np.abs(angle)) < math.radians(6.0)  # small oscillations (the ball's landing on its stop adds a little)
+    assert np.max(np.abs(angle)) < math.radians(
+        6.0
+    )  # small oscillations (the ball's landing on its stop adds a little)
     crossings = result.time_s[1:][(angle[:-1] < 0) & (angle[1:] >= 0)]
     crossings = crossings[crossings > 0.5]
     period = float(np.mean(np.diff(crossings)))
@@ -126,7 +137,9 @@ def test_a_held_ball_stays_and_the_pendulum_swings_at_its_period(tmp_path):
     expected = 2 * math.pi * math.sqrt((length**2 + 0.4 * radius**2) / (9.81 * length))
     assert period == pytest.approx(expected, rel=0.01)
     ball = machine.model.joint("roll").qposadr[0]
-    assert np.all(np.abs(result.state[:, 1 + ball]) <= 0.09 + 1e-3)  # the ball stays between its stops
+    assert np.all(
+        np.abs(result.state[:, 1 + ball]) <= 0.09 + 1e-3
+    )  # the ball stays between its stops
 
 
 def test_the_runaway_guard_names_an_overspeeding_motor():

@@ -28,7 +28,11 @@ MODEL = ASSETS / "mjcf" / "press.xml"
 INCH, POUND = 0.0254, 0.45359237
 NS = "{urn:mathworks:SimscapeMultibody:import}"
 
-MOTOR, SHAFT, SLIDE = "MOTOR_HOUSING-1--MOTOR_ROTOR-1", "BASE_FRAME-1--CRANKSHAFT-1", "BASE_FRAME-1--RAM-1"
+MOTOR, SHAFT, SLIDE = (
+    "MOTOR_HOUSING-1--MOTOR_ROTOR-1",
+    "BASE_FRAME-1--CRANKSHAFT-1",
+    "BASE_FRAME-1--RAM-1",
+)
 TIP = "RAM-1"
 
 
@@ -57,7 +61,9 @@ def tip_height(theta):
 
 def tip_slope(theta):
     """dz/dθ of tip_height."""
-    return -R * np.sin(theta) + R**2 * np.sin(theta) * np.cos(theta) / np.sqrt(L**2 - (R * np.sin(theta)) ** 2)
+    return -R * np.sin(theta) + R**2 * np.sin(theta) * np.cos(theta) / np.sqrt(
+        L**2 - (R * np.sin(theta)) ** 2
+    )
 
 
 def export_parts() -> dict[str, dict]:
@@ -71,10 +77,15 @@ def export_parts() -> dict[str, dict]:
         ixx, iyy, izz, iyz, izx, ixy = (float(v) for v in props.find(f"{NS}Inertia").text.split())
         entities[part.get("uid")] = {
             "mass": float(props.find(f"{NS}Mass").text) * POUND,
-            "com": np.array([float(v) for v in props.find(f"{NS}CenterOfMass").text.split()]) * INCH,
-            "inertia": np.array([[ixx, ixy, izx], [ixy, iyy, iyz], [izx, iyz, izz]]) * POUND * INCH**2,
+            "com": np.array([float(v) for v in props.find(f"{NS}CenterOfMass").text.split()])
+            * INCH,
+            "inertia": np.array([[ixx, ixy, izx], [ixy, iyy, iyz], [izx, iyz, izz]])
+            * POUND
+            * INCH**2,
         }
-    return {inst.get("name"): entities[inst.get("entityUid")] for inst in root.iter(f"{NS}Instance")}
+    return {
+        inst.get("name"): entities[inst.get("entityUid")] for inst in root.iter(f"{NS}Instance")
+    }
 
 
 @pytest.fixture(scope="module")
@@ -89,20 +100,36 @@ def tables(model):
 
 # --------------------------------------------------------------------------- the export
 
+
 @pytest.mark.slow
 def test_regenerating_the_export_and_the_mjcf_gives_the_committed_bytes(tmp_path):
-    proc = subprocess.run([sys.executable, str(GENERATOR), "-q", "-o", str(tmp_path / "cad")],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(GENERATOR), "-q", "-o", str(tmp_path / "cad")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
-    assert sorted(p.name for p in (tmp_path / "cad").iterdir()) == sorted(p.name for p in EXPORT.iterdir())
+    assert sorted(p.name for p in (tmp_path / "cad").iterdir()) == sorted(
+        p.name for p in EXPORT.iterdir()
+    )
     for path in EXPORT.iterdir():
         assert (tmp_path / "cad" / path.name).read_bytes() == path.read_bytes(), path.name
-    convert(tmp_path / "cad" / "press.xml", tmp_path / "mjcf", name="press", mesh_dir=tmp_path / "meshes" / "press")
+    convert(
+        tmp_path / "cad" / "press.xml",
+        tmp_path / "mjcf",
+        name="press",
+        mesh_dir=tmp_path / "meshes" / "press",
+    )
     assert (tmp_path / "mjcf" / "press.xml").read_bytes() == MODEL.read_bytes()
     meshes = ASSETS / "meshes" / "press"
-    assert sorted(p.name for p in (tmp_path / "meshes" / "press").iterdir()) == sorted(p.name for p in meshes.iterdir())
+    assert sorted(p.name for p in (tmp_path / "meshes" / "press").iterdir()) == sorted(
+        p.name for p in meshes.iterdir()
+    )
     for path in meshes.iterdir():
-        assert (tmp_path / "meshes" / "press" / path.name).read_bytes() == path.read_bytes(), path.name
+        assert (tmp_path / "meshes" / "press" / path.name).read_bytes() == path.read_bytes(), (
+            path.name
+        )
 
 
 @pytest.mark.slow
@@ -112,10 +139,18 @@ def test_generator_rejects_a_bad_parameter_file_with_one_line(tmp_path):
     path = tmp_path / "bad.params.json"
     path.write_text(json.dumps(bad))
     out = tmp_path / "export"
-    proc = subprocess.run([sys.executable, str(GENERATOR), "--params", str(path), "-o", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(GENERATOR), "--params", str(path), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert proc.stderr.startswith("error:") and len(proc.stderr.strip().splitlines()) == 1 and "rod.length" in proc.stderr
+    assert (
+        proc.stderr.startswith("error:")
+        and len(proc.stderr.strip().splitlines()) == 1
+        and "rod.length" in proc.stderr
+    )
     assert not out.exists()
 
 
@@ -133,30 +168,52 @@ def test_export_is_second_generation_in_inches_with_mates_and_a_worm_gear():
 def test_export_masses_are_the_solids_times_the_parameter_densities():
     import trimesh
 
-    materials = {"BASE_FRAME": "cast_iron", "DIE_PLATE": "steel", "MOTOR_HOUSING": "aluminium", "MOTOR_ROTOR": "steel",
-                 "CRANKSHAFT": "steel", "WORM_WHEEL": "bronze", "CONNECTING_ROD": "steel", "RAM": "steel"}
+    materials = {
+        "BASE_FRAME": "cast_iron",
+        "DIE_PLATE": "steel",
+        "MOTOR_HOUSING": "aluminium",
+        "MOTOR_ROTOR": "steel",
+        "CRANKSHAFT": "steel",
+        "WORM_WHEEL": "bronze",
+        "CONNECTING_ROD": "steel",
+        "RAM": "steel",
+    }
     parts = export_parts()
     assert sorted(parts) == sorted(f"{n}-1" for n in materials)
     for name, material in materials.items():
         mesh = trimesh.load(EXPORT / f"{name}.STL")
         assert mesh.is_watertight
         volume_m3 = mesh.volume * INCH**3  # the STL is in the export's unit, inches
-        assert parts[f"{name}-1"]["mass"] == pytest.approx(volume_m3 * param(f"materials.{material}"), rel=1e-6), name
+        assert parts[f"{name}-1"]["mass"] == pytest.approx(
+            volume_m3 * param(f"materials.{material}"), rel=1e-6
+        ), name
         assert parts[f"{name}-1"]["com"] == pytest.approx(mesh.center_mass * INCH, abs=1e-8), name
 
 
 # --------------------------------------------------------------------------- the MJCF
 
+
 def test_mates_become_three_hinges_a_slide_one_loop_and_the_worm_coupling(model):
     kinds = {model.joint(j).name: int(model.jnt_type[j]) for j in range(model.njnt)}
     hinge, slide = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
-    assert kinds == {MOTOR: hinge, SHAFT: hinge, "CRANKSHAFT-1--CONNECTING_ROD-1": hinge, SLIDE: slide}
+    assert kinds == {
+        MOTOR: hinge,
+        SHAFT: hinge,
+        "CRANKSHAFT-1--CONNECTING_ROD-1": hinge,
+        SLIDE: slide,
+    }
     equalities = {model.equality(e).name: int(model.eq_type[e]) for e in range(model.neq)}
     connect, joint = int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_JOINT)
-    assert equalities == {"loop:CONNECTING_ROD-1--RAM-1": connect, "loop:CONNECTING_ROD-1--RAM-1:2": connect,
-                          "coupling:WormGear1": joint}
+    assert equalities == {
+        "loop:CONNECTING_ROD-1--RAM-1": connect,
+        "loop:CONNECTING_ROD-1--RAM-1:2": connect,
+        "coupling:WormGear1": joint,
+    }
     coupling = model.equality("coupling:WormGear1")
-    assert model.joint(coupling.obj1id[0]).name == MOTOR and model.joint(coupling.obj2id[0]).name == SHAFT
+    assert (
+        model.joint(coupling.obj1id[0]).name == MOTOR
+        and model.joint(coupling.obj2id[0]).name == SHAFT
+    )
     assert coupling.data[:5] == pytest.approx([0.0, RATIO, 0, 0, 0])
     # the ram's part frame is its tip: the part site sits there at the assembly pose (TDC)
     data = mujoco.MjData(model)
@@ -197,8 +254,11 @@ def hand_inertia(theta: np.ndarray) -> np.ndarray:
     """J(θ) at the crank: rotor × ratio², crankshaft and wheel, the rod (translation of its centre
     of mass and rotation about the pin axis) and the ram, from the slider-crank's closed form."""
     parts = export_parts()
-    rotating = RATIO**2 * axial_inertia(parts["MOTOR_ROTOR-1"]) + axial_inertia(parts["CRANKSHAFT-1"]) \
+    rotating = (
+        RATIO**2 * axial_inertia(parts["MOTOR_ROTOR-1"])
+        + axial_inertia(parts["CRANKSHAFT-1"])
         + axial_inertia(parts["WORM_WHEEL-1"])
+    )
     rod, ram = parts["CONNECTING_ROD-1"], parts["RAM-1"]
 
     def rod_pose(t):
@@ -231,7 +291,9 @@ def test_gravity_torque_is_the_ram_and_rod_weight_through_the_linkage(tables):
     """G(θ) = g (m_ram dz/dθ + m_rod dz_rod/dθ) + crank unbalance; its mean over a turn is zero."""
     assert abs(float(tables.gravity_torque_Nm.mean())) < 1e-9
     ram = export_parts()["RAM-1"]["mass"]
-    assert np.max(np.abs(tables.gravity_torque_Nm)) > 9.81 * ram * R  # the rod and the crank pin add to the ram
+    assert (
+        np.max(np.abs(tables.gravity_torque_Nm)) > 9.81 * ram * R
+    )  # the rod and the crank pin add to the ram
 
 
 def exact_meshes(model) -> dict[str, object]:
@@ -242,8 +304,8 @@ def exact_meshes(model) -> dict[str, object]:
     for g in range(model.ngeom):
         if model.geom_group[g] == 3 and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
             mesh = model.geom_dataid[g]
-            vertices = model.mesh_vert[model.mesh_vertadr[mesh]:][:model.mesh_vertnum[mesh]]
-            faces = model.mesh_face[model.mesh_faceadr[mesh]:][:model.mesh_facenum[mesh]]
+            vertices = model.mesh_vert[model.mesh_vertadr[mesh] :][: model.mesh_vertnum[mesh]]
+            faces = model.mesh_face[model.mesh_faceadr[mesh] :][: model.mesh_facenum[mesh]]
             meshes[model.geom(g).name] = trimesh.Trimesh(vertices, faces, process=False)
     return meshes
 
@@ -269,6 +331,9 @@ def test_no_two_parts_interpenetrate_over_a_revolution(model):
             placed = np.eye(4)
             placed[:3, :3], placed[:3, 3] = data.geom(name).xmat.reshape(3, 3), data.geom(name).xpos
             scene.add_object(name, mesh, transform=placed)
-        clashes |= {tuple(sorted(pair)) for pair in scene.in_collision_internal(return_names=True)[1]
-                    if body[pair[0]] != body[pair[1]]}
+        clashes |= {
+            tuple(sorted(pair))
+            for pair in scene.in_collision_internal(return_names=True)[1]
+            if body[pair[0]] != body[pair[1]]
+        }
     assert not clashes

@@ -29,8 +29,14 @@ def test_description_carries_the_parameter_files_datasheet():
     for key in ("resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad"):
         assert motor[key] == DATASHEET[key], key
     crank, rotor = friction[text["drive"]["shaft_joint"]], friction[text["drive"]["motor_joint"]]
-    assert (crank["coulomb_Nm"], crank["viscous_Nm_s_per_rad"]) == (DATASHEET["crank_coulomb_Nm"], DATASHEET["crank_viscous_Nm_s_per_rad"])
-    assert (rotor["coulomb_Nm"], rotor["viscous_Nm_s_per_rad"]) == (DATASHEET["motor_coulomb_Nm"], DATASHEET["motor_viscous_Nm_s_per_rad"])
+    assert (crank["coulomb_Nm"], crank["viscous_Nm_s_per_rad"]) == (
+        DATASHEET["crank_coulomb_Nm"],
+        DATASHEET["crank_viscous_Nm_s_per_rad"],
+    )
+    assert (rotor["coulomb_Nm"], rotor["viscous_Nm_s_per_rad"]) == (
+        DATASHEET["motor_coulomb_Nm"],
+        DATASHEET["motor_viscous_Nm_s_per_rad"],
+    )
 
 
 @pytest.fixture(scope="module")
@@ -40,11 +46,17 @@ def press():
 
 def test_the_press_is_shipped_and_its_roles_resolve(press):
     assert "press" in mechanism.shipped_machines()
-    assert press.frame.zero_rad == pytest.approx(0.0, abs=1e-9)  # assembly pose = ram at top dead centre
-    assert press.frame.direction == 1.0  # a positive motor turn is a positive crank turn (right-hand worm)
+    assert press.frame.zero_rad == pytest.approx(
+        0.0, abs=1e-9
+    )  # assembly pose = ram at top dead centre
+    assert (
+        press.frame.direction == 1.0
+    )  # a positive motor turn is a positive crank turn (right-hand worm)
     assert press.motor_ratio == pytest.approx(RATIO, rel=1e-9)
     # the ram tip over the die plate: 1.625 in at the top, 0.125 in at the bottom
-    assert press.tool_height_mm_at(np.array([0.0, np.pi])) == pytest.approx([41.275, 3.175], abs=1e-6)
+    assert press.tool_height_mm_at(np.array([0.0, np.pi])) == pytest.approx(
+        [41.275, 3.175], abs=1e-6
+    )
 
 
 def hand_speed(voltage: float) -> float:
@@ -72,5 +84,7 @@ def test_steady_speed_is_the_motor_equation_with_the_described_friction(press, v
     motor = np.asarray(columns["motor_velocity_rad_s"])[time > 0.5]
     assert motor.mean() == pytest.approx(RATIO * steady.mean(), rel=1e-3)
     current = np.asarray(columns["current_A"])[time > 0.5]
-    expected = (voltage - DATASHEET["back_emf_V_s_per_rad"] * motor.mean()) / DATASHEET["resistance_ohm"]
+    expected = (voltage - DATASHEET["back_emf_V_s_per_rad"] * motor.mean()) / DATASHEET[
+        "resistance_ohm"
+    ]
     assert current.mean() == pytest.approx(expected, rel=1e-3)

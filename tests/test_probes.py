@@ -17,23 +17,33 @@ OMEGA = RPM * 2 * np.pi / 60
 def needle_cycle():
     probes = [Probe("needle_tip", q) for q in ("position", "velocity", "acceleration")]
     probes.append(Probe("needle_bar", "position", point_mm=(0, 0, -M.TIP_BELOW_BAR * 1e3)))
-    return probe_cycle(M.needle_and_plate(), probes, speed_rpm=RPM, resolution_deg=2.0, driver="arm_shaft").columns
+    return probe_cycle(
+        M.needle_and_plate(), probes, speed_rpm=RPM, resolution_deg=2.0, driver="arm_shaft"
+    ).columns
 
 
 def test_needle_tip_position_velocity_acceleration(needle_cycle):
     theta = needle_cycle["arm_shaft_angle_rad"]
-    np.testing.assert_allclose(needle_cycle["needle_tip_z_mm"], M.needle_tip_z(theta) * 1e3, atol=0.01)
+    np.testing.assert_allclose(
+        needle_cycle["needle_tip_z_mm"], M.needle_tip_z(theta) * 1e3, atol=0.01
+    )
     np.testing.assert_allclose(needle_cycle["needle_tip_x_mm"], M.OFFSET * 1e3, atol=1e-6)
-    np.testing.assert_allclose(needle_cycle["needle_tip_vz_m_s"], OMEGA * M.needle_tip_dz(theta), atol=1e-6)
+    np.testing.assert_allclose(
+        needle_cycle["needle_tip_vz_m_s"], OMEGA * M.needle_tip_dz(theta), atol=1e-6
+    )
     acceleration = OMEGA**2 * M.needle_tip_d2z(theta)
-    np.testing.assert_allclose(needle_cycle["needle_tip_az_m_s2"], acceleration, atol=1e-5 * np.abs(acceleration).max())
+    np.testing.assert_allclose(
+        needle_cycle["needle_tip_az_m_s2"], acceleration, atol=1e-5 * np.abs(acceleration).max()
+    )
     np.testing.assert_allclose(needle_cycle["time_s"], theta / OMEGA)
 
 
 def test_point_in_the_part_frame(needle_cycle):
     """The bar's frame moved down by the tip offset is the needle tip."""
     label = Probe("needle_bar", "position", point_mm=(0, 0, -M.TIP_BELOW_BAR * 1e3)).label
-    np.testing.assert_allclose(needle_cycle[f"{label}_z_mm"], needle_cycle["needle_tip_z_mm"], atol=1e-9)
+    np.testing.assert_allclose(
+        needle_cycle[f"{label}_z_mm"], needle_cycle["needle_tip_z_mm"], atol=1e-9
+    )
 
 
 def _static_loads(theta, rod_mass=1e-7):
@@ -45,7 +55,9 @@ def _static_loads(theta, rod_mass=1e-7):
         Probe("rod_end", "force"),  # loop joint (two connects) between rod and needle bar
         Probe("arm_shaft", "torque"),
     ]
-    columns = probe_cycle(spec, probes, speed_rpm=0.0, resolution_deg=theta / 3, driver="arm_shaft").columns
+    columns = probe_cycle(
+        spec, probes, speed_rpm=0.0, resolution_deg=theta / 3, driver="arm_shaft"
+    ).columns
     row = {name: values[3] for name, values in columns.items()}  # the sample at theta
     model = spec.compile()
     weight = -model.opt.gravity[2] * model.body("needle_bar").subtreemass
@@ -84,7 +96,9 @@ def test_drive_torque_is_the_rate_of_change_of_energy():
     states = kinematic_cycle(model, angles, OMEGA, "arm_shaft", data)
     torque, energy = [], []
     for i in range(len(angles)):
-        torque.append(set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i], "arm_shaft"))
+        torque.append(
+            set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i], "arm_shaft")
+        )
         mujoco.mj_energyPos(model, data)
         mujoco.mj_energyVel(model, data)
         energy.append(data.energy.sum())
@@ -106,7 +120,9 @@ def test_bad_probe_names_and_quantities():
         Probe("needle_tip", "position", point_mm=(1, 2))
     with pytest.raises(UserError, match="X,Y,Z"):
         parse_probes(["needle_tip"], ["position"], ["1,2"])
-    with pytest.raises(UserError, match="no joint given"):  # it was a TypeError in the 'close matches' hint
+    with pytest.raises(
+        UserError, match="no joint given"
+    ):  # it was a TypeError in the 'close matches' hint
         probe_cycle(M.needle_and_plate(), [Probe("needle_tip", "position")], driver=None)
 
 
@@ -127,6 +143,14 @@ def test_dynamic_probes_obey_newtons_law_on_the_needle_bar():
     mass = 0.08
     assert np.abs(columns["needle_bar_at_0_0_-30_az_m_s2"]).max() > 5.0  # it really moves
     for axis, gravity in (("x", 0.0), ("z", -9.81)):
-        total = columns[f"needle_bar_bushing_F{axis}_N"] - columns[f"a_F{axis}_N"] - columns[f"b_F{axis}_N"] + mass * gravity
+        total = (
+            columns[f"needle_bar_bushing_F{axis}_N"]
+            - columns[f"a_F{axis}_N"]
+            - columns[f"b_F{axis}_N"]
+            + mass * gravity
+        )
         inertial = mass * columns[f"needle_bar_at_0_0_-30_a{axis}_m_s2"]
-        assert np.abs(total - inertial).max() < 0.01 * np.abs(mass * columns["needle_bar_at_0_0_-30_az_m_s2"]).max() + 1e-6
+        assert (
+            np.abs(total - inertial).max()
+            < 0.01 * np.abs(mass * columns["needle_bar_at_0_0_-30_az_m_s2"]).max() + 1e-6
+        )

@@ -34,8 +34,11 @@ FILES = {  # folder/file below $MECHANISM_REAL_EXPORTS, as docs/real_exports.md 
     "massless_arm": "onshape-massless-arm-joints/Assembly1.xml",
 }
 ROOT = os.environ.get("MECHANISM_REAL_EXPORTS", "")
-pytestmark = pytest.mark.skipif(not ROOT, reason="set MECHANISM_REAL_EXPORTS to a folder with the real CAD exports "
-                                                 "listed in docs/real_exports.md (not redistributable: no licence)")
+pytestmark = pytest.mark.skipif(
+    not ROOT,
+    reason="set MECHANISM_REAL_EXPORTS to a folder with the real CAD exports "
+    "listed in docs/real_exports.md (not redistributable: no licence)",
+)
 
 
 def real(key: str) -> Path:
@@ -53,10 +56,17 @@ def stated_mass_kg(path: Path) -> float:
     text = path.read_text(encoding="utf-8")
     if "<PhysicalModelingXMLFile>" in text:
         factor = {"kg": 1.0, "lbm": LB, "g": 1e-3}
-        return sum(float(m) * factor[u] for m, u in re.findall(r'<mass>([^<]+)</mass>\s*<massUnits>"(\w+)"', text))
-    masses = dict(re.findall(r'<Part name="[^"]*" uid="([^"]+)"[^>]*>.*?<Mass>([^<]+)</Mass>', text, re.S))
-    tree = text[text.index("<InstanceTree>"): text.index("</InstanceTree>")]
-    return sum(float(masses[e]) for e in re.findall(r'entityUid="([^"]+)"', tree) if e in masses)  # DataUnits: kg here
+        return sum(
+            float(m) * factor[u]
+            for m, u in re.findall(r'<mass>([^<]+)</mass>\s*<massUnits>"(\w+)"', text)
+        )
+    masses = dict(
+        re.findall(r'<Part name="[^"]*" uid="([^"]+)"[^>]*>.*?<Mass>([^<]+)</Mass>', text, re.S)
+    )
+    tree = text[text.index("<InstanceTree>") : text.index("</InstanceTree>")]
+    return sum(
+        float(masses[e]) for e in re.findall(r'entityUid="([^"]+)"', tree) if e in masses
+    )  # DataUnits: kg here
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +78,7 @@ def converted(tmp_path_factory):
         if key not in cache:
             cache[key] = convert(real(key), tmp_path_factory.mktemp(key))
         return cache[key]
+
     return get
 
 
@@ -75,7 +86,9 @@ def converted(tmp_path_factory):
 def test_real_export_converts_with_its_mass_and_nothing_floating(converted, key):
     report, path = converted(key), real(key)
     model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
-    assert model.body_mass.sum() == pytest.approx(stated_mass_kg(path), rel=1e-6, abs=1e-8)  # abs: an export of 0 kg
+    assert model.body_mass.sum() == pytest.approx(
+        stated_mass_kg(path), rel=1e-6, abs=1e-8
+    )  # abs: an export of 0 kg
     assert mujoco.mjtJoint.mjJNT_FREE not in set(model.jnt_type)
     assert report.n_meshes or any("geometry file(s) are missing" in w for w in report.warnings)
     data = mujoco.MjData(model)
@@ -87,12 +100,20 @@ def test_real_export_converts_with_its_mass_and_nothing_floating(converted, key)
 def test_proe_fourbar_in_inches_follows_freudenstein(converted):
     """Pro/E Wildfire, lbm and inches: the crank turns fully and the rocker follows the four-bar
     equation built from the pin positions written in the export."""
-    pins = {ref: np.array([float(v) for v in pos.split(",")]) * 0.0254
-            for ref, pos in re.findall(r'<Frame ref="(\d+)">\s*<name>[^<]*</name>\s*<nodeID>[^<]*</nodeID>\s*<position>([^<]+)',
-                                       real("fourbar").read_text())}
+    pins = {
+        ref: np.array([float(v) for v in pos.split(",")]) * 0.0254
+        for ref, pos in re.findall(
+            r'<Frame ref="(\d+)">\s*<name>[^<]*</name>\s*<nodeID>[^<]*</nodeID>\s*<position>([^<]+)',
+            real("fourbar").read_text(),
+        )
+    }
     o2, o4, a, b = pins["3"][:2], pins["5"][:2], pins["7"][:2], pins["9"][:2]
-    crank, coupler, rocker, ground = (np.linalg.norm(u - v) for u, v in ((a, o2), (b, a), (b, o4), (o4, o2)))
-    assert (crank, coupler, rocker, ground) == pytest.approx((1.27, 2.032, 5.08, 4.572), abs=1e-3)  # 50, 80, 200, 180 in
+    crank, coupler, rocker, ground = (
+        np.linalg.norm(u - v) for u, v in ((a, o2), (b, a), (b, o4), (o4, o2))
+    )
+    assert (crank, coupler, rocker, ground) == pytest.approx(
+        (1.27, 2.032, 5.08, 4.572), abs=1e-3
+    )  # 50, 80, 200, 180 in
 
     def rocker_angle(theta, guess):
         """Rocker angle (from the ground line O2->O4) for crank angle theta, nearest ``guess``."""
@@ -108,8 +129,13 @@ def test_proe_fourbar_in_inches_follows_freudenstein(converted):
 
     report = converted("fourbar")
     spec = mujoco.MjSpec.from_file(str(report.mjcf_path))
-    spec.add_equality(name="drive", type=mujoco.mjtEq.mjEQ_JOINT, name1="PRT0004--PRT0001",
-                      objtype=mujoco.mjtObj.mjOBJ_JOINT, data=[0.0] * 12)
+    spec.add_equality(
+        name="drive",
+        type=mujoco.mjtEq.mjEQ_JOINT,
+        name1="PRT0004--PRT0001",
+        objtype=mujoco.mjtObj.mjOBJ_JOINT,
+        data=[0.0] * 12,
+    )
     model = spec.compile()
     data, drive = mujoco.MjData(model), model.equality("drive").id
     mujoco.mj_forward(model, data)
@@ -140,10 +166,14 @@ def test_proe_fourbar_in_inches_follows_freudenstein(converted):
 
 
 BALLBEAM_SMIMPORT = {  # Simscape's own import of this file (Ballbeam_v2_DataFile.m next to it upstream)
-    ("Fork S.iges-1", "Balance.iges-1"): "revolute", ("Varilla C.iges-1", "Fork S.iges-1"): "revolute",
-    ("Cuerpo 06.iges-1", "Varilla C.iges-1"): "revolute", ("Roda.iges-1", "Cuerpo 06.iges-1"): "revolute",
-    ("Varilla LL.iges-1", "Fork B.iges-1"): "revolute", ("Base.iges-1", "Varilla LL.iges-1"): "revolute",
-    ("MG996R.step.iges-1", "arm_4pad.iges-1"): "revolute", ("Fork B.iges-1", "Balance.iges-1"): "cylindrical",
+    ("Fork S.iges-1", "Balance.iges-1"): "revolute",
+    ("Varilla C.iges-1", "Fork S.iges-1"): "revolute",
+    ("Cuerpo 06.iges-1", "Varilla C.iges-1"): "revolute",
+    ("Roda.iges-1", "Cuerpo 06.iges-1"): "revolute",
+    ("Varilla LL.iges-1", "Fork B.iges-1"): "revolute",
+    ("Base.iges-1", "Varilla LL.iges-1"): "revolute",
+    ("MG996R.step.iges-1", "arm_4pad.iges-1"): "revolute",
+    ("Fork B.iges-1", "Balance.iges-1"): "cylindrical",
 }
 
 
@@ -153,12 +183,18 @@ def test_solidworks_mates_give_the_joints_simscape_finds(converted):
     found = {(names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic}
     assert found == BALLBEAM_SMIMPORT
     report = converted("ballbeam")
-    assert any("Ball.iges-1" in w and "fixed to the world" in w for w in report.warnings), "the loose ball is reported"
+    assert any("Ball.iges-1" in w and "fixed to the world" in w for w in report.warnings), (
+        "the loose ball is reported"
+    )
 
 
 CREO_SMIMPORT = {  # Simscape's import of this file (ASM0002_DataFile.m next to it upstream), by instance uid
-    ("5", "9"): "revolute", ("9", "11"): "prismatic", ("11", "12"): "prismatic",
-    ("12", "14"): "revolute", ("14", "15"): "prismatic", ("15", "16"): "revolute",
+    ("5", "9"): "revolute",
+    ("9", "11"): "prismatic",
+    ("11", "12"): "prismatic",
+    ("12", "14"): "revolute",
+    ("14", "15"): "prismatic",
+    ("15", "16"): "revolute",
 }
 
 
@@ -170,23 +206,36 @@ def test_creo_export_without_data_units_is_read_in_its_model_units(converted):
     assert found == CREO_SMIMPORT
     slide = next(j for j in assembly.joints if (j.base, j.follower) == ("11", "12"))
     assert slide.primitives[0].axis == pytest.approx([0, 0, 1], abs=1e-9)
-    assert slide.base_frame.position[0] == pytest.approx(0.52, abs=1e-9)  # 600 mm - 80 mm: millimetres, not metres
+    assert slide.base_frame.position[0] == pytest.approx(
+        0.52, abs=1e-9
+    )  # 600 mm - 80 mm: millimetres, not metres
     assert converted("creo").degrees_of_freedom == 6
 
 
 SCARA_SMIMPORT = {  # Simscape's import (finalassem_DataFile.m upstream): 9 revolute, 2 cylindrical, 1 prismatic
-    ("base.STEP-1", "bedplate.STEP-1"): "prismatic", ("base.STEP-1", "1.STEP-1"): "revolute",
-    ("base.STEP-1", "1.STEP-2"): "revolute", ("base.STEP-1", "1.STEP-3"): "revolute",
-    ("1.STEP-1", "3.STEP-1"): "revolute", ("1.STEP-3", "3.STEP-1"): "revolute", ("1.STEP-2", "2.STEP-1"): "revolute",
-    ("1.STEP-3", "2.STEP-2"): "revolute", ("2.STEP-2", "nozzle.STEP-1"): "revolute", ("nozzle.STEP-1", "4.STEP-1"): "revolute",
-    ("2.STEP-1", "nozzle.STEP-1"): "cylindrical", ("3.STEP-1", "4.STEP-1"): "cylindrical",
+    ("base.STEP-1", "bedplate.STEP-1"): "prismatic",
+    ("base.STEP-1", "1.STEP-1"): "revolute",
+    ("base.STEP-1", "1.STEP-2"): "revolute",
+    ("base.STEP-1", "1.STEP-3"): "revolute",
+    ("1.STEP-1", "3.STEP-1"): "revolute",
+    ("1.STEP-3", "3.STEP-1"): "revolute",
+    ("1.STEP-2", "2.STEP-1"): "revolute",
+    ("1.STEP-3", "2.STEP-2"): "revolute",
+    ("2.STEP-2", "nozzle.STEP-1"): "revolute",
+    ("nozzle.STEP-1", "4.STEP-1"): "revolute",
+    ("2.STEP-1", "nozzle.STEP-1"): "cylindrical",
+    ("3.STEP-1", "4.STEP-1"): "cylindrical",
 }
 
 
 def test_solidworks_parallel_arm_printer_matches_simscape_and_has_three_freedoms(converted):
     """A five-bar parallel arm carrying the nozzle and a bed on two rails, all in rigid
     sub-assemblies, mated by coincident circles: 2 arm motors + the bed = 3 freedoms."""
-    found = {(j.base.split("/")[0], j.follower.split("/")[0]): j.kind for j in read(real("scara")).joints if not j.synthetic}
+    found = {
+        (j.base.split("/")[0], j.follower.split("/")[0]): j.kind
+        for j in read(real("scara")).joints
+        if not j.synthetic
+    }
     assert found == SCARA_SMIMPORT
     report = converted("scara")
     assert report.degrees_of_freedom == 3 and report.n_loop_closures == 3
@@ -195,8 +244,13 @@ def test_solidworks_parallel_arm_printer_matches_simscape_and_has_three_freedoms
 def test_solidworks_ball_and_beam_loop_moves_with_the_servo(converted):
     """Driving the servo horn tilts the beam through the spatial linkage; the loop stays closed."""
     spec = mujoco.MjSpec.from_file(str(converted("ballbeam").mjcf_path))
-    spec.add_equality(name="drive", type=mujoco.mjtEq.mjEQ_JOINT, name1="MG996R.step.iges-1--arm_4pad.iges-1",
-                      objtype=mujoco.mjtObj.mjOBJ_JOINT, data=[0.0] * 12)
+    spec.add_equality(
+        name="drive",
+        type=mujoco.mjtEq.mjEQ_JOINT,
+        name1="MG996R.step.iges-1--arm_4pad.iges-1",
+        objtype=mujoco.mjtObj.mjOBJ_JOINT,
+        data=[0.0] * 12,
+    )
     model = spec.compile()
     data, drive = mujoco.MjData(model), model.equality("drive").id
     mujoco.mj_forward(model, data)
@@ -208,7 +262,9 @@ def test_solidworks_ball_and_beam_loop_moves_with_the_servo(converted):
     mujoco.mj_forward(model, data)
     loops = (data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & (data.efc_id != drive)
     assert np.abs(data.efc_pos[loops]).max() < 1e-5, "the linkage stays closed (10 micrometres)"
-    tilt = math.degrees(math.acos(np.clip((np.trace(start.T @ data.site_xmat[beam].reshape(3, 3)) - 1) / 2, -1, 1)))
+    tilt = math.degrees(
+        math.acos(np.clip((np.trace(start.T @ data.site_xmat[beam].reshape(3, 3)) - 1) / 2, -1, 1))
+    )
     assert tilt > 1.0, f"the beam tilted only {tilt:.3f} degrees"
 
 
@@ -218,7 +274,9 @@ def test_solidworks_rigid_link_made_of_two_rigid_servo_subassemblies_is_one_body
     report = converted("hexapod")
     assert report.n_parts == 19 and report.n_bodies == 1 and report.degrees_of_freedom == 0
     sites = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
-    assert {"bottom_cover-1", "bottom_cover-1_2"} <= {sites.site(i).name for i in range(sites.nsite)}
+    assert {"bottom_cover-1", "bottom_cover-1_2"} <= {
+        sites.site(i).name for i in range(sites.nsite)
+    }
 
 
 def test_flexible_subassembly_keeps_its_own_mates_in_its_own_frame(converted):
@@ -244,13 +302,30 @@ def test_onshape_subassembly_joints_repeat_per_instance(converted):
 
 
 FURUTA_SMIMPORT = {  # Simscape's import of this file (fullAssembly_DataFile3.m in the same upstream commit)
-    **{pair: "cylindrical" for pair in (("second link holder-1", "link 2-1"), ("cover of the bearing-1", "holder of Encoder-1"),
-                                         ("cover of the bearing-1", "NTN_6000  (Bearing 10x26x8)-8"),
-                                         ("cover of the bearing-1", "MH2530-6.35-10-1"))},
-    **{pair: "planar" for pair in (("Base cover-1", "NTN_6000  (Bearing 10x26x8)-8"),
-                                    ("cross holder of the motor-1", "MH2530-6.35-10-1"))},
-    **{pair: "revolute" for pair in (("encoder fixation-1", "link 2-1"), ("Base-1", "cross holder of the motor-1"),
-                                      ("holder of Encoder-1", "MH2530-6.35-10-1"))},
+    **{
+        pair: "cylindrical"
+        for pair in (
+            ("second link holder-1", "link 2-1"),
+            ("cover of the bearing-1", "holder of Encoder-1"),
+            ("cover of the bearing-1", "NTN_6000  (Bearing 10x26x8)-8"),
+            ("cover of the bearing-1", "MH2530-6.35-10-1"),
+        )
+    },
+    **{
+        pair: "planar"
+        for pair in (
+            ("Base cover-1", "NTN_6000  (Bearing 10x26x8)-8"),
+            ("cross holder of the motor-1", "MH2530-6.35-10-1"),
+        )
+    },
+    **{
+        pair: "revolute"
+        for pair in (
+            ("encoder fixation-1", "link 2-1"),
+            ("Base-1", "cross holder of the motor-1"),
+            ("holder of Encoder-1", "MH2530-6.35-10-1"),
+        )
+    },
 }
 
 
@@ -262,17 +337,26 @@ def test_furuta_pendulum_mates(converted):
     assert any("Lock3" in w and "fixes" in w for w in report.warnings)
     assembly = read(real("furuta"))
     names = {k: p.name for k, p in assembly.parts.items()}
-    found = {frozenset((names[j.base], names[j.follower])): j.kind for j in assembly.joints if not j.synthetic}
+    found = {
+        frozenset((names[j.base], names[j.follower])): j.kind
+        for j in assembly.joints
+        if not j.synthetic
+    }
     assert found == {frozenset(pair): kind for pair, kind in FURUTA_SMIMPORT.items()}
     joints = {j.name: j for j in assembly.joints if not j.synthetic}
     arm = joints["encoder fixation-1--link 2-1"]
     assert arm.kind == "revolute"
     motor = joints["holder of Encoder-1--MH2530-6.35-10-1"]
-    assert abs(arm.primitives[0].axis @ motor.primitives[0].axis) < 1e-6, "pendulum axis is perpendicular to the motor's"
+    assert abs(arm.primitives[0].axis @ motor.primitives[0].axis) < 1e-6, (
+        "pendulum axis is perpendicular to the motor's"
+    )
 
 
 CREO_BALLBEAM_SMIMPORT = {  # Simscape's import (BALL_BEAM_V4_DataFile.m upstream): joint IDs [base:-:follower]
-    ("44", "45"): "revolute", ("60", "62"): "revolute", ("64", "88"): "revolute", ("85", "88"): "revolute",
+    ("44", "45"): "revolute",
+    ("60", "62"): "revolute",
+    ("64", "88"): "revolute",
+    ("85", "88"): "revolute",
     ("88", "96"): "prismatic",
 }
 
@@ -284,7 +368,9 @@ def test_creo_rigid_constraints_weld_and_give_simscapes_joints(converted):
     assembly = read(real("creo_ballbeam"))
     found = {(j.base, j.follower): j.kind for j in assembly.joints if not j.synthetic}
     assert found == CREO_BALLBEAM_SMIMPORT
-    assert sum(bool(j.kind == "weld" and j.sources) for j in assembly.joints) == 9, "nine <Rigid> constraints"
+    assert sum(bool(j.kind == "weld" and j.sources) for j in assembly.joints) == 9, (
+        "nine <Rigid> constraints"
+    )
     report = converted("creo_ballbeam")
     assert report.degrees_of_freedom == 2 and report.n_loop_closures == 1
     assert not any("fixed to the world" in w for w in report.warnings)
@@ -300,14 +386,40 @@ def test_creo_rigid_constraints_weld_and_give_simscapes_joints(converted):
 
 
 DUMBBELL_SMIMPORT = {  # Simscape's import (Assem1_DataFile.m upstream): 4 cylindrical, 20 revolute, [base:-:follower]
-    **{pair: "cylindrical" for pair in (("Part1-1", "Part3-1"), ("Part1-1", "Part3-2"), ("Part1-1", "Part3-3"),
-                                         ("Part3-1", "Part5-1"))},
-    **{pair: "revolute" for pair in (
-        ("Part1-1", "Part3-14"), ("Part1-1", "Part3-15"), ("Part1-1", "Part3-16"), ("Part1-1", "Part3-4"),
-        ("Part2-1", "Part3-1"), ("Part2-1", "Part3-2"), ("Part2-1", "Part3-3"), ("Part2-1", "Part3-4"),
-        ("Part2-4", "Part3-13"), ("Part2-4", "Part3-14"), ("Part2-4", "Part3-15"), ("Part2-4", "Part3-16"),
-        ("Part3-13", "Part1-1"), ("Part3-13", "Part5-7"), ("Part3-14", "Part5-8"), ("Part3-3", "Part5-2"),
-        ("Part4-1", "Part5-1"), ("Part4-1", "Part5-2"), ("Part4-1", "Part5-7"), ("Part4-1", "Part5-8"))},
+    **{
+        pair: "cylindrical"
+        for pair in (
+            ("Part1-1", "Part3-1"),
+            ("Part1-1", "Part3-2"),
+            ("Part1-1", "Part3-3"),
+            ("Part3-1", "Part5-1"),
+        )
+    },
+    **{
+        pair: "revolute"
+        for pair in (
+            ("Part1-1", "Part3-14"),
+            ("Part1-1", "Part3-15"),
+            ("Part1-1", "Part3-16"),
+            ("Part1-1", "Part3-4"),
+            ("Part2-1", "Part3-1"),
+            ("Part2-1", "Part3-2"),
+            ("Part2-1", "Part3-3"),
+            ("Part2-1", "Part3-4"),
+            ("Part2-4", "Part3-13"),
+            ("Part2-4", "Part3-14"),
+            ("Part2-4", "Part3-15"),
+            ("Part2-4", "Part3-16"),
+            ("Part3-13", "Part1-1"),
+            ("Part3-13", "Part5-7"),
+            ("Part3-14", "Part5-8"),
+            ("Part3-3", "Part5-2"),
+            ("Part4-1", "Part5-1"),
+            ("Part4-1", "Part5-2"),
+            ("Part4-1", "Part5-7"),
+            ("Part4-1", "Part5-8"),
+        )
+    },
 }
 
 
@@ -316,14 +428,25 @@ def test_solidworks_dumbbell_stacker_mates_give_simscapes_24_joints(converted):
     instances give Simscape's 24 joints, kind, part pair and direction."""
     assembly = read(real("dumbbell"))
     names = {k: p.name for k, p in assembly.parts.items()}
-    assert {(names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic} == DUMBBELL_SMIMPORT
+    assert {
+        (names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic
+    } == DUMBBELL_SMIMPORT
     assert converted("dumbbell").n_loop_closures == 10
 
 
 QUADRUPED_SMIMPORT = {  # Simscape's import (Assem4_DataFile.m upstream): 8 revolute, [base:-:follower]
-    pair: "revolute" for pair in (("leg1-1", "thigh1-1"), ("thigh1-1", "base1-1"), ("thigh1-2", "leg1-2"),
-                                  ("base1-1", "thigh1-2"), ("leg2-1", "thigh2-1"), ("thigh2-1", "base1-1"),
-                                  ("thigh2-2", "leg2-2"), ("base1-1", "thigh2-2"))}
+    pair: "revolute"
+    for pair in (
+        ("leg1-1", "thigh1-1"),
+        ("thigh1-1", "base1-1"),
+        ("thigh1-2", "leg1-2"),
+        ("base1-1", "thigh1-2"),
+        ("leg2-1", "thigh2-1"),
+        ("thigh2-1", "base1-1"),
+        ("thigh2-2", "leg2-2"),
+        ("base1-1", "thigh2-2"),
+    )
+}
 
 
 def test_solidworks_quadruped_gives_simscapes_eight_revolutes(converted):
@@ -332,10 +455,11 @@ def test_solidworks_quadruped_gives_simscapes_eight_revolutes(converted):
     joints, part pair and direction, 8 freedoms and no loop."""
     assembly = read(real("quadruped"))
     names = {k: p.name for k, p in assembly.parts.items()}
-    assert {(names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic} == QUADRUPED_SMIMPORT
+    assert {
+        (names[j.base], names[j.follower]): j.kind for j in assembly.joints if not j.synthetic
+    } == QUADRUPED_SMIMPORT
     report = converted("quadruped")
     assert report.degrees_of_freedom == 8 and report.n_loop_closures == 0
-
 
 
 def _kinds(key):
@@ -344,7 +468,9 @@ def _kinds(key):
     return Counter(j.kind for j in read(real(key)).joints if not j.synthetic and j.kind != "weld")
 
 
-def test_solidworks_assembly_with_screws_and_stacked_weights_gets_simscapes_joints_pair_by_pair(converted):
+def test_solidworks_assembly_with_screws_and_stacked_weights_gets_simscapes_joints_pair_by_pair(
+    converted,
+):
     """SolidWorks 2023 (Link 7.4), 50 instances with screws, nuts and a stack of weights; three mates
     name the root assembly itself (its origin). Simscape's DataFile lists 20 cylindrical, 24 planar,
     7 prismatic and 12 revolute joints: each pair of parts its own joint (the weights, mated to the
@@ -355,7 +481,9 @@ def test_solidworks_assembly_with_screws_and_stacked_weights_gets_simscapes_join
     assert (kinds["cylindrical"], kinds["planar"], kinds["prismatic"]) == (20, 24, 7)
     assert kinds["revolute"] == 12 + 2 and kinds["compound"] == 1
     report = converted("ballbeam_v7")
-    assert not any("not connected to the ground" in w or "not an instance" in w for w in report.warnings)
+    assert not any(
+        "not connected to the ground" in w or "not an instance" in w for w in report.warnings
+    )
 
 
 def test_creo_9_wrist_and_onshape_backhoe_give_simscapes_joint_kinds(converted):
@@ -363,8 +491,12 @@ def test_creo_9_wrist_and_onshape_backhoe_give_simscapes_joint_kinds(converted):
     Onshape's exporter with joints (fastened ones are welds): Simscape's 8 revolute and 7 cylindrical."""
     assert dict(_kinds("wrist")) == {"revolute": 9}
     assert dict(_kinds("backhoe")) == {"revolute": 8, "cylindrical": 7}
-    assert dict(_kinds("arm_robot")) == {"revolute": 13}  # Onshape 2024, servos fastened to their links
-    assert converted("wrist").degrees_of_freedom == 3 and converted("backhoe").degrees_of_freedom == 3
+    assert dict(_kinds("arm_robot")) == {
+        "revolute": 13
+    }  # Onshape 2024, servos fastened to their links
+    assert (
+        converted("wrist").degrees_of_freedom == 3 and converted("backhoe").degrees_of_freedom == 3
+    )
 
 
 def test_onshape_arm_without_any_mass_gets_only_what_mujoco_needs(converted):

@@ -26,25 +26,48 @@ REAL = Path(__file__).parent / "data" / "real"
 WITHIN = 1.25  # the baseline's error at most this multiple of the published simplest model's
 
 # bam's published M1 for the XL330 (params/xl330/m1.json at the fixtures' commit)
-XL330 = {"armature": 0.001643216859746982, "friction_base": 0.0069659724474934286,
-         "friction_viscous": 0.010494765451601431, "q_offset": 0.01795252374733891, "mass": 0.49, "length": 0.1}
+XL330 = {
+    "armature": 0.001643216859746982,
+    "friction_base": 0.0069659724474934286,
+    "friction_viscous": 0.010494765451601431,
+    "q_offset": 0.01795252374733891,
+    "mass": 0.49,
+    "length": 0.1,
+}
 # bam's published best model for the XL330, M6 "Stribeck load-dependent directional quadratic"
 # (params/xl330/m6.json at the fixtures' commit; the law is bam/model.py Model.compute_frictions
 # there, the paper's eq. for M6). At that commit the XL330 has M1, M2 and M6 identified; M6 is the
 # richest and the one the paper (arXiv:2410.08650, Fig. 5: four other servos) finds best. Its
 # motor constants differ from M1's: kt 0.3036 N m/A, R 2.445 ohm.
-XL330_M6 = {"kt": 0.303609876267925, "R": 2.444951107725838, "armature": 0.0020566024734211697,
-            "q_offset": 0.02113563649978374, "friction_base": 0.0004496236724962162,
-            "friction_stribeck": 8.98236594176617e-05, "load_friction_motor": 0.28425109160327744,
-            "load_friction_external": 0.13631427926858256, "load_friction_motor_stribeck": 0.000962295552186495,
-            "load_friction_external_stribeck": 0.07756269586185101, "load_friction_motor_quad": 0.0052586872345423965,
-            "load_friction_external_quad": 0.009015695123707009, "dtheta_stribeck": 0.7791999762669103,
-            "alpha": 1.8121453469382847, "friction_viscous": 0.008178654749130088}
+XL330_M6 = {
+    "kt": 0.303609876267925,
+    "R": 2.444951107725838,
+    "armature": 0.0020566024734211697,
+    "q_offset": 0.02113563649978374,
+    "friction_base": 0.0004496236724962162,
+    "friction_stribeck": 8.98236594176617e-05,
+    "load_friction_motor": 0.28425109160327744,
+    "load_friction_external": 0.13631427926858256,
+    "load_friction_motor_stribeck": 0.000962295552186495,
+    "load_friction_external_stribeck": 0.07756269586185101,
+    "load_friction_motor_quad": 0.0052586872345423965,
+    "load_friction_external_quad": 0.009015695123707009,
+    "dtheta_stribeck": 0.7791999762669103,
+    "alpha": 1.8121453469382847,
+    "friction_viscous": 0.008178654749130088,
+}
 # the physics bam's analysis names for a servo's friction (Stribeck M2, load-dependent and
 # directional M3-M6), in this library's names
 XL330_PUBLISHED_EFFECTS = {"stribeck", "gear_load_friction"}
 # the EMPS benchmark's IDIM-LS model (Simulation_EMPS.m) and the fixtures' virtual shaft radius
-EMPS = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "OF": -3.1648, "gtau": 35.15065188, "radius": 0.01}
+EMPS = {
+    "M": 95.1089,
+    "Fv": 203.5034,
+    "Fc": 20.3935,
+    "OF": -3.1648,
+    "gtau": 35.15065188,
+    "radius": 0.01,
+}
 
 
 def xl330_recordings() -> list[Path]:
@@ -66,11 +89,18 @@ def xl330_published_rmse(problem, nominal: DriveNominal) -> float:
     angle = np.linspace(0, 2 * np.pi, 720, endpoint=False)
     mgl = XL330["mass"] * 9.80665 * XL330["length"]
     inertia = XL330["armature"] + XL330["mass"] * XL330["length"] ** 2
-    tables = LinkageTables(angle, np.full(720, inertia), np.zeros(720), mgl * np.sin(angle + XL330["q_offset"]), {}, {})
+    tables = LinkageTables(
+        angle, np.full(720, inertia), np.zeros(720), mgl * np.sin(angle + XL330["q_offset"]), {}, {}
+    )
     baseline = LumpedBaseline(dataclasses.replace(nominal, linkage=tables), gravity=True)
     n = nominal.ratio
-    values = {"inertia_motor_side_kgm2": inertia / n**2, "viscous_motor_side_Nm_s_per_rad": XL330["friction_viscous"] / n**2,
-              "coulomb_arm_Nm": XL330["friction_base"], "electrical_time_constant_s": 1e-5, "gravity_scale": 1.0}
+    values = {
+        "inertia_motor_side_kgm2": inertia / n**2,
+        "viscous_motor_side_Nm_s_per_rad": XL330["friction_viscous"] / n**2,
+        "coulomb_arm_Nm": XL330["friction_base"],
+        "electrical_time_constant_s": 1e-5,
+        "gravity_scale": 1.0,
+    }
     return problem.rmse(ModelStructure(baseline), values, "val")
 
 
@@ -96,12 +126,24 @@ class PublishedLoadFriction(Effect):
         p = XL330_M6
         w = s.velocity_rad_s
         tm = p["kt"] / p["R"] * drive.voltage_V - p["kt"] ** 2 / p["R"] * w
-        te = -drive.tau_arm_Nm  # the baseline's gravity torque, resisting; bam's bias torque is applied
-        drive.coulomb_Nm = drive.coulomb_Nm + np.abs(p["load_friction_external"] * te - p["load_friction_motor"] * tm)
-        quadratic = (np.sign(te) != np.sign(tm)) * np.where(np.abs(te) < np.abs(tm), p["load_friction_external_quad"] * te**2,
-                                                            np.where(np.abs(te) > np.abs(tm), p["load_friction_motor_quad"] * tm**2, 0.0))
-        drive.static_excess_Nm = drive.static_excess_Nm + np.abs(
-            p["load_friction_external_stribeck"] * te - p["load_friction_motor_stribeck"] * tm) + quadratic
+        te = (
+            -drive.tau_arm_Nm
+        )  # the baseline's gravity torque, resisting; bam's bias torque is applied
+        drive.coulomb_Nm = drive.coulomb_Nm + np.abs(
+            p["load_friction_external"] * te - p["load_friction_motor"] * tm
+        )
+        quadratic = (np.sign(te) != np.sign(tm)) * np.where(
+            np.abs(te) < np.abs(tm),
+            p["load_friction_external_quad"] * te**2,
+            np.where(np.abs(te) > np.abs(tm), p["load_friction_motor_quad"] * tm**2, 0.0),
+        )
+        drive.static_excess_Nm = (
+            drive.static_excess_Nm
+            + np.abs(
+                p["load_friction_external_stribeck"] * te - p["load_friction_motor_stribeck"] * tm
+            )
+            + quadratic
+        )
 
 
 def xl330_published_best_rmse(problem, nominal: DriveNominal) -> float:
@@ -112,22 +154,33 @@ def xl330_published_best_rmse(problem, nominal: DriveNominal) -> float:
     angle = np.linspace(0, 2 * np.pi, 720, endpoint=False)
     mgl = XL330["mass"] * 9.80665 * XL330["length"]
     inertia = p["armature"] + XL330["mass"] * XL330["length"] ** 2
-    tables = LinkageTables(angle, np.full(720, inertia), np.zeros(720), mgl * np.sin(angle + p["q_offset"]), {}, {})
+    tables = LinkageTables(
+        angle, np.full(720, inertia), np.zeros(720), mgl * np.sin(angle + p["q_offset"]), {}, {}
+    )
     described = dataclasses.replace(nominal, linkage=tables)
     baseline = LumpedBaseline(described, free=("R", "Kt", "Ke"), gravity=True)
     n = nominal.ratio
-    values = {"inertia_motor_side_kgm2": inertia / n**2, "viscous_motor_side_Nm_s_per_rad": p["friction_viscous"] / n**2,
-              "coulomb_arm_Nm": p["friction_base"], "electrical_time_constant_s": 1e-5, "gravity_scale": 1.0,
-              "motor_resistance_ohm": p["R"], "motor_torque_constant_Nm_per_A": p["kt"] / n,
-              "motor_back_emf_V_s_per_rad": p["kt"] / n,
-              "static_excess_arm_Nm": p["friction_stribeck"], "stribeck_velocity_arm_rad_s": p["dtheta_stribeck"],
-              "stribeck_exponent": p["alpha"]}
+    values = {
+        "inertia_motor_side_kgm2": inertia / n**2,
+        "viscous_motor_side_Nm_s_per_rad": p["friction_viscous"] / n**2,
+        "coulomb_arm_Nm": p["friction_base"],
+        "electrical_time_constant_s": 1e-5,
+        "gravity_scale": 1.0,
+        "motor_resistance_ohm": p["R"],
+        "motor_torque_constant_Nm_per_A": p["kt"] / n,
+        "motor_back_emf_V_s_per_rad": p["kt"] / n,
+        "static_excess_arm_Nm": p["friction_stribeck"],
+        "stribeck_velocity_arm_rad_s": p["dtheta_stribeck"],
+        "stribeck_exponent": p["alpha"],
+    }
     structure = ModelStructure(baseline, (Stribeck(described), PublishedLoadFriction(described)))
     return problem.rmse(structure, values, "val")
 
 
 @pytest.mark.parametrize("path", xl330_recordings(), ids=lambda p: p.stem)
-def test_a_servo_holding_a_pendulum_is_accepted_and_its_baseline_matches_the_published_model(path, xl330_nominal):
+def test_a_servo_holding_a_pendulum_is_accepted_and_its_baseline_matches_the_published_model(
+    path, xl330_nominal
+):
     result = identify(read_recording(path), nominal=xl330_nominal)  # refused recordings raise
     terms = result.to_json()["baseline_terms"]
     assert terms["model_gravity_torque"], terms["why"]
@@ -138,7 +191,9 @@ def test_a_servo_holding_a_pendulum_is_accepted_and_its_baseline_matches_the_pub
 
 @pytest.mark.slow
 @pytest.mark.parametrize("path", xl330_recordings(), ids=lambda p: p.stem)
-def test_a_servo_holding_a_pendulum_is_diagnosed_at_or_below_the_published_best_model(path, xl330_nominal):
+def test_a_servo_holding_a_pendulum_is_diagnosed_at_or_below_the_published_best_model(
+    path, xl330_nominal
+):
     """The diagnosis (the API the CLI calls) ends at or below bam's best model (M6) replayed by
     the same protocol, and what it names is friction of the kinds bam's analysis found, or it
     says the residual is unexplained, with its numbers."""
@@ -146,14 +201,18 @@ def test_a_servo_holding_a_pendulum_is_diagnosed_at_or_below_the_published_best_
     result = diagnose(machine, path)
     published = xl330_published_best_rmse(result.problem, xl330_nominal)
     final = result.final.rmse_val
-    print(f"{path.stem}: baseline {result.baseline.rmse_val:.3f}, final {final:.3f} rad/s {result.effect_names}; "
-          f"published M6 {published:.3f}, M1 {xl330_published_rmse(result.problem, xl330_nominal):.3f} rad/s")
+    print(
+        f"{path.stem}: baseline {result.baseline.rmse_val:.3f}, final {final:.3f} rad/s {result.effect_names}; "
+        f"published M6 {published:.3f}, M1 {xl330_published_rmse(result.problem, xl330_nominal):.3f} rad/s"
+    )
     assert final <= published, (final, published, result.effect_names)
     named = set(result.effect_names)
     if not named <= XL330_PUBLISHED_EFFECTS:
         assert result.unexplained is not None, result.effect_names
         numbers = result.unexplained.to_json()
-        print(f"  unexplained: {numbers['times_noise_floor']:.1f}x the noise floor ({numbers['noise_floor_rad_s']:.3f} rad/s)")
+        print(
+            f"  unexplained: {numbers['times_noise_floor']:.1f}x the noise floor ({numbers['noise_floor_rad_s']:.3f} rad/s)"
+        )
         assert numbers["rmse"] == pytest.approx(final) and numbers["times_noise_floor"] > 1, numbers
 
 
@@ -162,15 +221,24 @@ def emps_described_wrongly() -> DriveNominal:
     current-controlled drive: no back-emf damping."""
     r = EMPS["radius"]
     motor = MotorConstants(1.0, EMPS["gtau"] * r, 1e-6, 1.0)
-    return DriveNominal(motor, inertia_kgm2=1.5 * EMPS["M"] * r**2, coulomb_shaft_Nm=0.5 * EMPS["Fc"] * r,
-                        viscous_shaft_Nm_s_per_rad=2 * EMPS["Fv"] * r**2)
+    return DriveNominal(
+        motor,
+        inertia_kgm2=1.5 * EMPS["M"] * r**2,
+        coulomb_shaft_Nm=0.5 * EMPS["Fc"] * r,
+        viscous_shaft_Nm_s_per_rad=2 * EMPS["Fv"] * r**2,
+    )
 
 
 def emps_published_rmse(problem, described: DriveNominal) -> float:
     """The benchmark's IDIM-LS model (Coulomb, viscous, offset) replayed by the tool's protocol."""
     r = EMPS["radius"]
-    values = {"inertia_motor_side_kgm2": EMPS["M"] * r**2, "viscous_motor_side_Nm_s_per_rad": EMPS["Fv"] * r**2,
-              "coulomb_arm_Nm": EMPS["Fc"] * r, "electrical_time_constant_s": 1e-5, "offset_torque_arm_Nm": EMPS["OF"] * r}
+    values = {
+        "inertia_motor_side_kgm2": EMPS["M"] * r**2,
+        "viscous_motor_side_Nm_s_per_rad": EMPS["Fv"] * r**2,
+        "coulomb_arm_Nm": EMPS["Fc"] * r,
+        "electrical_time_constant_s": 1e-5,
+        "offset_torque_arm_Nm": EMPS["OF"] * r,
+    }
     return problem.rmse(ModelStructure(LumpedBaseline(described, offset=True)), values, "val")
 
 
@@ -201,6 +269,8 @@ def test_a_positioning_axis_is_diagnosed_at_or_below_the_published_model():
     result = diagnose_recording(read_recording(REAL / "emps.csv"), nominal=described)
     published = emps_published_rmse(result.problem, described)
     final = result.final.rmse_val
-    print(f"EMPS: baseline {result.baseline.rmse_val:.4f}, final {final:.4f} rad/s {result.effect_names}; "
-          f"published IDIM-LS {published:.4f} rad/s")
+    print(
+        f"EMPS: baseline {result.baseline.rmse_val:.4f}, final {final:.4f} rad/s {result.effect_names}; "
+        f"published IDIM-LS {published:.4f} rad/s"
+    )
     assert final <= published, (final, published, result.effect_names)

@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 from mechanism.errors import UserError
-from mechanism.sysid.recording import (ENCODER_STEP_RAD, check_excitation, make_recording, read_recording,
-                                 smoothed_velocity)
+from mechanism.sysid.recording import (
+    ENCODER_STEP_RAD,
+    check_excitation,
+    make_recording,
+    read_recording,
+    smoothed_velocity,
+)
 
 FS = 1000.0
 
@@ -26,7 +31,11 @@ def ramp_csv(seconds=3.0, header="time,voltage,arm_angle", extra="", speed=10.0,
 
 
 def test_reads_contract_with_metadata_aliases_and_unknown_columns(tmp_path):
-    rec = read_recording(write(tmp_path / "r.csv", ramp_csv(header="time_s,voltage_V,arm_angle_rad,junk", extra=",x")))
+    rec = read_recording(
+        write(
+            tmp_path / "r.csv", ramp_csv(header="time_s,voltage_V,arm_angle_rad,junk", extra=",x")
+        )
+    )
     assert rec.metadata == {"layers": "0"}
     assert rec.dt == pytest.approx(1e-3)
     assert rec.duration_s == pytest.approx(2.999)
@@ -35,14 +44,17 @@ def test_reads_contract_with_metadata_aliases_and_unknown_columns(tmp_path):
     assert np.abs(rec.velocity_rad_s[50:-50] - 10.0).max() < 0.05
 
 
-@pytest.mark.parametrize("text, fragment", [
-    ("time,voltage\n0,1\n1,2\n2,3\n", "missing required column(s) arm_angle"),
-    ("time,voltage,arm_angle\n0,1,0\n0.001,1,nan\n", "NaN/inf"),
-    ("time,voltage,arm_angle\n0,1,0\n0.001,inf,0\n", "NaN/inf"),
-    ("time,voltage,arm_angle\n0,1,0\n0.001,1,0\n0.001,1,0\n", "duplicated"),
-    ("time,voltage,arm_angle\n0,1,0\n0.002,1,0\n0.001,1,0\n", "decreasing"),
-    ("time,voltage,arm_angle\n0,1,0\n0.001,1,0\n", "at least 2 s"),
-])
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("time,voltage\n0,1\n1,2\n2,3\n", "missing required column(s) arm_angle"),
+        ("time,voltage,arm_angle\n0,1,0\n0.001,1,nan\n", "NaN/inf"),
+        ("time,voltage,arm_angle\n0,1,0\n0.001,inf,0\n", "NaN/inf"),
+        ("time,voltage,arm_angle\n0,1,0\n0.001,1,0\n0.001,1,0\n", "duplicated"),
+        ("time,voltage,arm_angle\n0,1,0\n0.002,1,0\n0.001,1,0\n", "decreasing"),
+        ("time,voltage,arm_angle\n0,1,0\n0.001,1,0\n", "at least 2 s"),
+    ],
+)
 def test_bad_recordings_are_one_line_user_errors(tmp_path, text, fragment):
     with pytest.raises(UserError) as info:
         read_recording(write(tmp_path / "bad.csv", text))
@@ -69,7 +81,9 @@ def test_velocity_definition_tracks_a_ripple_and_has_a_low_quantisation_floor():
     raw = np.diff(measured) * FS
     assert np.std(raw - 30) > 0.1  # raw differencing: 0.31 rad/s steps
     err = (v - true_velocity)[100:-100]
-    assert np.sqrt(np.mean(err**2)) < 0.015  # the ripple (0.75 rad/s) passes, quantisation is filtered
+    assert (
+        np.sqrt(np.mean(err**2)) < 0.015
+    )  # the ripple (0.75 rad/s) passes, quantisation is filtered
 
 
 def test_constant_voltage_is_not_identifiable_and_steps_are():
@@ -97,7 +111,9 @@ def test_cli_bad_recordings_exit_2_with_one_error_line(tmp_path, cli_here):
 
 @pytest.mark.slow
 def test_cli_constant_voltage_is_a_not_identifiable_finding(tmp_path, cli):
-    flat = write(tmp_path / "flat.csv", ramp_csv(seconds=3.0, voltage=lambda t: np.full(len(t), 12.0)))
+    flat = write(
+        tmp_path / "flat.csv", ramp_csv(seconds=3.0, voltage=lambda t: np.full(len(t), 12.0))
+    )
     out = tmp_path / "d.json"
     line = cli("diagnose", flat, "--json", out).assert_bad_input()
     assert "not identifiable" in line
@@ -115,7 +131,16 @@ def test_encoder_counts_from_metadata_or_the_angles_steps():
     step = 2 * np.pi / 2500
     angle = np.floor((30 * t + 3 * np.sin(7 * t)) / step) * step
     assert encoder_counts(make_recording(t, np.ones(len(t)), angle)) == 2500
-    assert encoder_counts(make_recording(t, np.ones(len(t)), 30 * t + 0.01 * np.sin(50 * t))) is None
-    assert encoder_counts(make_recording(t, np.ones(len(t)), angle, metadata={"counts_per_rev": "4096"})) == 4096
+    assert (
+        encoder_counts(make_recording(t, np.ones(len(t)), 30 * t + 0.01 * np.sin(50 * t))) is None
+    )
+    assert (
+        encoder_counts(
+            make_recording(t, np.ones(len(t)), angle, metadata={"counts_per_rev": "4096"})
+        )
+        == 4096
+    )
     with pytest.raises(UserError, match="counts_per_rev"):
-        encoder_counts(make_recording(t, np.ones(len(t)), angle, metadata={"counts_per_rev": "many"}))
+        encoder_counts(
+            make_recording(t, np.ones(len(t)), angle, metadata={"counts_per_rev": "many"})
+        )

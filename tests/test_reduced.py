@@ -40,13 +40,18 @@ def test_tables_agree_with_mujoco_energies(model):
         mujoco.mj_forward(model, data)
         potential.append(data.energy[0])
     # Gravity torque is the slope of MuJoCo's potential energy over the revolution.
-    np.testing.assert_allclose(tables.gravity_torque_Nm, periodic_derivative(np.array(potential)), atol=1e-6)
+    np.testing.assert_allclose(
+        tables.gravity_torque_Nm, periodic_derivative(np.array(potential)), atol=1e-6
+    )
 
 
 def test_spectral_derivative_is_exact_for_harmonics():
     angle = np.arange(64) * 2 * np.pi / 64
-    np.testing.assert_allclose(periodic_derivative(np.sin(3 * angle) + 0.5 * np.cos(angle)),
-                               3 * np.cos(3 * angle) - 0.5 * np.sin(angle), atol=1e-12)
+    np.testing.assert_allclose(
+        periodic_derivative(np.sin(3 * angle) + 0.5 * np.cos(angle)),
+        3 * np.cos(3 * angle) - 0.5 * np.sin(angle),
+        atol=1e-12,
+    )
 
 
 @pytest.fixture(scope="module")

@@ -53,7 +53,9 @@ def _dead_points_deg(fourbar: FourBar) -> list[float]:
     a, b, c, d = fourbar.crank, fourbar.coupler, fourbar.rocker, fourbar.ground
     out = []
     for reach in (b + a, b - a):
-        theta = math.acos((reach * reach - d * d - c * c) / (2 * d * c)) * math.copysign(1.0, math.sin(theta0))
+        theta = math.acos((reach * reach - d * d - c * c) / (2 * d * c)) * math.copysign(
+            1.0, math.sin(theta0)
+        )
         out.append(math.degrees(math.remainder(theta - theta0, 2 * math.pi)))
     return sorted(out)
 
@@ -70,7 +72,9 @@ def test_a_rocker_without_limits_is_inspected_where_it_assembles(fourbar):
     found = sorted(math.degrees(v) for v in (travel.lower, travel.upper))
     # the joint counts either way about the export's axis: compare the ends as a set of magnitudes
     expected = _dead_points_deg(built)
-    if not (found[0] < 0 < found[1]) == (expected[0] < 0 < expected[1]) or abs(found[0] + expected[1]) < abs(found[0] - expected[0]):
+    if not (found[0] < 0 < found[1]) == (expected[0] < 0 < expected[1]) or abs(
+        found[0] + expected[1]
+    ) < abs(found[0] - expected[0]):
         expected = sorted(-v for v in expected)
     span = expected[1] - expected[0]
     assert found[0] == pytest.approx(expected[0] + END_MARGIN * span, abs=0.05)
@@ -84,7 +88,10 @@ def test_limits_set_the_travel_the_stops_and_every_verb_runs_over_it(fourbar, cl
     _, folder = fourbar
     path = _description(folder, limits=(-40.0, 5.0))
     machine = mechanism.load_machine(path)
-    assert (math.degrees(machine.travel.lower), math.degrees(machine.travel.upper)) == pytest.approx((-40.0, 5.0))
+    assert (
+        math.degrees(machine.travel.lower),
+        math.degrees(machine.travel.upper),
+    ) == pytest.approx((-40.0, 5.0))
     joint = machine.model.joint(ROCKER).id
     assert machine.model.jnt_limited[joint]
     assert np.degrees(machine.model.jnt_range[joint]) == pytest.approx([-40.0, 5.0])
@@ -98,14 +105,28 @@ def test_limits_set_the_travel_the_stops_and_every_verb_runs_over_it(fourbar, cl
     needle = cli("needle", "--machine", path, "--csv", tmp_path / "n.csv")
     assert needle.returncode == 0, needle.stderr
     assert "rocks between" in needle.stdout
-    probe = cli("probe", "--machine", path, "--part", "coupler", "--quantity", "position", "--cycle",
-                "--csv", tmp_path / "p.csv")
+    probe = cli(
+        "probe",
+        "--machine",
+        path,
+        "--part",
+        "coupler",
+        "--quantity",
+        "position",
+        "--cycle",
+        "--csv",
+        tmp_path / "p.csv",
+    )
     assert probe.returncode == 0, probe.stderr
-    lines = [line for line in (tmp_path / "p.csv").read_text().splitlines() if not line.startswith("#")]
+    lines = [
+        line for line in (tmp_path / "p.csv").read_text().splitlines() if not line.startswith("#")
+    ]
     column = lines[0].split(",").index(f"{ROCKER}_angle_rad")
     angles = np.degrees([float(line.split(",")[column]) for line in lines[1:]])
     assert [angles.min(), angles.max()] == pytest.approx([-40.0, 5.0])
-    clearance = cli("clearance", "--machine", path, "--pairs", "coupler:frame", "--csv", tmp_path / "c.csv")
+    clearance = cli(
+        "clearance", "--machine", path, "--pairs", "coupler:frame", "--csv", tmp_path / "c.csv"
+    )
     assert clearance.returncode == 0, clearance.stderr
     view = cli("view", "--machine", path, "--html", tmp_path / "v.html", "--frames", "20")
     assert view.returncode == 0, view.stderr
@@ -117,8 +138,13 @@ def test_range_deg_narrows_the_inspected_travel(fourbar):
     import mechanism
 
     _, folder = fourbar
-    machine = mechanism.load_machine(_description(folder, limits=(-40.0, 5.0), extra="range_deg = [-30.0, 0.0]"))
-    assert (math.degrees(machine.travel.lower), math.degrees(machine.travel.upper)) == pytest.approx((-30.0, 0.0))
+    machine = mechanism.load_machine(
+        _description(folder, limits=(-40.0, 5.0), extra="range_deg = [-30.0, 0.0]")
+    )
+    assert (
+        math.degrees(machine.travel.lower),
+        math.degrees(machine.travel.upper),
+    ) == pytest.approx((-30.0, 0.0))
 
 
 def test_a_hard_stop_holds_the_stalled_motor_within_a_degree(fourbar):
@@ -150,20 +176,25 @@ def test_an_unassemblable_pose_is_said_in_degrees(fourbar):
     assert "180 deg" in message and "np.float64" not in message and "mm open" in message
 
 
-@pytest.mark.parametrize("table, expected", [
-    ('[limits."J"]\nlower_deg = 10.0\nupper_deg = -10.0\n', "must be above lower_deg"),
-    ('[limits."J"]\nlower_deg = 10.0\n', "needs lower_deg and upper_deg"),
-    ('[limits."J"]\nlower_deg = -10.0\nupper_mm = 3.0\n', "one pair"),
-    ('[limits."J"]\nlower_rad = -1.0\nupper_deg = 3.0\n', "unknown key"),
-])
+@pytest.mark.parametrize(
+    "table, expected",
+    [
+        ('[limits."J"]\nlower_deg = 10.0\nupper_deg = -10.0\n', "must be above lower_deg"),
+        ('[limits."J"]\nlower_deg = 10.0\n', "needs lower_deg and upper_deg"),
+        ('[limits."J"]\nlower_deg = -10.0\nupper_mm = 3.0\n', "one pair"),
+        ('[limits."J"]\nlower_rad = -1.0\nupper_deg = 3.0\n', "unknown key"),
+    ],
+)
 def test_bad_limits_are_named(table, expected):
     import tomllib
 
     from mechanism.errors import UserError
     from mechanism.machine.description import parse_description
 
-    base = ('[machine]\nname = "x"\nmodel = "x.xml"\n[drive]\nmotor_joint = "J"\nshaft_joint = "J"\nzero_site = "S"\n'
-            '[motor]\ntype = "dc"\nresistance_ohm = 1.0\ntorque_constant_Nm_per_A = 0.1\nback_emf_V_s_per_rad = 0.1\n')
+    base = (
+        '[machine]\nname = "x"\nmodel = "x.xml"\n[drive]\nmotor_joint = "J"\nshaft_joint = "J"\nzero_site = "S"\n'
+        '[motor]\ntype = "dc"\nresistance_ohm = 1.0\ntorque_constant_Nm_per_A = 0.1\nback_emf_V_s_per_rad = 0.1\n'
+    )
     with pytest.raises(UserError, match=expected):
         parse_description(tomllib.loads(base + table))
 
@@ -177,7 +208,9 @@ def test_zero_site_or_zero_angle():
     motor = '[motor]\ntype = "dc"\nresistance_ohm = 1.0\ntorque_constant_Nm_per_A = 0.1\nback_emf_V_s_per_rad = 0.1\n'
     head = '[machine]\nname = "x"\nmodel = "x.xml"\n[drive]\nmotor_joint = "J"\nshaft_joint = "J"\n'
     described = parse_description(tomllib.loads(head + "zero_angle_deg = 12.5\n" + motor))
-    assert described.zero_site is None and described.zero_angle_rad == pytest.approx(math.radians(12.5))
+    assert described.zero_site is None and described.zero_angle_rad == pytest.approx(
+        math.radians(12.5)
+    )
     with pytest.raises(UserError, match="zero_angle_deg"):
         parse_description(tomllib.loads(head + motor))
     with pytest.raises(UserError, match="not both"):
@@ -195,7 +228,9 @@ def test_the_shipped_press_still_turns_whole_revolutions():
 def test_init_drafts_a_mechanism_that_cannot_turn_and_every_verb_takes_the_draft(cli, tmp_path):
     """A non-Grashof four-bar (shortest + longest > the other two): no link turns a whole
     revolution. init guesses a rocking shaft, its travel as limits, and says so."""
-    built = FourBar(crank=35.0, coupler=40.0, rocker=45.0, ground=70.0, crank_angle0=math.radians(80.0))
+    built = FourBar(
+        crank=35.0, coupler=40.0, rocker=45.0, ground=70.0, crank_angle0=math.radians(80.0)
+    )
     export = built.export(tmp_path)
     draft = tmp_path / "draft.toml"
     result = cli("init", export, "-o", draft)
@@ -207,9 +242,11 @@ def test_init_drafts_a_mechanism_that_cannot_turn_and_every_verb_takes_the_draft
     shaft = written["drive"]["shaft_joint"]
     limits = written["limits"][shaft]
     assert limits["lower_deg"] < 0 < limits["upper_deg"]
-    for verb in (("needle", "--csv", tmp_path / "n.csv"),
-                 ("clearance", "--all-pairs", "--csv", tmp_path / "c.csv"),
-                 ("simulate", "--voltage", "5", "--duration", "0.3", "--summary")):
+    for verb in (
+        ("needle", "--csv", tmp_path / "n.csv"),
+        ("clearance", "--all-pairs", "--csv", tmp_path / "c.csv"),
+        ("simulate", "--voltage", "5", "--duration", "0.3", "--summary"),
+    ):
         run = cli(verb[0], "--machine", draft, *verb[1:])
         assert run.returncode == 0, (verb, run.stderr)
 
@@ -219,7 +256,9 @@ def test_a_sweep_of_a_rocker_runs_the_full_model_and_says_it_does_not_turn(fourb
 
     _, folder = fourbar
     machine = mechanism.load_machine(_description(folder, limits=(-40.0, 5.0)))
-    result = mechanism.sweep(machine, {"parameters": {"V": "voltage_V"}, "sweep": {"V": [6.0]}}, duration_s=0.5)
+    result = mechanism.sweep(
+        machine, {"parameters": {"V": "voltage_V"}, "sweep": {"V": [6.0]}}, duration_s=0.5
+    )
     assert result.model.startswith("full")
     row = result.table()[1]
     assert "no steady running" in row["note"]

@@ -16,7 +16,9 @@ from tests.helpers.exports import FourBar
 G = 9.81
 
 
-def _pendulum_nominal(mass=0.2, radius=0.05, travel_deg=(-60.0, 60.0), ke=1e-6, kt=0.05, resistance=2.0):
+def _pendulum_nominal(
+    mass=0.2, radius=0.05, travel_deg=(-60.0, 60.0), ke=1e-6, kt=0.05, resistance=2.0
+):
     """A point mass on a massless arm, hanging at shaft angle 0, driven directly (1:1): its
     gravity torque m g r sin(theta) and inertia m r^2 as a linkage table over the travel."""
     from mechanism.dynamics.lumped import DriveNominal, MotorConstants
@@ -25,19 +27,42 @@ def _pendulum_nominal(mass=0.2, radius=0.05, travel_deg=(-60.0, 60.0), ke=1e-6, 
     lo, hi = (math.radians(v) for v in travel_deg)
     angle = np.linspace(lo, hi, 721)
     inertia = mass * radius**2
-    tables = LinkageTables(angle, np.full_like(angle, inertia), np.zeros_like(angle), mass * G * radius * np.sin(angle),
-                           ratios={}, positions={}, periodic=False)
-    return DriveNominal(MotorConstants(resistance, kt, ke, 1.0), inertia_kgm2=inertia, coulomb_shaft_Nm=0.0,
-                        viscous_shaft_Nm_s_per_rad=0.0, zero_meaning="the arm hanging straight down",
-                        linkage=tables, travel_rad=(lo, hi))
+    tables = LinkageTables(
+        angle,
+        np.full_like(angle, inertia),
+        np.zeros_like(angle),
+        mass * G * radius * np.sin(angle),
+        ratios={},
+        positions={},
+        periodic=False,
+    )
+    return DriveNominal(
+        MotorConstants(resistance, kt, ke, 1.0),
+        inertia_kgm2=inertia,
+        coulomb_shaft_Nm=0.0,
+        viscous_shaft_Nm_s_per_rad=0.0,
+        zero_meaning="the arm hanging straight down",
+        linkage=tables,
+        travel_rad=(lo, hi),
+    )
 
 
 def _held(nominal, volts, duration_s, start_rad, **extra):
     from mechanism.testbench import make_recording
 
-    return make_recording("none", seed=1, duration_s=duration_s, nominal=nominal, randomize_baseline=False,
-                          coulomb_arm_Nm=0.0, viscous_motor_side_Nm_s_per_rad=0.0, voltage_plateaus=[(duration_s, volts)],
-                          start_angle_rad=start_rad, current_noise_A=0.0, **extra)
+    return make_recording(
+        "none",
+        seed=1,
+        duration_s=duration_s,
+        nominal=nominal,
+        randomize_baseline=False,
+        coulomb_arm_Nm=0.0,
+        viscous_motor_side_Nm_s_per_rad=0.0,
+        voltage_plateaus=[(duration_s, volts)],
+        start_angle_rad=start_rad,
+        current_noise_A=0.0,
+        **extra,
+    )
 
 
 def test_the_truth_swings_as_a_small_angle_pendulum():
@@ -77,7 +102,9 @@ def test_the_python_twin_agrees_with_the_compiled_truth_on_a_rocker():
     nominal = _pendulum_nominal(ke=0.05)
     native = _held(nominal, 1.0, 0.3, -0.5)
     twin = _held(nominal, 1.0, 0.3, -0.5, integrator="python")
-    np.testing.assert_allclose(twin.traces["arm_angle_rad"], native.traces["arm_angle_rad"], atol=1e-9)
+    np.testing.assert_allclose(
+        twin.traces["arm_angle_rad"], native.traces["arm_angle_rad"], atol=1e-9
+    )
 
 
 # --- the CAD four-bar that cannot turn (a draft from init) ----------------------------------
@@ -114,7 +141,9 @@ def rocker(tmp_path_factory):
     from mechanism.api import drive_nominal
 
     folder = tmp_path_factory.mktemp("rocking_bench")
-    FourBar(crank=35.0, coupler=40.0, rocker=45.0, ground=70.0, crank_angle0=math.radians(80.0)).export(folder)
+    FourBar(
+        crank=35.0, coupler=40.0, rocker=45.0, ground=70.0, crank_angle0=math.radians(80.0)
+    ).export(folder)
     path = folder / "draft.toml"
     path.write_text(textwrap.dedent(DRAFT))
     return path, drive_nominal(mechanism.load_machine(path))
@@ -148,7 +177,17 @@ def test_a_rocking_bench_refuses_effects_that_need_whole_turns(rocker, cli, tmp_
     from mechanism.testbench import make_recording
 
     path, nominal = rocker
-    result = cli("testbench", "--machine", path, "--effect", "torque_ripple", "-o", tmp_path / "r.csv", "--duration", "1")
+    result = cli(
+        "testbench",
+        "--machine",
+        path,
+        "--effect",
+        "torque_ripple",
+        "-o",
+        tmp_path / "r.csv",
+        "--duration",
+        "1",
+    )
     result.assert_bad_input()
     assert "torque_ripple" in result.stderr and "rocks" in result.stderr
     assert not (tmp_path / "r.csv").exists()
@@ -160,7 +199,12 @@ def test_a_rocking_bench_refuses_effects_that_need_whole_turns(rocker, cli, tmp_
         make_recording("voltage_nonlinearity", duration_s=0.1, nominal=nominal)
     # and the diagnosis does not offer those that need whole turns
     offered = set(library(nominal))
-    assert not offered & {"torque_ripple", "needle_penetration", "encoder_eccentricity", "linkage_dynamics"}
+    assert not offered & {
+        "torque_ripple",
+        "needle_penetration",
+        "encoder_eccentricity",
+        "linkage_dynamics",
+    }
     assert {"position_friction", "stribeck"} <= offered
 
 
@@ -174,7 +218,10 @@ def _diagnosis(nominal, effect, tmp_path, seed=0, duration_s=20.0):
     from mechanism.sysid.recording import read_recording
     from mechanism.testbench import make_recording, write_recording
 
-    csv, _ = write_recording(make_recording(effect, seed=seed, duration_s=duration_s, nominal=nominal), tmp_path / "rec.csv")
+    csv, _ = write_recording(
+        make_recording(effect, seed=seed, duration_s=duration_s, nominal=nominal),
+        tmp_path / "rec.csv",
+    )
     baseline = resolve_baseline(SimpleNamespace(baseline=None), nominal)
     return diagnose(read_recording(csv), baseline, nominal=nominal, workers=1).to_json()
 
@@ -189,7 +236,9 @@ def test_a_rocking_machine_is_diagnosed_with_its_multibody_baseline_by_default(r
     _, nominal = rocker
     assert resolve_baseline(SimpleNamespace(baseline=None), nominal) == "multibody"
     assert resolve_baseline(SimpleNamespace(baseline="lumped"), nominal) == "lumped"
-    assert resolve_baseline(SimpleNamespace(baseline=None), drive_nominal(None)) == "lumped"  # the sewing machine turns
+    assert (
+        resolve_baseline(SimpleNamespace(baseline=None), drive_nominal(None)) == "lumped"
+    )  # the sewing machine turns
 
 
 @pytest.mark.slow

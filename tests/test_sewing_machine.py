@@ -33,11 +33,16 @@ def param(section, name):
 
 # --------------------------------------------------------------------------- the export
 
+
 @pytest.mark.slow
 def test_generator_reproduces_the_committed_export(tmp_path):
     out = tmp_path / "export"
-    proc = subprocess.run([sys.executable, str(CAD / "generate.py"), "-q", "-o", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(CAD / "generate.py"), "-q", "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     fresh = sorted(p.name for p in out.iterdir())
     committed = sorted(p.name for p in EXPORT.iterdir())
@@ -53,8 +58,12 @@ def test_generator_rejects_a_bad_parameter_file_with_one_line(tmp_path):
     path = tmp_path / "bad.params.json"
     path.write_text(json.dumps(bad))
     out = tmp_path / "export"
-    proc = subprocess.run([sys.executable, str(CAD / "generate.py"), "--params", str(path), "-o", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(CAD / "generate.py"), "--params", str(path), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 2
     assert proc.stderr.startswith("error:") and len(proc.stderr.strip().splitlines()) == 1
     assert "crank.radius" in proc.stderr and "Traceback" not in proc.stderr
@@ -82,13 +91,21 @@ def _export_parts():
         assert _text(body, "massUnits") == "g" and _text(body, "inertiaUnits") == "g*mm^2"
         rotation = _numbers(cs1, "orientation").reshape(3, 3).T  # written column by column
         np.testing.assert_allclose(_numbers(cg, "orientation"), _numbers(cs1, "orientation"))
-        parts[_text(body, "name")] = (float(_text(body, "mass")), _numbers(cg, "position"),
-                                      _numbers(body, "inertia").reshape(3, 3), rotation, _numbers(cs1, "position"), stl)
+        parts[_text(body, "name")] = (
+            float(_text(body, "mass")),
+            _numbers(cg, "position"),
+            _numbers(body, "inertia").reshape(3, 3),
+            rotation,
+            _numbers(cs1, "position"),
+            stl,
+        )
     return parts
 
 
 def test_export_mass_properties_are_those_of_the_meshes_and_the_parameter_densities():
-    densities = {name: entry["value"] * 1e-6 for name, entry in PARAMS["materials"].items()}  # g/mm^3
+    densities = {
+        name: entry["value"] * 1e-6 for name, entry in PARAMS["materials"].items()
+    }  # g/mm^3
     parts = _export_parts()
     assert len(parts) == 24
     for name, (mass, cg, inertia, rotation, origin, stl) in parts.items():
@@ -98,24 +115,40 @@ def test_export_mass_properties_are_those_of_the_meshes_and_the_parameter_densit
         material = min(densities, key=lambda k: abs(densities[k] - density))
         assert density == pytest.approx(densities[material], rel=1e-5), (name, density)
         props = mesh.mass_properties
-        np.testing.assert_allclose(rotation @ props["center_mass"] + origin, cg, atol=2e-3, err_msg=name)
+        np.testing.assert_allclose(
+            rotation @ props["center_mass"] + origin, cg, atol=2e-3, err_msg=name
+        )
         expected = props["inertia"] * densities[material]
-        np.testing.assert_allclose(inertia, expected, rtol=2e-5, atol=2e-5 * np.abs(expected).max(), err_msg=name)
+        np.testing.assert_allclose(
+            inertia, expected, rtol=2e-5, atol=2e-5 * np.abs(expected).max(), err_msg=name
+        )
 
 
 def test_export_names_the_frames_the_tools_rely_on():
     text = (EXPORT / "sewing_machine.xml").read_text()
-    for frame in ("needle_tip", "needle_eye", "hook_point", "crank_pin_center", "take_up_eye", "needle_plate_top"):
+    for frame in (
+        "needle_tip",
+        "needle_eye",
+        "hook_point",
+        "crank_pin_center",
+        "take_up_eye",
+        "needle_plate_top",
+    ):
         assert f'<displayName>"{frame}"</displayName>' in text
     couplings = json.loads((EXPORT / "sewing_machine.couplings.json").read_text())["couplings"]
     ratios = {c["name"]: (c["input"], c["output"], c["ratio"]) for c in couplings}
     mech = thesis()["mechanism"]
     assert ratios["motor_belt"] == ("motor", "arm_shaft", mech["motor_to_arm_ratio"])
     assert ratios["lower_belt"] == ("arm_shaft", "lower_shaft", mech["arm_to_lower_shaft_ratio"])
-    assert ratios["hook_worm_gear"] == ("lower_shaft", "hook", 1 / mech["lower_shaft_to_hook_ratio"])
+    assert ratios["hook_worm_gear"] == (
+        "lower_shaft",
+        "hook",
+        1 / mech["lower_shaft_to_hook_ratio"],
+    )
 
 
 # --------------------------------------------------------------------------- the MJCF
+
 
 def test_committed_mjcf_is_what_the_converter_makes_of_the_committed_export(tmp_path):
     from mechanism.converters import convert
@@ -150,13 +183,20 @@ def test_each_mjcf_body_carries_the_mass_and_inertia_of_its_export_parts(model):
         inertia = np.zeros((3, 3))
         for (_, cg, part_inertia, rotation, _, _), mass in zip(members, masses):
             d = cg * 1e-3 - com
-            inertia += rotation @ (part_inertia * 1e-9) @ rotation.T + mass * (d @ d * np.eye(3) - np.outer(d, d))
+            inertia += rotation @ (part_inertia * 1e-9) @ rotation.T + mass * (
+                d @ d * np.eye(3) - np.outer(d, d)
+            )
         assert model.body_mass[body] == pytest.approx(total, rel=1e-6), model.body(body).name
         np.testing.assert_allclose(data.xipos[body], com, atol=1e-8)
         R = data.ximat[body].reshape(3, 3)
         mjcf_inertia = R @ np.diag(model.body_inertia[body]) @ R.T
-        np.testing.assert_allclose(mjcf_inertia, inertia, rtol=1e-5, atol=1e-6 * np.abs(inertia).max(),
-                                   err_msg=model.body(body).name)
+        np.testing.assert_allclose(
+            mjcf_inertia,
+            inertia,
+            rtol=1e-5,
+            atol=1e-6 * np.abs(inertia).max(),
+            err_msg=model.body(body).name,
+        )
 
 
 def test_motor_rotor_inertia_is_the_thesis_value(model):
@@ -168,8 +208,13 @@ def test_motor_rotor_inertia_is_the_thesis_value(model):
     R = data.ximat[body].reshape(3, 3)
     d = data.xipos[body] - data.xanchor[joint.id]
     d_perp = d - (d @ axis) * axis
-    about_axis = axis @ (R @ np.diag(model.body_inertia[body]) @ R.T) @ axis + model.body_mass[body] * d_perp @ d_perp
-    assert about_axis == pytest.approx(thesis()["main_motor"]["inertia_from_geometry_kgm2"], rel=0.02)
+    about_axis = (
+        axis @ (R @ np.diag(model.body_inertia[body]) @ R.T) @ axis
+        + model.body_mass[body] * d_perp @ d_perp
+    )
+    assert about_axis == pytest.approx(
+        thesis()["main_motor"]["inertia_from_geometry_kgm2"], rel=0.02
+    )
 
 
 def test_positive_arm_angle_is_forward_sewing(model):
@@ -183,6 +228,7 @@ def test_positive_arm_angle_is_forward_sewing(model):
 
 
 # --------------------------------------------------------------------------- motion
+
 
 def analytic_needle(theta):
     """Needle point height [mm] and its first two derivatives per rad of arm angle from the
@@ -207,7 +253,12 @@ def analytic_needle(theta):
     stroke = connector(phi_tdc)[0] - connector(grid)[0].min()
     eye_top = param("needle", "eye_bottom_above_tip") + param("needle", "eye_length")
     hook_point_z = -(param("hook", "rim_below_plate") + param("hook", "point_below_rim"))
-    tip_bdc = hook_point_z - eye_top - param("hook", "point_above_eye") - param("hook", "needle_rise_at_passage")
+    tip_bdc = (
+        hook_point_z
+        - eye_top
+        - param("hook", "point_above_eye")
+        - param("hook", "needle_rise_at_passage")
+    )
     z, dz, ddz = connector(theta + phi_tdc)
     return z - connector(phi_tdc)[0] + tip_bdc + stroke, dz, ddz
 
@@ -223,19 +274,29 @@ def test_needle_position_velocity_and_acceleration_follow_the_analytic_slider_cr
     assert np.abs(motion.needle_z_mm - z).max() < 0.05
     assert np.abs(motion.needle_velocity_mm_per_rad - dz).max() < 0.01 * np.abs(dz).max()
     assert np.abs(motion.needle_acceleration_mm_per_rad2 - ddz).max() < 0.01 * np.abs(ddz).max()
-    assert motion.stroke_mm == pytest.approx(2 * param("crank", "radius"), abs=0.01)  # in-line slider-crank
+    assert motion.stroke_mm == pytest.approx(
+        2 * param("crank", "radius"), abs=0.01
+    )  # in-line slider-crank
     assert motion.tdc_angle_deg == pytest.approx(0.0, abs=0.1)
     assert motion.bdc_angle_deg == pytest.approx(180.0, abs=0.1)
 
 
 def test_hook_point_meets_the_needle_scarf_as_the_timing_rule_says(motion):
-    assert motion.needle_rise_at_passage_mm == pytest.approx(param("hook", "needle_rise_at_passage"), abs=0.01)
+    assert motion.needle_rise_at_passage_mm == pytest.approx(
+        param("hook", "needle_rise_at_passage"), abs=0.01
+    )
     # the point runs `point_clearance` from the scarf bottom: measured on the needle's mesh
-    assert motion.hook_point_clearance_mm == pytest.approx(param("hook", "point_clearance"), abs=0.005)
+    assert motion.hook_point_clearance_mm == pytest.approx(
+        param("hook", "point_clearance"), abs=0.005
+    )
     eye_half = param("needle", "eye_length") / 2
-    assert motion.hook_point_above_eye_mm - eye_half == pytest.approx(param("hook", "point_above_eye"), abs=0.01)
+    assert motion.hook_point_above_eye_mm - eye_half == pytest.approx(
+        param("hook", "point_above_eye"), abs=0.01
+    )
     # the hook turns twice per arm turn
-    assert motion.hook_angle_deg[-1] + 2 * (motion.arm_angle_deg[1] - motion.arm_angle_deg[0]) == pytest.approx(720.0)
+    assert motion.hook_angle_deg[-1] + 2 * (
+        motion.arm_angle_deg[1] - motion.arm_angle_deg[0]
+    ) == pytest.approx(720.0)
 
 
 def test_ten_arm_turns_turn_the_motor_80_the_lower_shaft_10_and_the_hook_20_times(model):
@@ -276,31 +337,48 @@ def test_gravity_holding_torque_is_largest_after_bdc_and_smallest_on_the_way_dow
     assert (torque[upstroke] > -1e-3).all()
     # gravity explains at most the measured variation of the breakaway torque (thesis 5.2.2)
     static = thesis()["static_friction"]
-    assert torque.max() - torque.min() < static["highest_breakaway_arm_Nm"] - static["lowest_breakaway_arm_Nm"]
+    assert (
+        torque.max() - torque.min()
+        < static["highest_breakaway_arm_Nm"] - static["lowest_breakaway_arm_Nm"]
+    )
 
 
 # --------------------------------------------------------------------------- CLI
+
 
 @pytest.mark.slow
 def test_needle_cli_writes_the_table_and_the_plot(tmp_path, cli):
     csv, png = tmp_path / "needle.csv", tmp_path / "needle.png"
     result = cli("needle", "--csv", csv, "--plot", png, "--samples", "72", "--speed", "600")
     assert result.returncode == 0, result.stderr
-    assert "stroke: 33.000 mm" in result.stdout and "hook point passes the needle at shaft angle" in result.stdout
+    assert (
+        "stroke: 33.000 mm" in result.stdout
+        and "hook point passes the needle at shaft angle" in result.stdout
+    )
     lines = [line for line in csv.read_text().splitlines() if not line.startswith("#")]
-    assert lines[0].split(",") == ["arm_angle_deg", "needle_z_mm", "needle_velocity_mm_per_rad",
-                                   "needle_acceleration_mm_per_rad2", "needle_velocity_mm_s", "needle_acceleration_mm_s2",
-                                   "hook_angle_deg", "hook_point_to_needle_mm"]
+    assert lines[0].split(",") == [
+        "arm_angle_deg",
+        "needle_z_mm",
+        "needle_velocity_mm_per_rad",
+        "needle_acceleration_mm_per_rad2",
+        "needle_velocity_mm_s",
+        "needle_acceleration_mm_s2",
+        "hook_angle_deg",
+        "hook_point_to_needle_mm",
+    ]
     assert len(lines) == 73
     assert png.stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("args", [
-    ("--samples", "5"),
-    ("--speed", "-100"),
-    ("--speed", "nan"),
-    ("--model", "no/such/model.xml"),
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("--samples", "5"),
+        ("--speed", "-100"),
+        ("--speed", "nan"),
+        ("--model", "no/such/model.xml"),
+    ],
+)
 def test_needle_cli_bad_input(tmp_path, cli_here, args):
     csv = tmp_path / "needle.csv"
     cli_here("needle", "--csv", csv, *args).assert_bad_input()
@@ -309,9 +387,13 @@ def test_needle_cli_bad_input(tmp_path, cli_here, args):
 
 def test_needle_cli_model_without_a_needle(tmp_path, cli_here):
     model = tmp_path / "pendulum.xml"
-    model.write_text('<mujoco><worldbody><body><joint name="arm_shaft"/><geom size="0.1"/></body></worldbody></mujoco>')
+    model.write_text(
+        '<mujoco><worldbody><body><joint name="arm_shaft"/><geom size="0.1"/></body></worldbody></mujoco>'
+    )
     line = cli_here("needle", "--model", model, "--csv", tmp_path / "n.csv").assert_bad_input()
-    assert "motor_joint" in line and "close matches: arm_shaft" in line  # the shipped roles do not fit it
+    assert (
+        "motor_joint" in line and "close matches: arm_shaft" in line
+    )  # the shipped roles do not fit it
 
 
 @pytest.mark.slow
@@ -323,12 +405,21 @@ def test_no_two_parts_interpenetrate_over_a_revolution(model):
 
     manager = trimesh.collision.CollisionManager()
     data = mujoco.MjData(model)
-    geoms = [g for g in range(model.ngeom) if model.geom_group[g] == 3 and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+    geoms = [
+        g
+        for g in range(model.ngeom)
+        if model.geom_group[g] == 3 and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH
+    ]
     for g in geoms:
         mesh = model.geom_dataid[g]
         v0, nv = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
         f0, nf = model.mesh_faceadr[mesh], model.mesh_facenum[mesh]
-        manager.add_object(str(g), trimesh.Trimesh(model.mesh_vert[v0:v0 + nv], model.mesh_face[f0:f0 + nf], process=False))
+        manager.add_object(
+            str(g),
+            trimesh.Trimesh(
+                model.mesh_vert[v0 : v0 + nv], model.mesh_face[f0 : f0 + nf], process=False
+            ),
+        )
     clashes = set()
     for qpos in sweep(model, np.radians(np.arange(0, 360, 2.0)), "arm_shaft"):
         data.qpos[:] = qpos

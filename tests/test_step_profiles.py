@@ -11,7 +11,9 @@ from mechanism.errors import UserError
 
 def test_rate_profile_position_is_the_exact_integral(tmp_path):
     path = tmp_path / "ramp.csv"
-    path.write_text("# a ramp up, cruise, ramp down\ntime_s,rate_steps_s\n0,0\n0.1,500\n0.3,500\n0.4,0\n")
+    path.write_text(
+        "# a ramp up, cruise, ramp down\ntime_s,rate_steps_s\n0,0\n0.1,500\n0.3,500\n0.4,0\n"
+    )
     profile = step_profiles.resolve(str(path))
     # triangle + rectangle + triangle: 25 + 100 + 25 steps
     assert float(profile.position_steps(0.4)) == pytest.approx(150.0)

@@ -29,7 +29,9 @@ def thread_cut_runs():
         runs[kind, "full", "abrupt"] = steppers.simulate(step_profiles.thread_cut(), kind)
         for mode in ("micro16",):
             runs[kind, mode, "abrupt"] = steppers.simulate(step_profiles.thread_cut(), kind, mode)
-            runs[kind, mode, "ramped"] = steppers.simulate(step_profiles.thread_cut(ramp_steps=25), kind, mode)
+            runs[kind, mode, "ramped"] = steppers.simulate(
+                step_profiles.thread_cut(ramp_steps=25), kind, mode
+            )
     return runs
 
 
@@ -57,8 +59,11 @@ def test_the_machine_description_carries_the_thesis_numbers():
     assert stepper["step_angle_deg"] == ref["step_angle_deg"]
     assert stepper["pole_pairs"] == ref["poles_in_torque_equation"]
     assert ref["type"].startswith(stepper["type"])
-    assert (description.section("thread_cut")["forward_s"], description.section("thread_cut")["back_s"],
-            stepper["step_rate_steps_s"]) == thesis_thread_cut()
+    assert (
+        description.section("thread_cut")["forward_s"],
+        description.section("thread_cut")["back_s"],
+        stepper["step_rate_steps_s"],
+    ) == thesis_thread_cut()
     assert step_profiles.thread_cut_timing() == thesis_thread_cut()
 
 
@@ -100,7 +105,9 @@ def test_thread_cut_peaks_at_the_stroke_and_returns(kind, thread_cut_runs, param
     # the reversal overshoots (thesis fig. 20): the rotor passes the turning point
     reversal = s["reversals"][0]
     assert reversal["overshoot_deg"] > 0.5
-    assert reversal["peak_speed_error_rad_s"] > 1.5 * params.step_rad * 1000  # more than the slew speed
+    assert (
+        reversal["peak_speed_error_rad_s"] > 1.5 * params.step_rad * 1000
+    )  # more than the slew speed
 
 
 @pytest.mark.slow
@@ -140,9 +147,14 @@ def test_small_step_rings_at_the_linearised_frequency(kind, params):
     p, current = params.pole_pairs, params.rated_current_A
     phi = math.pi / 2 / 16  # electrical angle of the new position
     if kind == "circuit":  # T = p psi I sin(phi - p th) - Tdm sin(4 p th)
-        stiffness = p * p * params.flux_linkage_Vs * current + 4 * p * params.detent_torque_Nm * math.cos(4 * phi)
+        stiffness = (
+            p * p * params.flux_linkage_Vs * current
+            + 4 * p * params.detent_torque_Nm * math.cos(4 * phi)
+        )
     else:  # T = Kt (Vs/R) |i|/(sqrt2 I) sin(phi - p th), one phase-vector magnitude I
-        stiffness = p * params.physical_kt_Nm_A * params.supply_V / params.resistance_ohm / math.sqrt(2)
+        stiffness = (
+            p * params.physical_kt_Nm_A * params.supply_V / params.resistance_ohm / math.sqrt(2)
+        )
     expected = math.sqrt(stiffness / params.inertia_kg_m2) / (2 * math.pi)
     assert ringing_frequency_hz(run) == pytest.approx(expected, rel=0.05)
     assert run.summary["lost_steps"] == 0
@@ -170,7 +182,9 @@ def test_models_agree_within_half_a_step_at_low_rate(params):
     physical = steppers.simulate(profile, "physical", settle_s=0.05)
     other = np.interp(circuit.time_s, physical.time_s, physical.rotor_deg)
     assert np.max(np.abs(circuit.rotor_deg - other)) < params.step_angle_deg / 2
-    assert circuit.summary["final_position_deg"] == pytest.approx(20 * params.step_angle_deg, abs=0.5)
+    assert circuit.summary["final_position_deg"] == pytest.approx(
+        20 * params.step_angle_deg, abs=0.5
+    )
 
 
 def lost(kind, rate, params=None):
@@ -194,7 +208,9 @@ def test_lost_steps_are_counted_and_timed(params):
     assert s["lost_steps"] > 0
     # every slip is a whole electrical period, and they add up to the final error
     assert all(abs(n) % 4 == 0 for _, n in s["slips"])
-    assert sum(n for _, n in s["slips"]) == pytest.approx(s["final_error_deg"] / params.step_angle_deg, abs=0.5)
+    assert sum(n for _, n in s["slips"]) == pytest.approx(
+        s["final_error_deg"] / params.step_angle_deg, abs=0.5
+    )
     assert all(0 < t < profile.duration_s for t, _ in s["slips"])
 
 
@@ -207,7 +223,10 @@ def test_drive_tables(params):
     _, a, b = steppers.drive(params, full, steppers.rest_angle_rad(params, full, steps))
     assert np.all(np.abs(a) == current) and np.all(np.abs(b) == current)
     _, a, b = steppers.drive(params, half, steppers.rest_angle_rad(params, half, steps / 2))
-    assert sorted(set(np.count_nonzero([a, b], axis=0))) == [1, 2]  # one and two phases on, alternating
+    assert sorted(set(np.count_nonzero([a, b], axis=0))) == [
+        1,
+        2,
+    ]  # one and two phases on, alternating
     phi, a, b = steppers.drive(params, micro, steppers.rest_angle_rad(params, micro, steps / 16))
     np.testing.assert_allclose(np.hypot(a, b), current)
     np.testing.assert_allclose(np.diff(phi), math.pi / 2 / 16)
@@ -244,7 +263,9 @@ def test_callbacks_leave_other_actuators_to_their_owner(params):
     other.gainprm[0] = 0
     steppers.add_stepper(spec, "j", params, "physical", "full", name="stepper")
     model = spec.compile()
-    callback_type = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+    callback_type = ctypes.CFUNCTYPE(
+        ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int
+    )
     foreign = callback_type(lambda m, d, i: 1.5)
     saved = mujoco.get_mjcb_act_dyn(), mujoco.get_mjcb_act_bias()
     try:
@@ -273,7 +294,9 @@ def test_load_torque_sets_the_quasi_static_lag(params):
     run = steppers.simulate(step_profiles.move(2, 20), "physical", "micro16", loaded, settle_s=0.02)
     middle = (run.time_s > 0.03) & (run.time_s < 0.07)
     lag_deg = float(np.mean(run.command_deg[middle] - run.rotor_deg[middle]))
-    expected = math.degrees(math.asin(load * math.sqrt(2) / params.holding_torque_Nm) / params.pole_pairs)
+    expected = math.degrees(
+        math.asin(load * math.sqrt(2) / params.holding_torque_Nm) / params.pole_pairs
+    )
     assert lag_deg == pytest.approx(expected, rel=0.1)
     # at rest the friction holds the rotor anywhere inside that band
     assert abs(run.summary["final_error_deg"]) <= expected
@@ -288,21 +311,39 @@ def _shipped_description_text():
 def test_another_described_stepper_is_read_from_its_description(tmp_path):
     text = _shipped_description_text()
     path = tmp_path / "other.toml"
-    path.write_text(text.replace("pole_pairs = 12", "pole_pairs = 6").replace("step_angle_deg = 7.5", "step_angle_deg = 15.0")
-                    .replace("holding_torque_Nm = 0.025", "holding_torque_Nm = 0.05").replace("forward_s = 0.35", "forward_s = 0.2"))
+    path.write_text(
+        text.replace("pole_pairs = 12", "pole_pairs = 6")
+        .replace("step_angle_deg = 7.5", "step_angle_deg = 15.0")
+        .replace("holding_torque_Nm = 0.025", "holding_torque_Nm = 0.05")
+        .replace("forward_s = 0.35", "forward_s = 0.2")
+    )
     params = steppers.described_stepper(path, load_torque_Nm=0.001)
-    assert (params.pole_pairs, params.step_angle_deg, params.holding_torque_Nm, params.load_torque_Nm) == (6, 15.0, 0.05, 0.001)
+    assert (
+        params.pole_pairs,
+        params.step_angle_deg,
+        params.holding_torque_Nm,
+        params.load_torque_Nm,
+    ) == (6, 15.0, 0.05, 0.001)
     assert params.resistance_ohm == steppers.pm25s048().resistance_ohm
     assert step_profiles.thread_cut_stroke_steps(path) == 200  # 0.2 s at 1000 steps/s
     assert step_profiles.thread_cut(machine=path).peak_steps() == pytest.approx(200)
 
 
-@pytest.mark.parametrize("edit, expected", [
-    (lambda t: t.replace("step_angle_deg = 7.5", "step_angle_deg = 15.0"), "[stepper] step_angle_deg"),
-    (lambda t: re.sub(r"^supply_V = .*\n", "", t, flags=re.M), "[stepper] supply_V: missing"),
-    (lambda t: re.sub(r"^step_rate_steps_s = .*\n", "", t, flags=re.M), "[thread_cut]"),
-    (lambda t: t.replace("inductance_H = 0.012", "inductance_H = -1"), "[stepper] inductance_H"),
-])
+@pytest.mark.parametrize(
+    "edit, expected",
+    [
+        (
+            lambda t: t.replace("step_angle_deg = 7.5", "step_angle_deg = 15.0"),
+            "[stepper] step_angle_deg",
+        ),
+        (lambda t: re.sub(r"^supply_V = .*\n", "", t, flags=re.M), "[stepper] supply_V: missing"),
+        (lambda t: re.sub(r"^step_rate_steps_s = .*\n", "", t, flags=re.M), "[thread_cut]"),
+        (
+            lambda t: t.replace("inductance_H = 0.012", "inductance_H = -1"),
+            "[stepper] inductance_H",
+        ),
+    ],
+)
 def test_bad_stepper_sections_are_one_user_error(tmp_path, edit, expected):
     path = tmp_path / "bad.toml"
     path.write_text(edit(_shipped_description_text()))

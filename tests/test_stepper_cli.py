@@ -7,8 +7,15 @@ import json
 
 import pytest
 
-REQUIRED = ["time_s", "commanded_position_deg", "rotor_position_deg", "rotor_speed_rad_s",
-            "phase_a_current_A", "phase_b_current_A", "torque_Nm"]
+REQUIRED = [
+    "time_s",
+    "commanded_position_deg",
+    "rotor_position_deg",
+    "rotor_speed_rad_s",
+    "phase_a_current_A",
+    "phase_b_current_A",
+    "torque_Nm",
+]
 
 
 def read_csv(path):
@@ -20,12 +27,23 @@ def read_csv(path):
 @pytest.mark.slow
 def test_thread_cut_csv_plot_and_summary(cli, tmp_path):
     out = tmp_path / "tc.csv"
-    result = cli("stepper", "--sequence", "thread-cut", "--csv", out, "--plot", tmp_path / "tc.png",
-                 "--json", tmp_path / "tc.json")
+    result = cli(
+        "stepper",
+        "--sequence",
+        "thread-cut",
+        "--csv",
+        out,
+        "--plot",
+        tmp_path / "tc.png",
+        "--json",
+        tmp_path / "tc.json",
+    )
     assert result.returncode == 0, result.stderr
     table = read_csv(out)
     assert all(name in table for name in REQUIRED)
-    assert table["rotor_position_deg"][0] == 0.0 and max(table["commanded_position_deg"]) == pytest.approx(2625.0)
+    assert table["rotor_position_deg"][0] == 0.0 and max(
+        table["commanded_position_deg"]
+    ) == pytest.approx(2625.0)
     assert abs(table["rotor_position_deg"][-1]) < 7.5
     summary = json.loads((tmp_path / "tc.json").read_text())
     assert summary["lost_steps"] == 0 and summary["reversals"][0]["overshoot_deg"] > 0
@@ -63,16 +81,36 @@ def test_machine_option_takes_the_described_stepper_and_thread_cut(cli, tmp_path
     from mechanism.machine.models import DEFAULT_DESCRIPTION
 
     machine = tmp_path / "fast_cut.toml"
-    text = DEFAULT_DESCRIPTION.read_text().replace("forward_s = 0.35", "forward_s = 0.05").replace("back_s = 0.35", "back_s = 0.05")
-    machine.write_text(text.replace("pole_pairs = 12", "pole_pairs = 6").replace("step_angle_deg = 7.5", "step_angle_deg = 15.0"))
+    text = (
+        DEFAULT_DESCRIPTION.read_text()
+        .replace("forward_s = 0.35", "forward_s = 0.05")
+        .replace("back_s = 0.35", "back_s = 0.05")
+    )
+    machine.write_text(
+        text.replace("pole_pairs = 12", "pole_pairs = 6").replace(
+            "step_angle_deg = 7.5", "step_angle_deg = 15.0"
+        )
+    )
     out = tmp_path / "tc.csv"
-    result = cli("stepper", "--sequence", "thread-cut", "--machine", machine, "--model", "physical", "--csv", out)
+    result = cli(
+        "stepper",
+        "--sequence",
+        "thread-cut",
+        "--machine",
+        machine,
+        "--model",
+        "physical",
+        "--csv",
+        out,
+    )
     assert result.returncode == 0, result.stderr
     # 0.05 s at 1000 steps/s = 50 steps of 15 deg
     assert max(read_csv(out)["commanded_position_deg"]) == pytest.approx(750.0)
     broken = tmp_path / "broken.toml"
     broken.write_text(text.replace("chopper_hz = 20e3", "chopper_hz = 0"))
-    line = cli("stepper", "--sequence", "thread-cut", "--machine", broken, "--csv", tmp_path / "b.csv").assert_bad_input()
+    line = cli(
+        "stepper", "--sequence", "thread-cut", "--machine", broken, "--csv", tmp_path / "b.csv"
+    ).assert_bad_input()
     assert "chopper_hz" in line and "broken.toml" in line
 
 

@@ -30,18 +30,31 @@ RATIO = THESIS["mechanism"]["motor_to_arm_ratio"]
 def clean_thesis_machine(volts_profile, effects=(), **overrides):
     """The thesis's parameters exactly, driven by [(duration_s, volts), ...]."""
     duration = sum(d for d, _ in volts_profile)
-    return make_recording(effects, seed=0, duration_s=duration, randomize_baseline=False, voltage_plateaus=volts_profile, **overrides)
+    return make_recording(
+        effects,
+        seed=0,
+        duration_s=duration,
+        randomize_baseline=False,
+        voltage_plateaus=volts_profile,
+        **overrides,
+    )
 
 
 def breakaway_voltage(base, friction_arm_Nm):
     """Voltage whose stall torque through the belt equals a friction torque on the arm."""
-    return friction_arm_Nm * base["resistance_ohm"] / (base["belt_ratio"] * base["torque_constant_Nm_per_A"])
+    return (
+        friction_arm_Nm
+        * base["resistance_ohm"]
+        / (base["belt_ratio"] * base["torque_constant_Nm_per_A"])
+    )
 
 
 def slider_kinematics(theta, crank, rod, delta=1e-6):
     """Needle-bar height and dz/dtheta by central differences of the plain geometry."""
+
     def z(t):
         return crank * np.cos(t) + np.sqrt(rod**2 - (crank * np.sin(t)) ** 2)
+
     return z(theta), (z(theta + delta) - z(theta - delta)) / (2 * delta)
 
 
@@ -51,6 +64,7 @@ def cumulative_integral(values):
 
 
 # --- baseline: the thesis's numbers and conservation laws ----------------------------------
+
 
 def test_steady_speeds_match_the_thesis_table_2_cold_column():
     table = THESIS["steady_state_speed_table_2"]
@@ -72,7 +86,11 @@ def energy_imbalance(rec, stored, dissipation_power):
     base = rec.truth["baseline"]
     u = rec.traces["applied_voltage_V"][:-1]
     wm = rec.traces["motor_velocity_rad_s"]
-    R, Kt, Ke = base["resistance_ohm"], base["torque_constant_Nm_per_A"], base["back_emf_constant_V_s_per_rad"]
+    R, Kt, Ke = (
+        base["resistance_ohm"],
+        base["torque_constant_Nm_per_A"],
+        base["back_emf_constant_V_s_per_rad"],
+    )
     i_start, i_end = (u - Ke * wm[:-1]) / R, (u - Ke * wm[1:]) / R
 
     def running(start, end):
@@ -91,16 +109,27 @@ def energy_imbalance(rec, stored, dissipation_power):
 def test_energy_balance_of_the_lumped_machine():
     rec = clean_thesis_machine([(0.5, 0), (2, 12), (1, 4), (1.5, 18), (2, 0)], inductance_H=0.0)
     base, wm = rec.truth["baseline"], rec.traces["motor_velocity_rad_s"]
-    energy_in, imbalance = energy_imbalance(rec, 0.5 * base["inertia_motor_side_kgm2"] * wm**2, 0.0 * wm)
+    energy_in, imbalance = energy_imbalance(
+        rec, 0.5 * base["inertia_motor_side_kgm2"] * wm**2, 0.0 * wm
+    )
     assert rec.traces["arm_velocity_rad_s"][-1] == 0.0 and energy_in[-1] > 10.0
     assert np.abs(imbalance).max() < 2e-3 * energy_in[-1]
 
 
 def test_energy_balance_with_the_slider_crank_checks_inertia_gravity_and_the_half_j_prime_term():
-    rec = clean_thesis_machine([(0.5, 0), (2.5, 19.6), (1.5, 8), (2, 0)], effects=["linkage_dynamics"],
-                               inductance_H=0.0, linkage_dynamics={"reciprocating_mass_kg": 0.15})
+    rec = clean_thesis_machine(
+        [(0.5, 0), (2.5, 19.6), (1.5, 8), (2, 0)],
+        effects=["linkage_dynamics"],
+        inductance_H=0.0,
+        linkage_dynamics={"reciprocating_mass_kg": 0.15},
+    )
     base, link = rec.truth["baseline"], rec.truth["effect_params"]["linkage_dynamics"]
-    crank, rod, mass, g = base["crank_radius_m"], base["rod_length_m"], link["reciprocating_mass_kg"], link["gravity_m_s2"]
+    crank, rod, mass, g = (
+        base["crank_radius_m"],
+        base["rod_length_m"],
+        link["reciprocating_mass_kg"],
+        link["gravity_m_s2"],
+    )
     theta, wa = rec.traces["arm_angle_rad"], rec.traces["arm_velocity_rad_s"]
     grid = np.linspace(0, 2 * np.pi, 20000, endpoint=False)
     mean_dz2 = np.mean(slider_kinematics(grid, crank, rod)[1] ** 2)
@@ -114,8 +143,12 @@ def test_energy_balance_with_the_slider_crank_checks_inertia_gravity_and_the_hal
 
 
 def test_energy_balance_with_the_elastic_belt():
-    rec = clean_thesis_machine([(0.3, 0), (1.0, 16), (0.7, 5), (1.0, 0)], effects=["belt_compliance"], inductance_H=0.0,
-                               belt_compliance={"resonance_Hz": 30.0, "damping_ratio": 0.05})
+    rec = clean_thesis_machine(
+        [(0.3, 0), (1.0, 16), (0.7, 5), (1.0, 0)],
+        effects=["belt_compliance"],
+        inductance_H=0.0,
+        belt_compliance={"resonance_Hz": 30.0, "damping_ratio": 0.05},
+    )
     base, belt = rec.truth["baseline"], rec.truth["effect_params"]["belt_compliance"]
     t = rec.traces
     rotor = belt["motor_inertia_fraction"] * base["inertia_motor_side_kgm2"]
@@ -123,31 +156,43 @@ def test_energy_balance_with_the_elastic_belt():
     stretch = t["motor_angle_rad"] / RATIO - t["arm_angle_rad"]
     stretch_rate = t["motor_velocity_rad_s"] / RATIO - t["arm_velocity_rad_s"]
     k, c = belt["stiffness_arm_side_Nm_per_rad"], belt["damping_arm_side_Nm_s_per_rad"]
-    stored = 0.5 * rotor * t["motor_velocity_rad_s"] ** 2 + 0.5 * arm * t["arm_velocity_rad_s"] ** 2 + 0.5 * k * stretch**2
+    stored = (
+        0.5 * rotor * t["motor_velocity_rad_s"] ** 2
+        + 0.5 * arm * t["arm_velocity_rad_s"] ** 2
+        + 0.5 * k * stretch**2
+    )
     energy_in, imbalance = energy_imbalance(rec, stored, c * stretch_rate**2)
     belt_loss = cumulative_integral(c * stretch_rate**2)[-1]
-    assert np.abs(imbalance).max() < 3e-3 * energy_in[-1] and np.abs(imbalance).max() < 0.1 * belt_loss
+    assert (
+        np.abs(imbalance).max() < 3e-3 * energy_in[-1] and np.abs(imbalance).max() < 0.1 * belt_loss
+    )
 
 
 # --- stick-slip ----------------------------------------------------------------------------
+
 
 def test_machine_stays_stopped_below_breakaway_and_starts_above_it():
     base = clean_thesis_machine([(0.1, 0)]).truth["baseline"]
     threshold = breakaway_voltage(base, base["coulomb_arm_Nm"])
     below = clean_thesis_machine([(2.0, 0.97 * threshold)])
     above = clean_thesis_machine([(2.0, 1.03 * threshold)])
-    assert np.ptp(below.traces["arm_angle_rad"]) == 0.0 and np.all(below.traces["arm_velocity_rad_s"] == 0)
+    assert np.ptp(below.traces["arm_angle_rad"]) == 0.0 and np.all(
+        below.traces["arm_velocity_rad_s"] == 0
+    )
     assert np.ptp(above.traces["arm_angle_rad"]) > 0.05
 
 
 def test_machine_stops_at_zero_volts_and_stays_stopped():
-    rec = clean_thesis_machine([(0.3, 0), (1.5, 15), (2.5, 0)], effects=["linkage_dynamics", "torque_ripple"])
+    rec = clean_thesis_machine(
+        [(0.3, 0), (1.5, 15), (2.5, 0)], effects=["linkage_dynamics", "torque_ripple"]
+    )
     last = slice(-1500, None)
     assert np.all(rec.traces["arm_velocity_rad_s"][last] == 0.0)
     assert np.ptp(rec.traces["arm_angle_rad"][last]) == 0.0 and np.ptp(rec.arm_angle[last]) == 0.0
 
 
 # --- sensors and format ----------------------------------------------------------------------
+
 
 def test_angles_are_quantised_to_exactly_one_encoder_count():
     rec = make_recording([], seed=4, duration_s=20)
@@ -168,11 +213,17 @@ def test_csv_round_trip_through_read_table(tmp_path):
     table = read_table(csv_path, required=["time", "voltage", "arm_angle"], optional=["current"])
     check_increasing(table["time"], "rec")
     np.testing.assert_allclose(np.diff(table["time"]), 1e-3, atol=1e-9)
-    np.testing.assert_array_equal(np.round(table["arm_angle"] / ANGLE_STEP_RAD), np.round(rec.arm_angle / ANGLE_STEP_RAD))
+    np.testing.assert_array_equal(
+        np.round(table["arm_angle"] / ANGLE_STEP_RAD), np.round(rec.arm_angle / ANGLE_STEP_RAD)
+    )
     np.testing.assert_allclose(table["voltage"], rec.voltage)
     np.testing.assert_allclose(table["current"], rec.current, atol=1e-9)
     truth = json.loads(truth_path.read_text())
-    assert truth["effects"] == ["torque_ripple"] and truth["seed"] == 5 and truth["recording"] == "rec.csv"
+    assert (
+        truth["effects"] == ["torque_ripple"]
+        and truth["seed"] == 5
+        and truth["recording"] == "rec.csv"
+    )
     # the CSV conceals the truth: no effect name or parameter appears in it
     text = csv_path.read_text()
     assert "torque_ripple" not in text and "seed" not in text
@@ -194,12 +245,18 @@ def test_current_is_noisy_but_centred_on_the_motor_current():
 
 
 def test_each_seed_is_deterministic_and_effects_leave_the_rest_of_the_seed_alone():
-    a, b = make_recording(["stribeck"], seed=11, duration_s=5), make_recording(["stribeck"], seed=11, duration_s=5)
+    a, b = (
+        make_recording(["stribeck"], seed=11, duration_s=5),
+        make_recording(["stribeck"], seed=11, duration_s=5),
+    )
     np.testing.assert_array_equal(a.arm_angle, b.arm_angle)
     np.testing.assert_array_equal(a.current, b.current)
     assert a.truth == b.truth
     other = make_recording(["stribeck"], seed=12, duration_s=5)
-    assert other.truth["baseline"] != a.truth["baseline"] and other.truth["voltage_plateaus"] != a.truth["voltage_plateaus"]
+    assert (
+        other.truth["baseline"] != a.truth["baseline"]
+        and other.truth["voltage_plateaus"] != a.truth["voltage_plateaus"]
+    )
     clean = make_recording([], seed=11, duration_s=5)
     for key in ("baseline", "voltage_plateaus", "start_arm_angle_rad", "sensors"):
         assert clean.truth[key] == a.truth[key]
@@ -226,12 +283,18 @@ def test_compiled_and_python_integrators_agree():
         kwargs = dict(seed=3, duration_s=0.6, voltage_plateaus=[(0.1, 0), (0.5, 14)])
         native = make_recording(effects, **kwargs)
         python = make_recording(effects, integrator="python", **kwargs)
-        assert native.truth["integrator"]["solver"] == "native" and python.truth["integrator"]["solver"] == "python"
+        assert (
+            native.truth["integrator"]["solver"] == "native"
+            and python.truth["integrator"]["solver"] == "python"
+        )
         for name, values in native.traces.items():
-            np.testing.assert_allclose(python.traces[name], values, rtol=1e-9, atol=1e-9, err_msg=name)
+            np.testing.assert_allclose(
+                python.traces[name], values, rtol=1e-9, atol=1e-9, err_msg=name
+            )
 
 
 # --- the effects' signatures -------------------------------------------------------------------
+
 
 def spectrum_peak(signal, rate_hz, low_hz, high_hz):
     signal = (signal - signal.mean()) * np.hanning(len(signal))
@@ -241,9 +304,15 @@ def spectrum_peak(signal, rate_hz, low_hz, high_hz):
     return freqs[band][np.argmax(amplitude[band])]
 
 
-@pytest.mark.parametrize("component, volts, per_arm_rev", [("once", 10.0, RATIO), ("cogging", 4.0, 12 * RATIO)])
+@pytest.mark.parametrize(
+    "component, volts, per_arm_rev", [("once", 10.0, RATIO), ("cogging", 4.0, 12 * RATIO)]
+)
 def test_torque_ripple_appears_at_its_motor_order(component, volts, per_arm_rev):
-    ripple = {"once_per_motor_rev_Nm": 0.012, "cogging_Nm": 0.0} if component == "once" else {"once_per_motor_rev_Nm": 0.0, "cogging_Nm": 0.004}
+    ripple = (
+        {"once_per_motor_rev_Nm": 0.012, "cogging_Nm": 0.0}
+        if component == "once"
+        else {"once_per_motor_rev_Nm": 0.0, "cogging_Nm": 0.004}
+    )
     rec = clean_thesis_machine([(6.0, volts)], effects=["torque_ripple"], torque_ripple=ripple)
     speed = rec.traces["arm_velocity_rad_s"][2000:]
     arm_hz = speed.mean() / (2 * math.pi)
@@ -254,10 +323,16 @@ def test_torque_ripple_appears_at_its_motor_order(component, volts, per_arm_rev)
 def test_linkage_inertial_torque_grows_with_speed_at_twice_the_arm_rate():
     amplitudes, speeds = [], []
     for volts in (10.0, 19.0):
-        rec = clean_thesis_machine([(4.0, volts)], effects=["linkage_dynamics"], linkage_dynamics={"reciprocating_mass_kg": 0.1})
+        rec = clean_thesis_machine(
+            [(4.0, volts)],
+            effects=["linkage_dynamics"],
+            linkage_dynamics={"reciprocating_mass_kg": 0.1},
+        )
         speed, theta = rec.traces["arm_velocity_rad_s"][2000:], rec.traces["arm_angle_rad"][2000:]
         arm_hz = speed.mean() / (2 * math.pi)
-        assert spectrum_peak(speed, 1000, 1.5 * arm_hz, 10 * arm_hz) == pytest.approx(2 * arm_hz, rel=0.02)
+        assert spectrum_peak(speed, 1000, 1.5 * arm_hz, 10 * arm_hz) == pytest.approx(
+            2 * arm_hz, rel=0.02
+        )
         basis = np.column_stack([np.ones_like(theta), np.sin(2 * theta), np.cos(2 * theta)])
         amplitudes.append(math.hypot(*np.linalg.lstsq(basis, speed, rcond=None)[0][1:]))
         speeds.append(speed.mean())
@@ -271,10 +346,16 @@ def test_stribeck_raises_breakaway_and_slows_the_machine_at_low_speed():
     volts = breakaway_voltage(base, 1.15 * base["coulomb_arm_Nm"])  # between kinetic and static
     clean = clean_thesis_machine([(2.0, volts)])
     sticky = clean_thesis_machine([(2.0, volts)], effects=["stribeck"], stribeck=strib)
-    assert np.ptp(clean.traces["arm_angle_rad"]) > 0.05 and np.ptp(sticky.traces["arm_angle_rad"]) == 0.0
+    assert (
+        np.ptp(clean.traces["arm_angle_rad"]) > 0.05
+        and np.ptp(sticky.traces["arm_angle_rad"]) == 0.0
+    )
     slow_clean = clean_thesis_machine([(3.0, 5.0)])
     slow_sticky = clean_thesis_machine([(3.0, 5.0)], effects=["stribeck"], stribeck=strib)
-    assert slow_sticky.traces["arm_velocity_rad_s"][-500:].mean() < slow_clean.traces["arm_velocity_rad_s"][-500:].mean() - 0.3
+    assert (
+        slow_sticky.traces["arm_velocity_rad_s"][-500:].mean()
+        < slow_clean.traces["arm_velocity_rad_s"][-500:].mean() - 0.3
+    )
 
 
 def test_position_friction_makes_breakaway_depend_on_the_resting_angle():
@@ -282,30 +363,54 @@ def test_position_friction_makes_breakaway_depend_on_the_resting_angle():
     base, pf = rec.truth["baseline"], rec.truth["effect_params"]["position_friction"]
 
     def coulomb_at(theta):
-        return base["coulomb_arm_Nm"] * (1 + pf["first_harmonic_fraction"] * math.cos(theta - pf["first_harmonic_phase_rad"])
-                                         + pf["second_harmonic_fraction"] * math.cos(2 * theta - pf["second_harmonic_phase_rad"]))
+        return base["coulomb_arm_Nm"] * (
+            1
+            + pf["first_harmonic_fraction"] * math.cos(theta - pf["first_harmonic_phase_rad"])
+            + pf["second_harmonic_fraction"] * math.cos(2 * theta - pf["second_harmonic_phase_rad"])
+        )
 
     grid = np.linspace(0, 2 * math.pi, 720, endpoint=False)
     levels = np.array([coulomb_at(t) for t in grid])
     highest, lowest = grid[levels.argmax()], grid[levels.argmin()]
     assert levels.max() / levels.min() - 1 > 0.1
     volts = breakaway_voltage(base, 0.5 * (levels.max() + levels.min()))
-    stuck = clean_thesis_machine([(1.0, volts)], effects=["position_friction"], start_angle_rad=highest)
-    moving = clean_thesis_machine([(1.0, volts)], effects=["position_friction"], start_angle_rad=lowest)
-    assert np.ptp(stuck.traces["arm_angle_rad"]) == 0.0 and np.ptp(moving.traces["arm_angle_rad"]) > 0.01
+    stuck = clean_thesis_machine(
+        [(1.0, volts)], effects=["position_friction"], start_angle_rad=highest
+    )
+    moving = clean_thesis_machine(
+        [(1.0, volts)], effects=["position_friction"], start_angle_rad=lowest
+    )
+    assert (
+        np.ptp(stuck.traces["arm_angle_rad"]) == 0.0
+        and np.ptp(moving.traces["arm_angle_rad"]) > 0.01
+    )
 
 
 def test_thermal_drift_speeds_the_machine_up_as_its_friction_falls():
-    drift = {"coulomb_drop_fraction": 0.3, "viscous_drop_fraction": 0.45, "warm_up_time_constant_s": 30.0}
-    rec = clean_thesis_machine([(0.5, 0), (40.0, 6.0)], effects=["thermal_drift"], thermal_drift=drift)
+    drift = {
+        "coulomb_drop_fraction": 0.3,
+        "viscous_drop_fraction": 0.45,
+        "warm_up_time_constant_s": 30.0,
+    }
+    rec = clean_thesis_machine(
+        [(0.5, 0), (40.0, 6.0)], effects=["thermal_drift"], thermal_drift=drift
+    )
     base, speed = rec.truth["baseline"], rec.traces["arm_velocity_rad_s"]
     start = np.argmax(speed > 0) / 1000
-    R, Kt, Ke = base["resistance_ohm"], base["torque_constant_Nm_per_A"], base["back_emf_constant_V_s_per_rad"]
+    R, Kt, Ke = (
+        base["resistance_ohm"],
+        base["torque_constant_Nm_per_A"],
+        base["back_emf_constant_V_s_per_rad"],
+    )
     for t in (10.0, 25.0, 40.0):
         warm = 1 - math.exp(-(t - start) / drift["warm_up_time_constant_s"])
         coulomb = base["coulomb_arm_Nm"] * (1 - drift["coulomb_drop_fraction"] * warm)
-        viscous = base["viscous_motor_side_Nm_s_per_rad"] * (1 - drift["viscous_drop_fraction"] * warm)
-        motor_speed = (Kt * 6.0 / R - coulomb / RATIO) / (Kt * Ke / R + viscous)  # thesis eq. 5, steady
+        viscous = base["viscous_motor_side_Nm_s_per_rad"] * (
+            1 - drift["viscous_drop_fraction"] * warm
+        )
+        motor_speed = (Kt * 6.0 / R - coulomb / RATIO) / (
+            Kt * Ke / R + viscous
+        )  # thesis eq. 5, steady
         k = int(t * 1000) - 1
         assert speed[k] == pytest.approx(motor_speed / RATIO, rel=0.01)
     assert speed[-1] > 1.05 * speed[1500]
@@ -313,15 +418,24 @@ def test_thermal_drift_speeds_the_machine_up_as_its_friction_falls():
 
 def test_needle_load_acts_only_while_the_needle_is_in_the_fabric():
     needle = {"layers": 12, "force_per_layer_N": 3.0}
-    rec = clean_thesis_machine([(5.0, 6.0)], effects=["needle_penetration"], needle_penetration=needle)
+    rec = clean_thesis_machine(
+        [(5.0, 6.0)], effects=["needle_penetration"], needle_penetration=needle
+    )
     base, params = rec.truth["baseline"], rec.truth["effect_params"]["needle_penetration"]
     t = rec.traces
     sl = slice(1500, -5)
     wm = t["motor_velocity_rad_s"]
     accel = np.gradient(wm, 1e-3)
     # torque the lumped model (thesis eq. 5 with the measured current) cannot account for, on the arm
-    missing = RATIO * (base["torque_constant_Nm_per_A"] * t["current_A"] - base["viscous_motor_side_Nm_s_per_rad"] * wm
-                       - base["inertia_motor_side_kgm2"] * accel) - base["coulomb_arm_Nm"]
+    missing = (
+        RATIO
+        * (
+            base["torque_constant_Nm_per_A"] * t["current_A"]
+            - base["viscous_motor_side_Nm_s_per_rad"] * wm
+            - base["inertia_motor_side_kgm2"] * accel
+        )
+        - base["coulomb_arm_Nm"]
+    )
     theta = np.mod(t["arm_angle_rad"], 2 * math.pi)[sl]
     missing = missing[sl]
     z, _ = slider_kinematics(theta, base["crank_radius_m"], base["rod_length_m"])
@@ -336,37 +450,66 @@ def test_needle_load_acts_only_while_the_needle_is_in_the_fabric():
 
 
 def test_belt_resonance_is_the_two_inertia_frequency():
-    rec = clean_thesis_machine([(0.3, 0), (1.0, 12), (0.5, 18)], effects=["belt_compliance"],
-                               belt_compliance={"resonance_Hz": 40.0, "damping_ratio": 0.02})
+    rec = clean_thesis_machine(
+        [(0.3, 0), (1.0, 12), (0.5, 18)],
+        effects=["belt_compliance"],
+        belt_compliance={"resonance_Hz": 40.0, "damping_ratio": 0.02},
+    )
     base, belt = rec.truth["baseline"], rec.truth["effect_params"]["belt_compliance"]
     rotor = RATIO**2 * belt["motor_inertia_fraction"] * base["inertia_motor_side_kgm2"]
     arm = RATIO**2 * (1 - belt["motor_inertia_fraction"]) * base["inertia_motor_side_kgm2"]
-    expected = math.sqrt(belt["stiffness_arm_side_Nm_per_rad"] * (1 / rotor + 1 / arm)) / (2 * math.pi)
+    expected = math.sqrt(belt["stiffness_arm_side_Nm_per_rad"] * (1 / rotor + 1 / arm)) / (
+        2 * math.pi
+    )
     t = rec.traces
     stretch = (t["motor_angle_rad"] / RATIO - t["arm_angle_rad"])[1300:1500]
     time = np.arange(len(stretch)) * 1e-3
     guess = spectrum_peak(stretch - np.polyval(np.polyfit(time, stretch, 2), time), 1000, 5, 200)
 
     def ringing(time, amp, decay, freq, phase, c0, c1, c2):
-        return amp * np.exp(-decay * time) * np.sin(2 * np.pi * freq * time + phase) + c0 + c1 * time + c2 * time**2
+        return (
+            amp * np.exp(-decay * time) * np.sin(2 * np.pi * freq * time + phase)
+            + c0
+            + c1 * time
+            + c2 * time**2
+        )
 
-    popt, _ = curve_fit(ringing, time, stretch, p0=[np.ptp(stretch) / 2, 10, guess, 0, stretch.mean(), 0, 0], maxfev=20000)
+    popt, _ = curve_fit(
+        ringing,
+        time,
+        stretch,
+        p0=[np.ptp(stretch) / 2, 10, guess, 0, stretch.mean(), 0, 0],
+        maxfev=20000,
+    )
     assert abs(popt[2]) == pytest.approx(expected, rel=0.03)
     # and the arm's speed rings at the same frequency (what the encoder sees)
     speed = t["arm_velocity_rad_s"][1300:1500]
-    assert spectrum_peak(speed - np.polyval(np.polyfit(time, speed, 3), time), 1000, 15, 200) == pytest.approx(expected, rel=0.05)
+    assert spectrum_peak(
+        speed - np.polyval(np.polyfit(time, speed, 3), time), 1000, 15, 200
+    ) == pytest.approx(expected, rel=0.05)
 
 
 def test_voltage_nonlinearity_follows_the_sign_of_table_2_errors():
     table = THESIS["steady_state_speed_table_2"]
     columns = table["columns"]
-    rows = [r for r in table["rows"] if 0 < r[columns.index("duty_percent")] < 100 and r[columns.index("motor_voltage_V")] != 7.0]
+    rows = [
+        r
+        for r in table["rows"]
+        if 0 < r[columns.index("duty_percent")] < 100 and r[columns.index("motor_voltage_V")] != 7.0
+    ]
     for seed in range(4):
         for row in rows:
-            volts, error = row[columns.index("motor_voltage_V")], row[columns.index("voltage_error_percent")]
+            volts, error = (
+                row[columns.index("motor_voltage_V")],
+                row[columns.index("voltage_error_percent")],
+            )
             kwargs = dict(seed=seed, duration_s=2.5, voltage_plateaus=[(2.5, volts)])
             clean = make_recording([], **kwargs).traces["arm_velocity_rad_s"][-300:].mean()
-            distorted = make_recording(["voltage_nonlinearity"], **kwargs).traces["arm_velocity_rad_s"][-300:].mean()
+            distorted = (
+                make_recording(["voltage_nonlinearity"], **kwargs)
+                .traces["arm_velocity_rad_s"][-300:]
+                .mean()
+            )
             assert np.sign(distorted - clean) == np.sign(error), (seed, volts)
 
 
@@ -375,23 +518,35 @@ def test_encoder_eccentricity_is_a_once_per_revolution_sensor_error():
     kwargs = dict(seed=6, duration_s=6.3, voltage_plateaus=profile)
     clean, ecc = make_recording([], **kwargs), make_recording(["encoder_eccentricity"], **kwargs)
     amplitude = ecc.truth["effect_params"]["encoder_eccentricity"]["amplitude_rad"]
-    np.testing.assert_array_equal(clean.traces["arm_angle_rad"], ecc.traces["arm_angle_rad"])  # the machine is untouched
+    np.testing.assert_array_equal(
+        clean.traces["arm_angle_rad"], ecc.traces["arm_angle_rad"]
+    )  # the machine is untouched
     theta = ecc.traces["arm_angle_rad"]
     error = ecc.arm_angle - theta
-    basis = np.column_stack([np.ones_like(theta)] + [f(k * theta) for k in (1, 2, 3) for f in (np.sin, np.cos)])
+    basis = np.column_stack(
+        [np.ones_like(theta)] + [f(k * theta) for k in (1, 2, 3) for f in (np.sin, np.cos)]
+    )
     coef = np.linalg.lstsq(basis, error, rcond=None)[0]
     assert math.hypot(*coef[1:3]) == pytest.approx(amplitude, abs=ANGLE_STEP_RAD / 2)
     assert max(math.hypot(*coef[3:5]), math.hypot(*coef[5:7])) < ANGLE_STEP_RAD / 4
-    index = np.abs(np.mod(theta + np.pi, 2 * np.pi) - np.pi) < 1e-3  # at the index pulse (TDC) the error vanishes
+    index = (
+        np.abs(np.mod(theta + np.pi, 2 * np.pi) - np.pi) < 1e-3
+    )  # at the index pulse (TDC) the error vanishes
     assert np.all(np.abs(error[index]) <= ANGLE_STEP_RAD)
 
     def speed_error_rms(window):
         def speed(angle):
             return (angle[10:] - angle[:-10]) / 0.01
-        return np.sqrt(np.mean((speed(ecc.arm_angle[window]) - speed(clean.arm_angle[window])) ** 2))
+
+        return np.sqrt(
+            np.mean((speed(ecc.arm_angle[window]) - speed(clean.arm_angle[window])) ** 2)
+        )
 
     slow, fast = slice(1800, 3300), slice(4800, 6300)
-    speed_ratio = clean.traces["arm_velocity_rad_s"][fast].mean() / clean.traces["arm_velocity_rad_s"][slow].mean()
+    speed_ratio = (
+        clean.traces["arm_velocity_rad_s"][fast].mean()
+        / clean.traces["arm_velocity_rad_s"][slow].mean()
+    )
     assert speed_error_rms(fast) / speed_error_rms(slow) == pytest.approx(speed_ratio, rel=0.25)
 
 
@@ -410,13 +565,20 @@ def test_every_effect_changes_the_arm_speed_visibly_somewhere():
             else:
                 diff = rec.traces["arm_velocity_rad_s"] - clean.traces["arm_velocity_rad_s"]
             window = 200 if name == "belt_compliance" else 2000
-            rms = np.sqrt((diff[: len(diff) // window * window].reshape(-1, window) ** 2).mean(axis=1)).max()
+            rms = np.sqrt(
+                (diff[: len(diff) // window * window].reshape(-1, window) ** 2).mean(axis=1)
+            ).max()
             assert rms > 0.2, (name, seed, rms)
 
 
 # --- separation from the diagnosis side, CLI and shipped recordings -------------------------------
 
-FORBIDDEN = ("mechanism.sysid.identification", "mechanism.sysid.diagnosis", "mechanism.dynamics.lumped", "mechanism.sysid.effects")
+FORBIDDEN = (
+    "mechanism.sysid.identification",
+    "mechanism.sysid.diagnosis",
+    "mechanism.dynamics.lumped",
+    "mechanism.sysid.effects",
+)
 
 
 def _testbench_sources():
@@ -431,7 +593,9 @@ def test_truth_model_never_imports_the_diagnosis_side():
             if isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
             elif isinstance(node, ast.ImportFrom):
-                names = [node.module or ""] + [f"{node.module}.{alias.name}" for alias in node.names]
+                names = [node.module or ""] + [
+                    f"{node.module}.{alias.name}" for alias in node.names
+                ]
             else:
                 continue
             for name in names:
@@ -455,21 +619,39 @@ def test_cli_lists_the_vocabulary_and_writes_a_recording(cli, tmp_path):
     listing = cli("testbench", "--list")
     assert listing.returncode == 0
     assert [line.split()[0] for line in listing.stdout.splitlines()] == ["none", *EFFECTS]
-    out = cli("testbench", "--effect", "position_friction,encoder_eccentricity", "--seed", "2", "--duration", "3", "-o", tmp_path / "r.csv")
+    out = cli(
+        "testbench",
+        "--effect",
+        "position_friction,encoder_eccentricity",
+        "--seed",
+        "2",
+        "--duration",
+        "3",
+        "-o",
+        tmp_path / "r.csv",
+    )
     assert out.returncode == 0, out.stderr
     truth = json.loads((tmp_path / "r.truth.json").read_text())
-    assert truth["effects"] == ["position_friction", "encoder_eccentricity"] and truth["duration_s"] == 3.0
+    assert (
+        truth["effects"] == ["position_friction", "encoder_eccentricity"]
+        and truth["duration_s"] == 3.0
+    )
     assert len(read_table(tmp_path / "r.csv", required=["time", "voltage", "arm_angle"])) == 3000
 
 
-@pytest.mark.parametrize("args, fragment", [
-    (["--effect", "belt"], "unknown effect 'belt'"),
-    (["--effect", "none", "--duration", "0"], "duration"),
-    (["--effect", "none"], "needs --effect"),
-])
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--effect", "belt"], "unknown effect 'belt'"),
+        (["--effect", "none", "--duration", "0"], "duration"),
+        (["--effect", "none"], "needs --effect"),
+    ],
+)
 def test_cli_bad_input_is_one_error_line(cli_here, tmp_path, args, fragment):
     target = tmp_path / "r.csv"
-    result = cli_here("testbench", *args, *(["-o", target] if "--duration" in args or "belt" in args else []))
+    result = cli_here(
+        "testbench", *args, *(["-o", target] if "--duration" in args or "belt" in args else [])
+    )
     assert fragment in result.assert_bad_input()
     assert list(tmp_path.iterdir()) == []
 
@@ -493,10 +675,15 @@ def test_shipped_recordings_exist_with_a_clean_one_and_a_concealed_effect():
 @pytest.mark.parametrize("truth_path", SHIPPED, ids=lambda p: p.name)
 def test_shipped_recordings_are_reproducible_from_their_truth(truth_path):
     truth = json.loads(truth_path.read_text())
-    table = read_table(truth_path.with_name(truth["recording"]), required=["time", "voltage", "arm_angle", "current"])
+    table = read_table(
+        truth_path.with_name(truth["recording"]),
+        required=["time", "voltage", "arm_angle", "current"],
+    )
     rec = make_recording(truth["effects"], seed=truth["seed"], duration_s=truth["duration_s"])
     np.testing.assert_allclose(table["voltage"], rec.voltage)
-    counts = np.round(table["arm_angle"] / ANGLE_STEP_RAD) - np.round(rec.arm_angle / ANGLE_STEP_RAD)
+    counts = np.round(table["arm_angle"] / ANGLE_STEP_RAD) - np.round(
+        rec.arm_angle / ANGLE_STEP_RAD
+    )
     assert np.abs(counts).max() <= 1
     np.testing.assert_allclose(table["current"], rec.current, atol=1.5e-3)
 
@@ -519,8 +706,16 @@ def test_winding_heating_follows_the_copper_energy_balance():
     r0 = rec.truth["baseline"]["resistance_ohm"]
     kelvin, dt = 0.0, 1e-3
     for k in range(len(r)):
-        kelvin += dt * (rec.traces["current_A"][k] ** 2 * r[k] - kelvin / heat["thermal_resistance_K_per_W"]) / heat["thermal_time_constant_s"] * heat["thermal_resistance_K_per_W"]
+        kelvin += (
+            dt
+            * (rec.traces["current_A"][k] ** 2 * r[k] - kelvin / heat["thermal_resistance_K_per_W"])
+            / heat["thermal_time_constant_s"]
+            * heat["thermal_resistance_K_per_W"]
+        )
     assert r[-1] == pytest.approx(r0 * (1 + heat["copper_coefficient_per_K"] * kelvin), rel=0.01)
     assert r[-1] > 1.05 * r0
     clean = make_recording([], seed=2, duration_s=40)
-    assert rec.traces["arm_velocity_rad_s"][-2000:].mean() < clean.traces["arm_velocity_rad_s"][-2000:].mean()
+    assert (
+        rec.traces["arm_velocity_rad_s"][-2000:].mean()
+        < clean.traces["arm_velocity_rad_s"][-2000:].mean()
+    )

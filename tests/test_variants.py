@@ -36,7 +36,9 @@ def test_coupling_offset_advances_the_hook(nominal):
     arm_side = _edited(nominal, "coupling:hook_drive:arm_shaft_deg", -15.0)
     data = mujoco.MjData(arm_side)
     solve_pose(arm_side, data, {"arm_shaft": 0.7})
-    assert data.qpos[arm_side.joint("hook").qposadr[0]] == pytest.approx(2 * 0.7 + np.radians(90 - 2 * M.HOOK_PASS_DEG + 30), abs=1e-9)
+    assert data.qpos[arm_side.joint("hook").qposadr[0]] == pytest.approx(
+        2 * 0.7 + np.radians(90 - 2 * M.HOOK_PASS_DEG + 30), abs=1e-9
+    )
 
 
 def test_crank_radius_changes_the_stroke(nominal):
@@ -56,16 +58,24 @@ def test_part_offset_moves_the_part_and_its_named_frames(nominal):
     data0, data1 = mujoco.MjData(nominal), mujoco.MjData(model)
     for m, d in ((nominal, data0), (model, data1)):
         solve_pose(m, d, {"arm_shaft": 2.0})
-    assert data1.site("needle_tip").xpos[2] - data0.site("needle_tip").xpos[2] == pytest.approx(0.0005, abs=1e-9)
-    assert data1.geom("needle").xpos[2] - data0.geom("needle").xpos[2] == pytest.approx(0.0005, abs=1e-9)
-    np.testing.assert_allclose(data1.site("needle_bar").xpos, data0.site("needle_bar").xpos, atol=1e-12)
+    assert data1.site("needle_tip").xpos[2] - data0.site("needle_tip").xpos[2] == pytest.approx(
+        0.0005, abs=1e-9
+    )
+    assert data1.geom("needle").xpos[2] - data0.geom("needle").xpos[2] == pytest.approx(
+        0.0005, abs=1e-9
+    )
+    np.testing.assert_allclose(
+        data1.site("needle_bar").xpos, data0.site("needle_bar").xpos, atol=1e-12
+    )
 
 
 def test_joined_targets_move_together(nominal):
     """needle-bar height: the bar and the needle (with its named frames) move as one."""
     model = _edited(nominal, "part:needle_bar:z_mm+part:needle:z_mm", -0.3)
     for name in ("needle_tip", "needle", "needle_bar"):
-        assert model.site(name).pos[2] - nominal.site(name).pos[2] == pytest.approx(-0.0003, abs=1e-12)
+        assert model.site(name).pos[2] - nominal.site(name).pos[2] == pytest.approx(
+            -0.0003, abs=1e-12
+        )
 
 
 def test_unknown_targets_list_close_matches(nominal):
@@ -91,7 +101,11 @@ def test_json_rows_nominal_explicit_grid_times_samples(tmp_path):
         "parameters": {"timing": "coupling:hook_drive:hook_deg", "height": "part:needle:z_mm"},
         "variants": [{"name": "late hook", "timing": -30}],
         "sweep": {"timing": {"start": -2, "stop": 2, "num": 3}},
-        "samples": {"count": 200, "seed": 7, "tolerances": {"height": {"dist": "normal", "std": 0.05}}},
+        "samples": {
+            "count": 200,
+            "seed": 7,
+            "tolerances": {"height": {"dist": "normal", "std": 0.05}},
+        },
     }
     variants = read_variants(_write(tmp_path, "v.json", doc))
     assert [p.name for p in variants.parameters] == ["timing", "height"]
@@ -115,10 +129,22 @@ def test_csv_variants_with_names(tmp_path):
     "content, message",
     [
         ("{not json", "not valid JSON"),
-        ({"format": "mechanism-variants/1", "sweep": {"hook_timing_deg": [1]}, "colour": 1}, "unknown key"),
+        (
+            {"format": "mechanism-variants/1", "sweep": {"hook_timing_deg": [1]}, "colour": 1},
+            "unknown key",
+        ),
         ({"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": []}}, "empty list"),
-        ({"parameters": {"t": "coupling:hook_drive:hook_deg"}, "samples": {"count": 3, "tolerances": {"t": {"dist": "cauchy"}}}}, "normal"),
-        ({"parameters": {"t": "coupling:hook_drive:hook_deg"}, "variants": [{"t": "late"}]}, "finite number"),
+        (
+            {
+                "parameters": {"t": "coupling:hook_drive:hook_deg"},
+                "samples": {"count": 3, "tolerances": {"t": {"dist": "cauchy"}}},
+            },
+            "normal",
+        ),
+        (
+            {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "variants": [{"t": "late"}]},
+            "finite number",
+        ),
         ({"parameters": {"t": "twist:hook:deg"}}, "expected coupling"),
         ("coupling:hook_drive:hook_deg\n1\nabc\n", "not a number"),
     ],
@@ -138,7 +164,9 @@ def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
     }
     variants = read_variants(_write(tmp_path, "v.json", doc))
     pairs = [Pair("needle", "hook")]
-    parallel = run_variants(nominal, variants, pairs, required_mm=0.05, driver="arm_shaft", workers=2)
+    parallel = run_variants(
+        nominal, variants, pairs, required_mm=0.05, driver="arm_shaft", workers=2
+    )
     assert "variants" in capsys.readouterr().err  # the progress bar
     rows = {row["variant"]: row for row in parallel.table()}
     assert rows["nominal"]["pass"] == 1
@@ -146,8 +174,12 @@ def test_batch_in_parallel_flags_the_mistimed_hook(tmp_path, nominal, capsys):
     assert rows["late hook"]["pass"] == 0 and rows["late hook"]["needle_vs_hook_min_mm"] < 0
     # a timing error moves the pass angle by half of it (the hook turns at twice the arm speed)
     assert rows["grid 2"]["needle_vs_hook_angle_deg"] == pytest.approx(M.HOOK_PASS_DEG - 2, abs=0.1)
-    serial = run_variants(nominal, variants, pairs, required_mm=0.05, driver="arm_shaft", workers=1, progress=False)
-    assert [r["needle_vs_hook_min_mm"] for r in serial.rows] == pytest.approx([r["needle_vs_hook_min_mm"] for r in parallel.rows], abs=1e-9)
+    serial = run_variants(
+        nominal, variants, pairs, required_mm=0.05, driver="arm_shaft", workers=1, progress=False
+    )
+    assert [r["needle_vs_hook_min_mm"] for r in serial.rows] == pytest.approx(
+        [r["needle_vs_hook_min_mm"] for r in parallel.rows], abs=1e-9
+    )
 
 
 def _rows_on_a_local_ray_instance(variants_path):
@@ -155,8 +187,15 @@ def _rows_on_a_local_ray_instance(variants_path):
     (its node address, its session), which a later test's driver of a `ray start` cluster would meet."""
     import ray
 
-    batch = run_variants(M.needle_and_plate().compile(), read_variants(variants_path), [Pair("needle", "hook")],
-                         driver="arm_shaft", workers=2, backend="ray", progress=False)
+    batch = run_variants(
+        M.needle_and_plate().compile(),
+        read_variants(variants_path),
+        [Pair("needle", "hook")],
+        driver="arm_shaft",
+        workers=2,
+        backend="ray",
+        progress=False,
+    )
     return [row["pass"] for row in batch.rows], ray.is_initialized()
 
 
@@ -165,8 +204,14 @@ def _rows_on_a_local_ray_instance(variants_path):
 def test_ray_backend(tmp_path):
     import multiprocessing
 
-    pytest.importorskip("ray", reason="Ray is not installed (optional: pip install 'mechanism[ray]')")
-    variants = _write(tmp_path, "v.json", {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, 0]}})
+    pytest.importorskip(
+        "ray", reason="Ray is not installed (optional: pip install 'mechanism[ray]')"
+    )
+    variants = _write(
+        tmp_path,
+        "v.json",
+        {"parameters": {"t": "coupling:hook_drive:hook_deg"}, "sweep": {"t": [-30, 0]}},
+    )
     with multiprocessing.get_context("spawn").Pool(1) as pool:
         passes, still_initialized = pool.apply(_rows_on_a_local_ray_instance, (variants,))
     assert passes == [1, 0, 1]

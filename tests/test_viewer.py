@@ -19,16 +19,30 @@ def _chromium() -> str:
         path = shutil.which(name)
         if path:
             return path
-    pytest.skip("no headless Chromium installed (Debian: apt-get install -y chromium); the browser test needs one with SwiftShader WebGL")
+    pytest.skip(
+        "no headless Chromium installed (Debian: apt-get install -y chromium); the browser test needs one with SwiftShader WebGL"
+    )
 
 
 def _headless(chromium: str, *args: str, timeout: float = 120) -> subprocess.CompletedProcess:
     with tempfile.TemporaryDirectory() as profile:
         command = [
-            chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-            "--disable-background-networking", "--disable-component-update", "--disable-sync",
-            f"--user-data-dir={profile}", "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-            "--window-size=800,600", "--virtual-time-budget=8000", *args,
+            chromium,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={profile}",
+            "--use-gl=angle",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--window-size=800,600",
+            "--virtual-time-budget=8000",
+            *args,
         ]
         return subprocess.run(command, capture_output=True, text=True, timeout=timeout)
 
@@ -42,10 +56,21 @@ def model_file(tmp_path_factory):
 
 def test_html_is_self_contained(model_file, tmp_path):
     html = tmp_path / "machine.html"
-    summary = view(html, model_file, frames=12, probe_names=["needle_tip"], pairs="needle:hook", driver="arm_shaft")
+    summary = view(
+        html,
+        model_file,
+        frames=12,
+        probe_names=["needle_tip"],
+        pairs="needle:hook",
+        driver="arm_shaft",
+    )
     text = html.read_text()
     assert summary["frames"] == 12
-    assert "MeshCat.Viewer" in text and "<script src" not in text and "http://" not in text.split("<script>")[0]
+    assert (
+        "MeshCat.Viewer" in text
+        and "<script src" not in text
+        and "http://" not in text.split("<script>")[0]
+    )
     assert "needle:hook: min 0.100 mm at 195.0 deg" in text
 
 
@@ -78,7 +103,11 @@ def test_recording_replays_the_arm_angle(model_file, tmp_path):
     model = mujoco.MjModel.from_xml_path(str(model_file))
     motion = recording_motion(model, recording, frames=9, driver="arm_shaft")
     np.testing.assert_allclose(motion.time_s, np.linspace(0, 2, 9))
-    np.testing.assert_allclose(motion.qpos[:, model.joint("arm_shaft").qposadr[0]], 3.0 * np.linspace(0, 2, 9) ** 2, atol=1e-9)
+    np.testing.assert_allclose(
+        motion.qpos[:, model.joint("arm_shaft").qposadr[0]],
+        3.0 * np.linspace(0, 2, 9) ** 2,
+        atol=1e-9,
+    )
     tip = []
     data = mujoco.MjData(model)
     for qpos in motion.qpos:  # same branch as the analytic needle all along
@@ -91,7 +120,9 @@ def test_recording_replays_the_arm_angle(model_file, tmp_path):
 def test_cycle_and_colours(model_file):
     model = mujoco.MjModel.from_xml_path(str(model_file))
     motion = cycle_motion(model, frames=5, driver="arm_shaft")
-    np.testing.assert_allclose(motion.qpos[:, model.joint("arm_shaft").qposadr[0]], np.linspace(0, 2 * np.pi, 5), atol=1e-9)
+    np.testing.assert_allclose(
+        motion.qpos[:, model.joint("arm_shaft").qposadr[0]], np.linspace(0, 2 * np.pi, 5), atol=1e-9
+    )
     model.geom_rgba[0] = [1.0, 0.5, 0.0, 0.25]
     assert _color(model, 0) == (0xFF8000, 0.25)
 

@@ -29,9 +29,13 @@ def closed_form_window_s(spm, clearance=0.0):
 def test_window_matches_the_closed_form(needle):
     exit_angle, entry_angle = needle.window()
     assert exit_angle == pytest.approx(-entry_angle)
-    assert (entry_angle - exit_angle) / (2 * math.pi) * 60 / SPM == pytest.approx(closed_form_window_s(SPM), rel=1e-9)
+    assert (entry_angle - exit_angle) / (2 * math.pi) * 60 / SPM == pytest.approx(
+        closed_form_window_s(SPM), rel=1e-9
+    )
     exit_2, entry_2 = needle.window(clearance_mm=3.0)
-    assert (entry_2 - exit_2) / (2 * math.pi) * 60 / SPM == pytest.approx(closed_form_window_s(SPM, 3.0), rel=1e-9)
+    assert (entry_2 - exit_2) / (2 * math.pi) * 60 / SPM == pytest.approx(
+        closed_form_window_s(SPM, 3.0), rel=1e-9
+    )
 
 
 def test_table_profile_reproduces_the_function(needle):
@@ -45,7 +49,9 @@ def test_table_profile_reproduces_the_function(needle):
 def test_full_width_at_the_thesis_rate_is_flagged(needle):
     check = zigzag.check_move(SPM, needle, rate=1000)
     linkage = zigzag.ZigzagLinkage()
-    assert check.steps == linkage.steps_full_width and check.width_mm == pytest.approx(linkage.width_mm)
+    assert check.steps == linkage.steps_full_width and check.width_mm == pytest.approx(
+        linkage.width_mm
+    )
     assert check.window_s == pytest.approx(closed_form_window_s(SPM), rel=1e-9)
     # the driver's last step comes half a step period before the end of the move
     assert check.move_time_s >= (check.steps - 0.5) / 1000
@@ -92,6 +98,8 @@ def test_shipped_machine_needle_table_feeds_the_zigzag_check():
     # 1000 steps/s does not fit the time the needle spends above the plate.
     needle = zigzag.machine_needle_profile()
     heights = needle(np.linspace(0, 2 * np.pi, 721))
-    assert heights.max() == pytest.approx(23.1, abs=0.01) and heights.min() == pytest.approx(-9.9, abs=0.01)
+    assert heights.max() == pytest.approx(23.1, abs=0.01) and heights.min() == pytest.approx(
+        -9.9, abs=0.01
+    )
     check = zigzag.check_move(1000, needle, rate=1000)
     assert check.flagged

@@ -96,12 +96,28 @@ def run_batch(
     chunks = _chunks(len(items), workers, chunk_size)
     if ray is not None:
         # connected here, before the bar: a connection error line stands alone
-        done = _ray_chunks(ray, function, setup, shared, items, chunks, workers, _connect(ray, workers, ray_address))
+        done = _ray_chunks(
+            ray,
+            function,
+            setup,
+            shared,
+            items,
+            chunks,
+            workers,
+            _connect(ray, workers, ray_address),
+        )
     elif workers == 1 or len(chunks) <= 1:
         done = _serial_chunks(function, setup, shared, items, chunks)
     else:
         done = _pool_chunks(function, setup, shared, items, chunks, workers, start_method)
-    bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not progress, file=sys.stderr, mininterval=0.5)
+    bar = tqdm(
+        total=len(items),
+        desc=desc,
+        unit=unit,
+        disable=not progress,
+        file=sys.stderr,
+        mininterval=0.5,
+    )
     try:
         for pairs in done:
             for index, result in pairs:
@@ -131,6 +147,7 @@ def _build_state(setup, shared):
 
 # -- local ------------------------------------------------------------------------------------
 
+
 def _serial_chunks(function, setup, shared, items, chunks):
     state = _build_state(setup, shared)
     for chunk in chunks:
@@ -157,27 +174,39 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    method = start_method or ("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=multiprocessing.get_context(method),
-                               initializer=_init_local_worker, initargs=(setup, shared))
+    method = start_method or (
+        "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    )
+    pool = ProcessPoolExecutor(
+        max_workers=min(workers, len(chunks)),
+        mp_context=multiprocessing.get_context(method),
+        initializer=_init_local_worker,
+        initargs=(setup, shared),
+    )
     finished_all = False
     try:
         # the items of a chunk travel with it; the payload went once, through the initializer
-        pending = {pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]) for chunk in chunks}
+        pending = {
+            pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]) for chunk in chunks
+        }
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
                 try:
                     yield future.result()
                 except BrokenProcessPool:
-                    raise UserError("a worker process died mid-batch (out of memory, or killed); "
-                                    "run again, or use --backend ray, which reruns the lost items") from None
+                    raise UserError(
+                        "a worker process died mid-batch (out of memory, or killed); "
+                        "run again, or use --backend ray, which reruns the lost items"
+                    ) from None
         finished_all = True
     finally:
         from mechanism.files.interrupts import deferred
 
         with deferred():
-            if not finished_all:  # an error or an interrupt: stop the workers now, not after their chunks
+            if (
+                not finished_all
+            ):  # an error or an interrupt: stop the workers now, not after their chunks
                 _terminate_workers(pool)
             pool.shutdown(wait=True, cancel_futures=True)
 
@@ -197,6 +226,7 @@ def _terminate_workers(pool) -> None:
 
 
 # -- Ray --------------------------------------------------------------------------------------
+
 
 def _import_ray():
     try:
@@ -223,24 +253,42 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
     if address:
         _check_reachable(address)
         try:
-            with _native_stderr_muted():  # Ray's C++ core logs every failed attempt to reach the cluster
+            with (
+                _native_stderr_muted()
+            ):  # Ray's C++ core logs every failed attempt to reach the cluster
                 ray.init(address=address, **quiet)  # no resource arguments: the cluster has its own
         except (ConnectionError, RuntimeError, ValueError) as exc:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             # Ray sends its token (~/.ray/auth_token, or RAY_AUTH_TOKEN) to an address named
             # explicitly only when told to: say so, since clusters use tokens by default
-            hint = "" if os.environ.get("RAY_AUTH_MODE") else "; a cluster with token authentication also needs RAY_AUTH_MODE=token"
-            raise UserError(f"cannot connect to the Ray cluster at {address}: {first}{hint}") from None
+            hint = (
+                ""
+                if os.environ.get("RAY_AUTH_MODE")
+                else "; a cluster with token authentication also needs RAY_AUTH_MODE=token"
+            )
+            raise UserError(
+                f"cannot connect to the Ray cluster at {address}: {first}{hint}"
+            ) from None
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
         try:
             with _our_sigterm_handler_kept(ray):
-                ray.init(address="local", num_cpus=workers, include_dashboard=False, _temp_dir=ray_temp_dir(), **quiet)
-        except BaseException:  # Ctrl-C while it starts: stop what it started (Ray may not know it yet)
+                ray.init(
+                    address="local",
+                    num_cpus=workers,
+                    include_dashboard=False,
+                    _temp_dir=ray_temp_dir(),
+                    **quiet,
+                )
+        except (
+            BaseException
+        ):  # Ctrl-C while it starts: stop what it started (Ray may not know it yet)
             from mechanism.files.interrupts import deferred
 
             with deferred():
-                _kill(_descendants(os.getpid()))  # at once: Ray's own shutdown of a half-started instance takes seconds
+                _kill(
+                    _descendants(os.getpid())
+                )  # at once: Ray's own shutdown of a half-started instance takes seconds
                 with contextlib.suppress(Exception):
                     ray.shutdown()
             raise
@@ -321,8 +369,10 @@ def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
     try:
         socket.create_connection((host, int(port)), timeout=timeout_s).close()
     except OSError as exc:
-        raise UserError(f"cannot connect to the Ray cluster at {address}: {exc.strerror or exc} "
-                        "(start one with `ray start --head`, see the README)") from None
+        raise UserError(
+            f"cannot connect to the Ray cluster at {address}: {exc.strerror or exc} "
+            "(start one with `ray start --head`, see the README)"
+        ) from None
 
 
 @contextlib.contextmanager
@@ -363,9 +413,12 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
                 unfinished = sorted(i for chunk in [*pending.values(), *queue] for i in chunk)
                 text = str(exc).strip()
                 cause = type(exc).__name__ + (f": {text.splitlines()[0]}" if text else "")
-                raise BatchLost(f"the Ray cluster was lost mid-batch ({cause}): {len(unfinished)} of {len(items)} items "
-                                f"did not finish (items {item_ranges(unfinished)}); the others did", unfinished,
-                                cause) from None
+                raise BatchLost(
+                    f"the Ray cluster was lost mid-batch ({cause}): {len(unfinished)} of {len(items)} items "
+                    f"did not finish (items {item_ranges(unfinished)}); the others did",
+                    unfinished,
+                    cause,
+                ) from None
             for ref, result in results:
                 pending.pop(ref)
                 yield result
@@ -373,7 +426,9 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
         from mechanism.files.interrupts import deferred
 
         with deferred():  # a second Ctrl-C must not leave the instance running
-            if started:  # shutdown stops the instance, or ends our job on a cluster: its workers with it
+            if (
+                started
+            ):  # shutdown stops the instance, or ends our job on a cluster: its workers with it
                 ray.shutdown()
             else:  # the caller's own Ray session goes on: free its workers of our tasks
                 # not force=True: a forced cancel racing a task's reply aborts the driver inside
@@ -391,9 +446,15 @@ def _ray_result(ray, ref, chunk):
         if isinstance(cause, UserError):
             raise UserError(str(cause)) from None
         raise cause if isinstance(cause, Exception) else exc
-    except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError, ray.exceptions.ObjectLostError) as exc:
-        raise UserError(f"items {chunk.start}-{chunk.stop - 1}: their worker died {RAY_TASK_RETRIES + 1} times "
-                        f"({type(exc).__name__})") from None
+    except (
+        ray.exceptions.WorkerCrashedError,
+        ray.exceptions.NodeDiedError,
+        ray.exceptions.ObjectLostError,
+    ) as exc:
+        raise UserError(
+            f"items {chunk.start}-{chunk.stop - 1}: their worker died {RAY_TASK_RETRIES + 1} times "
+            f"({type(exc).__name__})"
+        ) from None
 
 
 _RAY_STATE: dict = {}  # per Ray worker process: payload id -> state built from it
@@ -413,5 +474,3 @@ def _ray_state(setup, shared_box):
 def _ray_chunk(function, setup, shared_box, chunk_items):
     state = _ray_state(setup, shared_box)
     return [(index, function(state, item)) for index, item in chunk_items]
-
-

@@ -145,7 +145,9 @@ def _declared(args: argparse.Namespace, kind: str) -> list[tuple[str, object]]:
     found = []
     for item in getattr(args, kind, ()) or ():
         values = item(args) if callable(item) else getattr(args, item, None)
-        label = getattr(item, "label", None) or (f"--{item.replace('_', '-')}" if isinstance(item, str) else "output")
+        label = getattr(item, "label", None) or (
+            f"--{item.replace('_', '-')}" if isinstance(item, str) else "output"
+        )
         for value in values if isinstance(values, (list, tuple)) else [values]:
             if value:
                 found.append((label, value))
@@ -156,15 +158,24 @@ def check_paths(args: argparse.Namespace) -> None:
     """The verb's declared outputs against its inputs, before any work (files.outputs.check_outputs)."""
     from mechanism.files.outputs import check_outputs
 
-    check_outputs(_declared(args, "inputs"), _declared(args, "outputs"), _declared(args, "output_dirs"),
-                  _declared(args, "plots"))
+    check_outputs(
+        _declared(args, "inputs"),
+        _declared(args, "outputs"),
+        _declared(args, "output_dirs"),
+        _declared(args, "plots"),
+    )
 
 
 def run_verb(args: argparse.Namespace) -> int:
     """The verb as one output transaction, with third-party stderr and stdout captured: their
     text becomes one ``warning:`` line, MuJoCo's instability report an error (nothing published)."""
     from mechanism.errors import UserError
-    from mechanism.files.capture import UNSTABLE_MARKERS, captured_stderr, captured_stdout, summarize
+    from mechanism.files.capture import (
+        UNSTABLE_MARKERS,
+        captured_stderr,
+        captured_stdout,
+        summarize,
+    )
     from mechanism.files.outputs import transaction
 
     _quiet_mujoco_log()
@@ -173,8 +184,10 @@ def run_verb(args: argparse.Namespace) -> int:
             status = int(args.handler(args) or 0)
         text = "".join(captured) + "".join(printed)
         if any(marker in text for marker in UNSTABLE_MARKERS):
-            raise UserError(f"the simulation became unstable ({summarize(text, 200)}); check the parameters "
-                            "(voltage, inductance, friction, loads) or use a smaller time step")
+            raise UserError(
+                f"the simulation became unstable ({summarize(text, 200)}); check the parameters "
+                "(voltage, inductance, friction, loads) or use a smaller time step"
+            )
         if text.strip():
             sys.stderr.write(f"warning: {summarize(text)}\n")
     return status

@@ -8,15 +8,27 @@ def add_batch_arguments(parser, what: str) -> None:
     from mechanism.batch import MAX_WORKERS
     from mechanism.files.limits import number
 
-    parser.add_argument("--workers", type=number(1, MAX_WORKERS, integer=True), default=1, metavar="K",
-                        help=f"parallel worker processes for {what} (default 1; with --backend ray and no cluster: "
-                             "the CPUs of the local Ray instance)")
-    parser.add_argument("--backend", choices=["local", "ray"], default="local",
-                        help="where the batch runs: local processes, or Ray (pip install 'mechanism[ray]'): the cluster "
-                             "at --ray-address, else a private local instance started and stopped for this run")
-    parser.add_argument("--ray-address", metavar="ADDR",
-                        help="a running Ray cluster to use with --backend ray, e.g. 10.0.0.5:6379 (from `ray start "
-                             "--head`; default: the RAY_ADDRESS environment variable); its workers need mechanism installed")
+    parser.add_argument(
+        "--workers",
+        type=number(1, MAX_WORKERS, integer=True),
+        default=1,
+        metavar="K",
+        help=f"parallel worker processes for {what} (default 1; with --backend ray and no cluster: "
+        "the CPUs of the local Ray instance)",
+    )
+    parser.add_argument(
+        "--backend",
+        choices=["local", "ray"],
+        default="local",
+        help="where the batch runs: local processes, or Ray (pip install 'mechanism[ray]'): the cluster "
+        "at --ray-address, else a private local instance started and stopped for this run",
+    )
+    parser.add_argument(
+        "--ray-address",
+        metavar="ADDR",
+        help="a running Ray cluster to use with --backend ray, e.g. 10.0.0.5:6379 (from `ray start "
+        "--head`; default: the RAY_ADDRESS environment variable); its workers need mechanism installed",
+    )
 
 
 def check_batch_arguments(args, batch: bool, what: str) -> None:

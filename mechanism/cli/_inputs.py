@@ -16,20 +16,40 @@ def voltage_text(text: str):
     return number(0, 1000, "V")(text)
 
 
-def add_input_arguments(parser: argparse.ArgumentParser, group=None, what: str = "dynamic simulation from rest") -> None:
+def add_input_arguments(
+    parser: argparse.ArgumentParser, group=None, what: str = "dynamic simulation from rest"
+) -> None:
     (group or parser).add_argument(
-        "--voltage", action="append", type=voltage_text, metavar="V|JOINT=V",
+        "--voltage",
+        action="append",
+        type=voltage_text,
+        metavar="V|JOINT=V",
         help=f"{what} under this motor voltage [V]: V (0 to the motor's rated_voltage_V, default 30) for the one (main) motor, or JOINT=V for the dc motor "
-             "on JOINT (repeat for several motors; negative reverses)")
-    parser.add_argument("--goal", action="append", default=[], metavar="JOINT=RAD",
-                        help="goal angle [rad] of the servo on JOINT, the joint's own coordinate (0 at the export's pose; "
-                             "repeatable; default: hold where the run starts)")
-    parser.add_argument("--current", action="append", default=[], metavar="JOINT=A",
-                        help="current command [A] of the current drive on JOINT (repeatable; default 0)")
+        "on JOINT (repeat for several motors; negative reverses)",
+    )
+    parser.add_argument(
+        "--goal",
+        action="append",
+        default=[],
+        metavar="JOINT=RAD",
+        help="goal angle [rad] of the servo on JOINT, the joint's own coordinate (0 at the export's pose; "
+        "repeatable; default: hold where the run starts)",
+    )
+    parser.add_argument(
+        "--current",
+        action="append",
+        default=[],
+        metavar="JOINT=A",
+        help="current command [A] of the current drive on JOINT (repeatable; default 0)",
+    )
 
 
 def has_inputs(args: argparse.Namespace) -> bool:
-    return bool(getattr(args, "voltage", None) or getattr(args, "goal", None) or getattr(args, "current", None))
+    return bool(
+        getattr(args, "voltage", None)
+        or getattr(args, "goal", None)
+        or getattr(args, "current", None)
+    )
 
 
 def inputs_from_args(args: argparse.Namespace, description):
@@ -48,12 +68,16 @@ def inputs_from_args(args: argparse.Namespace, description):
     if plain:
         if units[description.motor_joint] != "V":
             option = "--goal" if units[description.motor_joint] == "rad" else "--current"
-            raise UserError(f"--voltage {plain[0]:g}: the main motor on {description.motor_joint} is a "
-                            f"{description.motor['type']} drive; give {option} {description.motor_joint}=...")
+            raise UserError(
+                f"--voltage {plain[0]:g}: the main motor on {description.motor_joint} is a "
+                f"{description.motor['type']} drive; give {option} {description.motor_joint}=..."
+            )
         if not (args.goal or args.current):
             return plain[0]
         inputs[description.motor_joint] = plain[0]
-    inputs.update(parse_joint_values([v for v in voltages if isinstance(v, str)], "--voltage", "V", units))
+    inputs.update(
+        parse_joint_values([v for v in voltages if isinstance(v, str)], "--voltage", "V", units)
+    )
     inputs.update(parse_joint_values(args.goal, "--goal", "rad", units))
     inputs.update(parse_joint_values(args.current, "--current", "A", units))
     return inputs

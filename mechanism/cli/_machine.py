@@ -4,15 +4,20 @@ from __future__ import annotations
 
 import argparse
 
-MACHINE_HELP = ("machine description (TOML: the motor and shaft joints, the shaft's zero, motor datasheet, "
-                "friction, tool); default: the shipped Sapphire 870 sewing machine")
+MACHINE_HELP = (
+    "machine description (TOML: the motor and shaft joints, the shaft's zero, motor datasheet, "
+    "friction, tool); default: the shipped Sapphire 870 sewing machine"
+)
 
 
 def add_machine_arguments(parser: argparse.ArgumentParser, model: bool = True) -> None:
     parser.add_argument("--machine", metavar="FILE.toml", help=MACHINE_HELP)
     if model:
-        parser.add_argument("--model", metavar="FILE.xml",
-                            help="use this MJCF instead of the description's model (same joint and site names)")
+        parser.add_argument(
+            "--model",
+            metavar="FILE.xml",
+            help="use this MJCF instead of the description's model (same joint and site names)",
+        )
 
 
 def description_from_args(args: argparse.Namespace):
@@ -52,5 +57,7 @@ def inspection_target(args: argparse.Namespace):
     return resolve_model(description), args.driver or description.shaft_joint, description
 
 
-DRIVER_HELP = ("the joint turned through the cycle (default: the machine's shaft joint; with --model alone, the "
-               "model's slowest fully revolving joint)")
+DRIVER_HELP = (
+    "the joint turned through the cycle (default: the machine's shaft joint; with --model alone, the "
+    "model's slowest fully revolving joint)"
+)

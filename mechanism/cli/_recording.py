@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
-MAP_HELP = ("TOML with a [recording] table: which columns are time, voltage, shaft_angle, current, in which units, "
-            "sign, offset, unwrapping (keys in docs/machine.md); wins over the [recording] table of --machine")
+MAP_HELP = (
+    "TOML with a [recording] table: which columns are time, voltage, shaft_angle, current, in which units, "
+    "sign, offset, unwrapping (keys in docs/machine.md); wins over the [recording] table of --machine"
+)
 
 
 def add_recording_map_argument(parser) -> None:

@@ -18,7 +18,11 @@ def register(subparsers) -> None:
         ),
         epilog="example: mechanism cache clear",
     )
-    parser.add_argument("action", choices=("info", "clear"), help="info: location and size; clear: remove every entry")
+    parser.add_argument(
+        "action",
+        choices=("info", "clear"),
+        help="info: location and size; clear: remove every entry",
+    )
     parser.set_defaults(handler=run)
 
 
@@ -27,7 +31,9 @@ def run(args) -> int:
 
     if args.action == "clear":
         before = clear_cache()
-        print(f"cleared the cache {before.root}: removed {before.entries} entries, {before.bytes / 2**20:.1f} MiB")
+        print(
+            f"cleared the cache {before.root}: removed {before.entries} entries, {before.bytes / 2**20:.1f} MiB"
+        )
     else:
         print(cache_info().describe())
     return 0

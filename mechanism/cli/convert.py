@@ -17,23 +17,48 @@ def register(subparsers) -> None:
             "(binary STL in metres) and prints a summary. Units are converted to SI (m, kg, kg*m^2)."
         ),
     )
-    parser.add_argument("export", metavar="EXPORT.xml", help="the CAD export (its geometry files lie next to it)")
-    parser.add_argument("-o", "--out", dest="outdir", metavar="OUTDIR", required=True,
-                        help="output folder for NAME.xml (created if missing; other files in it are kept)")
-    parser.add_argument("--name", metavar="NAME", help="model and file name (default: the export's file name stem)")
-    parser.add_argument("--mesh-dir", metavar="DIR",
-                        help="folder for the meshes (default: OUTDIR/meshes); the MJCF refers to it by relative path")
-    parser.add_argument("--up", default="z", metavar="AXIS",
-                        help="the export's world axis that points up: x, y, z, -x, -y or -z (write --up=-z; default z); gravity "
-                             "(9.81 m/s^2) acts against it. Exports do not record it: SolidWorks and Inventor "
-                             "assemblies are often Y-up (--up y)")
-    parser.add_argument("--driver", action="append", default=[], metavar="JOINT",
-                        help="a joint you turn (a crank, the motor shaft): it stays a joint of the model and loops close "
-                             "elsewhere (repeatable; by default joints in a bearing on the frame stay, pins between moving "
-                             "parts close the loops)")
-    parser.add_argument("--explain", action="store_true",
-                        help="also print, per joint, the CAD mates (by name) or the export joint it came from and "
-                             "what it became in the MJCF (a joint, a loop closure, a merged body)")
+    parser.add_argument(
+        "export", metavar="EXPORT.xml", help="the CAD export (its geometry files lie next to it)"
+    )
+    parser.add_argument(
+        "-o",
+        "--out",
+        dest="outdir",
+        metavar="OUTDIR",
+        required=True,
+        help="output folder for NAME.xml (created if missing; other files in it are kept)",
+    )
+    parser.add_argument(
+        "--name", metavar="NAME", help="model and file name (default: the export's file name stem)"
+    )
+    parser.add_argument(
+        "--mesh-dir",
+        metavar="DIR",
+        help="folder for the meshes (default: OUTDIR/meshes); the MJCF refers to it by relative path",
+    )
+    parser.add_argument(
+        "--up",
+        default="z",
+        metavar="AXIS",
+        help="the export's world axis that points up: x, y, z, -x, -y or -z (write --up=-z; default z); gravity "
+        "(9.81 m/s^2) acts against it. Exports do not record it: SolidWorks and Inventor "
+        "assemblies are often Y-up (--up y)",
+    )
+    parser.add_argument(
+        "--driver",
+        action="append",
+        default=[],
+        metavar="JOINT",
+        help="a joint you turn (a crank, the motor shaft): it stays a joint of the model and loops close "
+        "elsewhere (repeatable; by default joints in a bearing on the frame stay, pins between moving "
+        "parts close the loops)",
+    )
+    parser.add_argument(
+        "--explain",
+        action="store_true",
+        help="also print, per joint, the CAD mates (by name) or the export joint it came from and "
+        "what it became in the MJCF (a joint, a loop closure, a merged body)",
+    )
     parser.set_defaults(handler=run, inputs=("export",), outputs=(_model_file,))
 
 
@@ -49,8 +74,19 @@ def run(args) -> int:
 
     from mechanism.machine.roles import drive_lines
 
-    report = convert(args.export, args.outdir, name=args.name, mesh_dir=args.mesh_dir, up=args.up,
-                     drivers=tuple(args.driver))
-    print("\n".join(report.summary_lines(extra=drive_lines(report.mjcf_path, report.degrees_of_freedom),
-                                         explain=args.explain)))
+    report = convert(
+        args.export,
+        args.outdir,
+        name=args.name,
+        mesh_dir=args.mesh_dir,
+        up=args.up,
+        drivers=tuple(args.driver),
+    )
+    print(
+        "\n".join(
+            report.summary_lines(
+                extra=drive_lines(report.mjcf_path, report.degrees_of_freedom), explain=args.explain
+            )
+        )
+    )
     return 0

@@ -15,9 +15,18 @@ def register(subparsers) -> None:
             "bench recording with a concealed effect. Everything lands in OUT with an index.html."
         ),
     )
-    parser.add_argument("--out", default="out", metavar="DIR", help="output folder, replaced as a whole (default out)")
-    parser.add_argument("--machine", action="append", metavar="NAME",
-                        help="only this shipped machine (repeatable; default: all of them)")
+    parser.add_argument(
+        "--out",
+        default="out",
+        metavar="DIR",
+        help="output folder, replaced as a whole (default out)",
+    )
+    parser.add_argument(
+        "--machine",
+        action="append",
+        metavar="NAME",
+        help="only this shipped machine (repeatable; default: all of them)",
+    )
     parser.set_defaults(handler=run, output_dirs=("out",))
 
 

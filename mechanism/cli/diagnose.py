@@ -16,8 +16,12 @@ class _EffectsInHelp(argparse.HelpFormatter):
             from mechanism.sysid.diagnosis import GENERIC_GAIN, KEEP_GAIN_JOINT, MIN_RELATIVE_GAIN
             from mechanism.sysid.effects import EFFECTS
 
-            text = text.format(effects=", ".join(EFFECTS), alone=f"{MIN_RELATIVE_GAIN:.0%}",
-                               joint=f"{KEEP_GAIN_JOINT:.0%}", generic=f"{GENERIC_GAIN:.0%}")
+            text = text.format(
+                effects=", ".join(EFFECTS),
+                alone=f"{MIN_RELATIVE_GAIN:.0%}",
+                joint=f"{KEEP_GAIN_JOINT:.0%}",
+                generic=f"{GENERIC_GAIN:.0%}",
+            )
         super().add_text(text)
 
 
@@ -42,21 +46,32 @@ def register(subparsers) -> None:
             "voltage is not identifiable: exit status 2, and the JSON says so."
         ),
         epilog="examples: mechanism diagnose rec.csv --json out/diagnosis.json --report out/diagnosis; "
-               "mechanism diagnose recordings/ --workers 2 --out out/fleet",
+        "mechanism diagnose recordings/ --workers 2 --out out/fleet",
     )
     add_recording_arguments(parser, "diagnosis")
     for action in parser._actions:  # several recordings, or folders of them: a fleet
         if action.dest == "recording":
             action.nargs, action.metavar = "+", "REC.csv|DIR"
             action.help += "; several recordings or a folder of recordings (*.csv, *.mat, ...): a fleet, diagnosed in parallel into --out"
-    parser.add_argument("--effects", metavar="NAME[,NAME]",
-                        help="restrict the candidates to these effects (default: the whole library)")
-    parser.add_argument("--out", metavar="DIR",
-                        help="fleet output folder: one JSON per recording (as --json writes for one), summary.csv "
-                             "(effects, rmse, fitted parameters, time per recording; errors of bad recordings) and "
-                             "summary.html (each parameter's spread over the fleet, outliers by robust z-score > 3.5)")
+    parser.add_argument(
+        "--effects",
+        metavar="NAME[,NAME]",
+        help="restrict the candidates to these effects (default: the whole library)",
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        help="fleet output folder: one JSON per recording (as --json writes for one), summary.csv "
+        "(effects, rmse, fitted parameters, time per recording; errors of bad recordings) and "
+        "summary.html (each parameter's spread over the fleet, outliers by robust z-score > 3.5)",
+    )
     add_batch_arguments(parser, "a fleet of recordings")
-    parser.set_defaults(handler=run, inputs=("recording", "model", "machine", "recording_map"), outputs=("json",), output_dirs=("report", "out"))
+    parser.set_defaults(
+        handler=run,
+        inputs=("recording", "model", "machine", "recording_map"),
+        outputs=("json",),
+        output_dirs=("report", "out"),
+    )
 
 
 def run(args) -> int:
@@ -83,7 +98,14 @@ def run(args) -> int:
         bar, tick = progress_bar("diagnose")
         with bar:
             nominal = drive_nominal(args)
-            result = diagnose(rec, resolve_baseline(args, nominal), candidates, progress=tick, model_path=args.model, nominal=nominal)
+            result = diagnose(
+                rec,
+                resolve_baseline(args, nominal),
+                candidates,
+                progress=tick,
+                model_path=args.model,
+                nominal=nominal,
+            )
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
         write_outputs(args, not_identifiable_json(rec.source, str(exc), rec.reading))
@@ -100,7 +122,9 @@ def run(args) -> int:
         print(f"+ {item['name']}: rmse {item['rmse']:.4g} rad/s -- {item['evidence']}")
     print(f"final: rmse {data['final']['rmse']:.4g} rad/s")
     if "unexplained" in data:
-        print(f"unexplained: {data['unexplained']['times_noise_floor']:.1f}x the noise floor -- {data['unexplained']['sentence']}")
+        print(
+            f"unexplained: {data['unexplained']['times_noise_floor']:.1f}x the noise floor -- {data['unexplained']['sentence']}"
+        )
     return 0
 
 
@@ -116,25 +140,44 @@ def run_fleet(args, candidates) -> int:
     if args.out is None:
         raise UserError("several recordings need --out DIR (one JSON per recording and a summary)")
     if args.json or args.report:
-        raise UserError("--json and --report are for one recording; a fleet writes them per recording into --out")
+        raise UserError(
+            "--json and --report are for one recording; a fleet writes them per recording into --out"
+        )
     from mechanism.cli.identify import resolve_baseline
 
     nominal = drive_nominal(args)
-    result = diagnose_fleet(args.recording, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                            progress=sys.stderr.isatty(), baseline=resolve_baseline(args, nominal), candidates=candidates,
-                            model_path=args.model, nominal=nominal, recording_map=recording_map_from_args(args))
+    result = diagnose_fleet(
+        args.recording,
+        args.out,
+        workers=args.workers,
+        backend=args.backend,
+        ray_address=args.ray_address,
+        progress=sys.stderr.isatty(),
+        baseline=resolve_baseline(args, nominal),
+        candidates=candidates,
+        model_path=args.model,
+        nominal=nominal,
+        recording_map=recording_map_from_args(args),
+    )
     for row in result.rows:
         if row["status"] == "ok":
-            print(f"{row['recording']}: effects {row['effects'] or 'none'}, rmse {row['baseline_rmse_rad_s']:.4g} -> "
-                  f"{row['final_rmse_rad_s']:.4g} rad/s ({row['time_s']:.1f} s)")
+            print(
+                f"{row['recording']}: effects {row['effects'] or 'none'}, rmse {row['baseline_rmse_rad_s']:.4g} -> "
+                f"{row['final_rmse_rad_s']:.4g} rad/s ({row['time_s']:.1f} s)"
+            )
         else:
             print(f"{row['recording']}: not diagnosed: {row['error']}")
     for item in result.outliers:
-        print(f"outlier: {item['recording']} {item['parameter']} = {item['value']:.5g} (robust z {item['robust_z']:.1f})")
-    print(f"{result.diagnosed} of {len(result.rows)} recordings diagnosed in {result.seconds:.1f} s; "
-          f"wrote {args.out}/{SUMMARY_CSV}, {args.out}/{SUMMARY_HTML} and one JSON per recording")
+        print(
+            f"outlier: {item['recording']} {item['parameter']} = {item['value']:.5g} (robust z {item['robust_z']:.1f})"
+        )
+    print(
+        f"{result.diagnosed} of {len(result.rows)} recordings diagnosed in {result.seconds:.1f} s; "
+        f"wrote {args.out}/{SUMMARY_CSV}, {args.out}/{SUMMARY_HTML} and one JSON per recording"
+    )
     if not result.diagnosed:
-        sys.stderr.write(f"error: none of the {len(result.rows)} recordings could be diagnosed (see {args.out}/{SUMMARY_CSV})\n")
+        sys.stderr.write(
+            f"error: none of the {len(result.rows)} recordings could be diagnosed (see {args.out}/{SUMMARY_CSV})\n"
+        )
         return 2
     return 0
-

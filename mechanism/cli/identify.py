@@ -9,23 +9,44 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
     """Options shared by identify and diagnose."""
     from mechanism.cli._recording import add_recording_map_argument
 
-    parser.add_argument("recording", metavar="REC.csv", nargs="?" if optional else None,
-                        help="bench recording: CSV with columns time [s], voltage [V], shaft_angle (or arm_angle) [rad, "
-                             "unwrapped, 0 = the described zero], optional current [A]; leading '#' lines are metadata; "
-                             "also .csv.gz/.bz2/.xz/.zip, .tsv, .mat, .parquet, .feather, .tdms, .json/.jsonl, other "
-                             "columns and units through --recording-map")
-    parser.add_argument("--baseline", choices=["lumped", "multibody"], default=None,
-                        help="lumped: thesis eq. 15-16 (constant inertia, viscous + Coulomb friction, DC motor through "
-                             "the belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
-                             "and gravity) with fitted friction (default lumped; multibody for a --machine whose shaft "
-                             "rocks between stops, where the angle-dependent terms are the machine)")
-    parser.add_argument("--machine", metavar="FILE.toml",
-                        help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
-                             "scales from (default: the shipped Sapphire 870's thesis-identified numbers)")
-    parser.add_argument("--model", metavar="MJCF", help="MJCF for --baseline multibody (default: the shipped sewing machine)")
+    parser.add_argument(
+        "recording",
+        metavar="REC.csv",
+        nargs="?" if optional else None,
+        help="bench recording: CSV with columns time [s], voltage [V], shaft_angle (or arm_angle) [rad, "
+        "unwrapped, 0 = the described zero], optional current [A]; leading '#' lines are metadata; "
+        "also .csv.gz/.bz2/.xz/.zip, .tsv, .mat, .parquet, .feather, .tdms, .json/.jsonl, other "
+        "columns and units through --recording-map",
+    )
+    parser.add_argument(
+        "--baseline",
+        choices=["lumped", "multibody"],
+        default=None,
+        help="lumped: thesis eq. 15-16 (constant inertia, viscous + Coulomb friction, DC motor through "
+        "the belt); multibody: the CAD model's reduced 1-DOF dynamics (angle-dependent inertia "
+        "and gravity) with fitted friction (default lumped; multibody for a --machine whose shaft "
+        "rocks between stops, where the angle-dependent terms are the machine)",
+    )
+    parser.add_argument(
+        "--machine",
+        metavar="FILE.toml",
+        help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
+        "scales from (default: the shipped Sapphire 870's thesis-identified numbers)",
+    )
+    parser.add_argument(
+        "--model",
+        metavar="MJCF",
+        help="MJCF for --baseline multibody (default: the shipped sewing machine)",
+    )
     add_recording_map_argument(parser)
-    parser.add_argument("--json", metavar="OUT.json", help=f"write the {what} as JSON (rmse in rad/s of arm velocity)")
-    parser.add_argument("--report", metavar="DIR", help="write an HTML report with plots to DIR (DIR/index.html)")
+    parser.add_argument(
+        "--json",
+        metavar="OUT.json",
+        help=f"write the {what} as JSON (rmse in rad/s of arm velocity)",
+    )
+    parser.add_argument(
+        "--report", metavar="DIR", help="write an HTML report with plots to DIR (DIR/index.html)"
+    )
 
 
 def resolve_baseline(args, nominal) -> str:
@@ -33,7 +54,10 @@ def resolve_baseline(args, nominal) -> str:
     inertia and gravity vary over the travel), else lumped."""
     if args.baseline:
         return args.baseline
-    rocks = getattr(nominal, "travel_rad", None) is not None and getattr(nominal, "linkage", None) is not None
+    rocks = (
+        getattr(nominal, "travel_rad", None) is not None
+        and getattr(nominal, "linkage", None) is not None
+    )
     args.baseline = "multibody" if rocks else "lumped"
     return args.baseline
 
@@ -52,15 +76,28 @@ def register(subparsers) -> None:
             "Table 2 (cold, warm 30 s, warm 2 min) and what its 24 V point says is missing."
         ),
         epilog="examples: mechanism identify rec.csv --json out/identify.json --report out/identify; "
-               "mechanism identify --table2",
+        "mechanism identify --table2",
     )
-    add_recording_arguments(parser, "fitted parameters with 1-sigma uncertainties and rmse", optional=True)
-    parser.add_argument("--table2", action="store_true",
-                        help="fit Coulomb and viscous friction to the thesis's Table 2 steady-state speeds (no recording)")
-    parser.add_argument("--free", metavar="Kt,Ke,R", default="",
-                        help="motor constants to fit as well, comma-separated from R, Kt, Ke (default: none)")
-    parser.set_defaults(handler=run, inputs=("recording", "model", "machine", "recording_map"), outputs=("json",),
-                        output_dirs=("report",))
+    add_recording_arguments(
+        parser, "fitted parameters with 1-sigma uncertainties and rmse", optional=True
+    )
+    parser.add_argument(
+        "--table2",
+        action="store_true",
+        help="fit Coulomb and viscous friction to the thesis's Table 2 steady-state speeds (no recording)",
+    )
+    parser.add_argument(
+        "--free",
+        metavar="Kt,Ke,R",
+        default="",
+        help="motor constants to fit as well, comma-separated from R, Kt, Ke (default: none)",
+    )
+    parser.set_defaults(
+        handler=run,
+        inputs=("recording", "model", "machine", "recording_map"),
+        outputs=("json",),
+        output_dirs=("report",),
+    )
 
 
 def write_outputs(args, data: dict, report=None) -> None:
@@ -107,13 +144,22 @@ def run(args) -> int:
     bar, tick = progress_bar("identify")
     with bar:
         nominal = drive_nominal(args)
-        result = identify(rec, resolve_baseline(args, nominal), free, progress=lambda: tick(), model_path=args.model, nominal=nominal)
+        result = identify(
+            rec,
+            resolve_baseline(args, nominal),
+            free,
+            progress=lambda: tick(),
+            model_path=args.model,
+            nominal=nominal,
+        )
     from mechanism.sysid.report import identification_report
 
     write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))
     for name, value in result.params.items():
         unc = result.fit.uncertainties.get(name)
-        print(f"{name:40s} {value:.5g}" + (f" +- {unc:.2g}" if unc == unc and unc is not None else ""))
+        print(
+            f"{name:40s} {value:.5g}" + (f" +- {unc:.2g}" if unc == unc and unc is not None else "")
+        )
     print(f"{'rmse (validation) [rad/s]':40s} {result.rmse:.4g}")
     return 0
 
@@ -123,10 +169,13 @@ def run_table2(args) -> int:
 
     columns = thesis_table2()
     write_outputs(args, {name: col.to_json() for name, col in columns.items()})
-    print(f"{'column':10s} {'Coulomb arm [N m]':>18s} {'viscous motor [N m s/rad]':>26s} {'24 V rpm pred/meas':>19s} {'supply short [V]':>17s}")
+    print(
+        f"{'column':10s} {'Coulomb arm [N m]':>18s} {'viscous motor [N m s/rad]':>26s} {'24 V rpm pred/meas':>19s} {'supply short [V]':>17s}"
+    )
     for name, col in columns.items():
         fit = col.fit
-        print(f"{name:10s} {fit.coulomb_arm_Nm:9.3f} +- {fit.coulomb_sigma:5.3f} {fit.viscous_motor_side_Nm_s_per_rad:14.3g} +- "
-              f"{fit.viscous_sigma:7.2g} {col.high_rpm_predicted:9.0f}/{col.high_rpm_measured:<9.0f} {col.supply_deficit_V:12.2f}")
+        print(
+            f"{name:10s} {fit.coulomb_arm_Nm:9.3f} +- {fit.coulomb_sigma:5.3f} {fit.viscous_motor_side_Nm_s_per_rad:14.3g} +- "
+            f"{fit.viscous_sigma:7.2g} {col.high_rpm_predicted:9.0f}/{col.high_rpm_measured:<9.0f} {col.supply_deficit_V:12.2f}"
+        )
     return 0
-

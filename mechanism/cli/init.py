@@ -18,14 +18,27 @@ def register(subparsers) -> None:
         ),
         epilog="example: mechanism init my_export/press.xml -o press.toml && mechanism simulate --machine press.toml --voltage 12 --duration 2 --summary",
     )
-    parser.add_argument("model", metavar="EXPORT_OR_MJCF", help="a CAD export (converted once, cached) or a converted MJCF")
-    parser.add_argument("-o", "--out", required=True, metavar="MACHINE.toml", help="the draft description to write")
+    parser.add_argument(
+        "model",
+        metavar="EXPORT_OR_MJCF",
+        help="a CAD export (converted once, cached) or a converted MJCF",
+    )
+    parser.add_argument(
+        "-o", "--out", required=True, metavar="MACHINE.toml", help="the draft description to write"
+    )
     parser.add_argument("--name", metavar="NAME", help="machine name (default: the file's stem)")
-    parser.add_argument("--force", action="store_true",
-                        help="replace MACHINE.toml if it exists (default: refuse, since a description is usually edited by hand)")
-    parser.add_argument("--up", metavar="AXIS", choices=("x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z"),
-                        help="the export's world axis that points up, as convert --up (default: the export's gravity "
-                             "vector where it carries one, else z); written to the draft as [machine] up")
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace MACHINE.toml if it exists (default: refuse, since a description is usually edited by hand)",
+    )
+    parser.add_argument(
+        "--up",
+        metavar="AXIS",
+        choices=("x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z"),
+        help="the export's world axis that points up, as convert --up (default: the export's gravity "
+        "vector where it carries one, else z); written to the draft as [machine] up",
+    )
     parser.set_defaults(handler=run, inputs=("model",), outputs=("out",))
 
 
@@ -45,7 +58,9 @@ def run(args) -> int:
     if out.resolve() == source.resolve():
         raise UserError(f"-o {out}: is the input; choose another file")
     if out.exists() and not args.force:
-        raise UserError(f"-o {out}: exists (a description you may have edited); choose another file or add --force to replace it")
+        raise UserError(
+            f"-o {out}: exists (a description you may have edited); choose another file or add --force to replace it"
+        )
     if is_mjcf(source):
         mjcf, up, why = source, None, "the MJCF's own gravity"
     else:
@@ -60,9 +75,13 @@ def run(args) -> int:
                 up, why = detect_up(read(source))
             except ExportError as exc:
                 raise UserError(str(exc)) from None
-        mjcf = converted_model(source, up=up if args.up else None)  # the conversion every verb of the draft reuses
+        mjcf = converted_model(
+            source, up=up if args.up else None
+        )  # the conversion every verb of the draft reuses
     reference = os.path.relpath(source.resolve(), out.resolve().parent)
-    text, summary = draft_description(mjcf, reference, args.name or source.stem, up=up, up_reason=why)
+    text, summary = draft_description(
+        mjcf, reference, args.name or source.stem, up=up, up_reason=why
+    )
     with atomic_file(out) as handle:
         handle.write(text)
     print("\n".join(summary))

@@ -22,13 +22,27 @@ def register(subparsers) -> None:
         epilog="example: mechanism inspect-recording servo.jsonl --recording-map servo.toml --json out/inspect.json",
     )
     parser.add_argument("recording", metavar="REC", help="the recording file")
-    parser.add_argument("--machine", metavar="FILE.toml", help="machine description whose [recording] table maps the columns")
+    parser.add_argument(
+        "--machine",
+        metavar="FILE.toml",
+        help="machine description whose [recording] table maps the columns",
+    )
     add_recording_map_argument(parser)
-    parser.add_argument("--json", metavar="OUT.json", help="write the inspection as JSON (units in every key)")
-    parser.add_argument("--split", metavar="DIR",
-                        help="cut the recording at its gaps into gap-free pieces of 2 s or more, written as CSVs (the map "
-                             "applied) into DIR: a fleet for diagnose --out (gaps are never interpolated over)")
-    parser.set_defaults(handler=run, inputs=("recording", "machine", "recording_map"), outputs=("json",), output_dirs=("split",))
+    parser.add_argument(
+        "--json", metavar="OUT.json", help="write the inspection as JSON (units in every key)"
+    )
+    parser.add_argument(
+        "--split",
+        metavar="DIR",
+        help="cut the recording at its gaps into gap-free pieces of 2 s or more, written as CSVs (the map "
+        "applied) into DIR: a fleet for diagnose --out (gaps are never interpolated over)",
+    )
+    parser.set_defaults(
+        handler=run,
+        inputs=("recording", "machine", "recording_map"),
+        outputs=("json",),
+        output_dirs=("split",),
+    )
 
 
 def run(args) -> int:
@@ -49,7 +63,9 @@ def run(args) -> int:
         from mechanism.sysid.inspect_recording import split_at_gaps
 
         pieces = split_at_gaps(args.recording, args.split, recording_map_from_args(args))
-        print(f"wrote {len(pieces)} gap-free piece(s) into {args.split}: {', '.join(p.name for p in pieces)}")
+        print(
+            f"wrote {len(pieces)} gap-free piece(s) into {args.split}: {', '.join(p.name for p in pieces)}"
+        )
         return 0
     if not data.get("usable", False):
         problem = (data.get("problems") or ["not usable"])[0]

@@ -38,13 +38,33 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_machine_arguments(parser)
-    parser.add_argument("--csv", required=True, metavar="OUT.csv", help="table over the revolution (units in column names)")
-    parser.add_argument("--plot", metavar="OUT.png", help="position, velocity and acceleration vs arm angle (PNG, SVG or PDF)")
-    parser.add_argument("--samples", type=int, default=360, metavar="N",
-                        help="equally spaced arm angles over the revolution (36 to 36000, default 360 = 1 deg)")
-    parser.add_argument("--speed", type=number(0, 1e5, "rpm", low_open=True), metavar="RPM",
-                        help="arm-shaft speed [rpm]: adds velocity in mm/s and acceleration in mm/s^2 at that constant speed")
-    parser.set_defaults(handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",))
+    parser.add_argument(
+        "--csv",
+        required=True,
+        metavar="OUT.csv",
+        help="table over the revolution (units in column names)",
+    )
+    parser.add_argument(
+        "--plot",
+        metavar="OUT.png",
+        help="position, velocity and acceleration vs arm angle (PNG, SVG or PDF)",
+    )
+    parser.add_argument(
+        "--samples",
+        type=int,
+        default=360,
+        metavar="N",
+        help="equally spaced arm angles over the revolution (36 to 36000, default 360 = 1 deg)",
+    )
+    parser.add_argument(
+        "--speed",
+        type=number(0, 1e5, "rpm", low_open=True),
+        metavar="RPM",
+        help="arm-shaft speed [rpm]: adds velocity in mm/s and acceleration in mm/s^2 at that constant speed",
+    )
+    parser.set_defaults(
+        handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",)
+    )
 
 
 def run(args) -> int:

@@ -5,7 +5,12 @@ from __future__ import annotations
 from mechanism.files.limits import number
 
 from mechanism.cli._inputs import add_input_arguments, has_inputs, inputs_from_args
-from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
+from mechanism.cli._machine import (
+    DRIVER_HELP,
+    add_machine_arguments,
+    description_from_args,
+    inspection_target,
+)
 
 ORDER = 40
 
@@ -31,26 +36,72 @@ def register(subparsers) -> None:
         ),
     )
     add_machine_arguments(parser)
-    parser.add_argument("--part", action="append", required=True, metavar="NAME[,NAME...]",
-                        help="what to probe: a CAD part (its part frame), a user-named frame (needle_tip) or a body; "
-                             "for force/torque, a joint name (joints come first), else the load a part's body receives "
-                             "from its parent. Repeat for several probe groups")
-    parser.add_argument("--quantity", action="append", required=True, metavar="Q[,Q...]",
-                        help="position, velocity, acceleration, force, torque; once for all --part groups or once per group")
-    parser.add_argument("--point", action="append", default=[], metavar="X,Y,Z",
-                        help="point [mm] in the part frame (for force/torque: the moment reference in the joint's body "
-                             "frame, from the joint anchor); once for all groups or once per group (default: the origin)")
+    parser.add_argument(
+        "--part",
+        action="append",
+        required=True,
+        metavar="NAME[,NAME...]",
+        help="what to probe: a CAD part (its part frame), a user-named frame (needle_tip) or a body; "
+        "for force/torque, a joint name (joints come first), else the load a part's body receives "
+        "from its parent. Repeat for several probe groups",
+    )
+    parser.add_argument(
+        "--quantity",
+        action="append",
+        required=True,
+        metavar="Q[,Q...]",
+        help="position, velocity, acceleration, force, torque; once for all --part groups or once per group",
+    )
+    parser.add_argument(
+        "--point",
+        action="append",
+        default=[],
+        metavar="X,Y,Z",
+        help="point [mm] in the part frame (for force/torque: the moment reference in the joint's body "
+        "frame, from the joint anchor); once for all groups or once per group (default: the origin)",
+    )
     mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--cycle", action="store_true", help="one kinematic cycle of the arm shaft at --speed")
+    mode.add_argument(
+        "--cycle", action="store_true", help="one kinematic cycle of the arm shaft at --speed"
+    )
     add_input_arguments(parser, mode)
-    parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
-    parser.add_argument("--speed", type=number(0, 1e5, "rpm"), default=600.0, metavar="RPM", help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)")
-    parser.add_argument("--revolutions", type=number(0, 100, low_open=True), default=1.0, metavar="N", help="arm revolutions for --cycle (default 1)")
-    parser.add_argument("--resolution", type=number(0.01, 360, "deg"), default=0.5, metavar="DEG", help="arm angle step for --cycle [deg] (default 0.5)")
+    parser.add_argument(
+        "--duration",
+        type=number(0, 3600, "s", low_open=True),
+        metavar="S",
+        help="simulated time [s] (with --voltage)",
+    )
+    parser.add_argument(
+        "--speed",
+        type=number(0, 1e5, "rpm"),
+        default=600.0,
+        metavar="RPM",
+        help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)",
+    )
+    parser.add_argument(
+        "--revolutions",
+        type=number(0, 100, low_open=True),
+        default=1.0,
+        metavar="N",
+        help="arm revolutions for --cycle (default 1)",
+    )
+    parser.add_argument(
+        "--resolution",
+        type=number(0.01, 360, "deg"),
+        default=0.5,
+        metavar="DEG",
+        help="arm angle step for --cycle [deg] (default 0.5)",
+    )
     parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="write the probe table")
-    parser.add_argument("--plot", metavar="OUT.png", help="plot every probe over the arm angle (cycle) or time (simulation)")
-    parser.set_defaults(handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",))
+    parser.add_argument(
+        "--plot",
+        metavar="OUT.png",
+        help="plot every probe over the arm angle (cycle) or time (simulation)",
+    )
+    parser.set_defaults(
+        handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",)
+    )
 
 
 def run(args) -> int:
@@ -59,7 +110,9 @@ def run(args) -> int:
 
     dynamic = has_inputs(args)
     if not (args.cycle or dynamic):
-        raise UserError("give --cycle (a kinematic cycle) or a motor input (--voltage, --goal, --current) for a dynamic run")
+        raise UserError(
+            "give --cycle (a kinematic cycle) or a motor input (--voltage, --goal, --current) for a dynamic run"
+        )
     if args.cycle and (args.goal or args.current):
         raise UserError("--goal and --current belong to a dynamic run, not to --cycle")
     if dynamic and args.duration is None:
@@ -70,10 +123,22 @@ def run(args) -> int:
     path, driver, description = inspection_target(args)
     description = description or description_from_args(args)
     inputs = inputs_from_args(args, description) if dynamic else None
-    result = run_probes(probes, path, inputs, args.duration, args.speed, args.revolutions,
-                        args.resolution, driver, progress=dynamic, description=description)
+    result = run_probes(
+        probes,
+        path,
+        inputs,
+        args.duration,
+        args.speed,
+        args.revolutions,
+        args.resolution,
+        driver,
+        progress=dynamic,
+        description=description,
+    )
     result.write_csv(args.csv)
     if args.plot:
         result.plot(args.plot, probes)
-    print(f"wrote {args.csv} ({len(result.columns['time_s'])} samples, {len(result.columns) - 2} columns)")
+    print(
+        f"wrote {args.csv} ({len(result.columns['time_s'])} samples, {len(result.columns) - 2} columns)"
+    )
     return 0

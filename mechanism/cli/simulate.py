@@ -30,39 +30,118 @@ def register(subparsers) -> None:
     add_machine_arguments(parser)
     source = parser.add_mutually_exclusive_group()
     add_input_arguments(parser, source, "a run")
-    source.add_argument("--profile", metavar="FILE",
-                        help="input profile CSV: time_s (or time) and voltage_V (or voltage) for the main motor, or one "
-                             "column per motor named JOINT_V (dc), JOINT_rad (servo goal) or JOINT_A (current drive); "
-                             "each value holds until the next time (zero-order hold)")
-    source.add_argument("--duty", type=float, metavar="PCT",
-                        help="PWM duty cycle [%%] of the described supply; converted to motor voltage with its "
-                             "measured (non-linear) map ([supply] in the description)")
-    parser.add_argument("--duration", type=float, metavar="S",
-                        help="simulated time [s] (default with --profile: the profile's last time)")
+    source.add_argument(
+        "--profile",
+        metavar="FILE",
+        help="input profile CSV: time_s (or time) and voltage_V (or voltage) for the main motor, or one "
+        "column per motor named JOINT_V (dc), JOINT_rad (servo goal) or JOINT_A (current drive); "
+        "each value holds until the next time (zero-order hold)",
+    )
+    source.add_argument(
+        "--duty",
+        type=float,
+        metavar="PCT",
+        help="PWM duty cycle [%%] of the described supply; converted to motor voltage with its "
+        "measured (non-linear) map ([supply] in the description)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=float,
+        metavar="S",
+        help="simulated time [s] (default with --profile: the profile's last time)",
+    )
     warm = parser.add_mutually_exclusive_group()
-    warm.add_argument("--warm-s", type=number(0, 1e6, "s"), default=0.0, metavar="S",
-                      help="the machine after S seconds of running: friction warmed as the description's [warm] says")
-    warm.add_argument("--warm", action="store_const", const=WARM_DEFAULT_S, dest="warm_s",
-                      help=f"shortcut for --warm-s {WARM_DEFAULT_S:g} (the thesis's warm column)")
-    parser.add_argument("--layers", type=int, default=0, metavar="N", help="fabric layers under the tool (default 0)")
-    parser.add_argument("--no-needle", action="store_true", help="tool removed: no fabric penetration load")
-    parser.add_argument("--feeding", action="store_true", help="feed mechanism engaged (the description's [loads] feeding)")
-    parser.add_argument("--belt-tension", choices=["low", "normal", "hard"], default="normal",
-                        help="belt tension setting (the description's [loads]; default normal)")
-    parser.add_argument("--start-angle", type=number(-3600, 3600, "deg"), default=0.0, metavar="DEG",
-                        help="shaft angle at rest at the start [deg], 0 = the described zero")
-    parser.add_argument("--inductance", type=number(0, 1, "H"), metavar="H", help="motor winding inductance [H] (default: the description's)")
-    parser.add_argument("--cogging", type=number(0, 10, "N m"), metavar="NM", help="motor cogging torque amplitude [N m] (periods per turn: the description's)")
-    parser.add_argument("--thermal", action="store_true", help="winding resistance rises with temperature")
-    parser.add_argument("--timestep", type=number(0.01, 2, "ms"), metavar="MS",
-                        help="simulation time step [ms] (default: the description's, else 0.5); loops and belts stiffen "
-                             "with it: at ~1000 rpm the Sapphire's needle-bar loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms")
-    parser.add_argument("--reduced", action="store_true", help="use the fast reduced 1-DOF model instead of the full multibody model")
-    parser.add_argument("--rate", type=number(0, 1e5, "Hz", low_open=True), default=1000.0, metavar="HZ", help="output sample rate [Hz] (default 1000)")
+    warm.add_argument(
+        "--warm-s",
+        type=number(0, 1e6, "s"),
+        default=0.0,
+        metavar="S",
+        help="the machine after S seconds of running: friction warmed as the description's [warm] says",
+    )
+    warm.add_argument(
+        "--warm",
+        action="store_const",
+        const=WARM_DEFAULT_S,
+        dest="warm_s",
+        help=f"shortcut for --warm-s {WARM_DEFAULT_S:g} (the thesis's warm column)",
+    )
+    parser.add_argument(
+        "--layers",
+        type=int,
+        default=0,
+        metavar="N",
+        help="fabric layers under the tool (default 0)",
+    )
+    parser.add_argument(
+        "--no-needle", action="store_true", help="tool removed: no fabric penetration load"
+    )
+    parser.add_argument(
+        "--feeding",
+        action="store_true",
+        help="feed mechanism engaged (the description's [loads] feeding)",
+    )
+    parser.add_argument(
+        "--belt-tension",
+        choices=["low", "normal", "hard"],
+        default="normal",
+        help="belt tension setting (the description's [loads]; default normal)",
+    )
+    parser.add_argument(
+        "--start-angle",
+        type=number(-3600, 3600, "deg"),
+        default=0.0,
+        metavar="DEG",
+        help="shaft angle at rest at the start [deg], 0 = the described zero",
+    )
+    parser.add_argument(
+        "--inductance",
+        type=number(0, 1, "H"),
+        metavar="H",
+        help="motor winding inductance [H] (default: the description's)",
+    )
+    parser.add_argument(
+        "--cogging",
+        type=number(0, 10, "N m"),
+        metavar="NM",
+        help="motor cogging torque amplitude [N m] (periods per turn: the description's)",
+    )
+    parser.add_argument(
+        "--thermal", action="store_true", help="winding resistance rises with temperature"
+    )
+    parser.add_argument(
+        "--timestep",
+        type=number(0.01, 2, "ms"),
+        metavar="MS",
+        help="simulation time step [ms] (default: the description's, else 0.5); loops and belts stiffen "
+        "with it: at ~1000 rpm the Sapphire's needle-bar loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms",
+    )
+    parser.add_argument(
+        "--reduced",
+        action="store_true",
+        help="use the fast reduced 1-DOF model instead of the full multibody model",
+    )
+    parser.add_argument(
+        "--rate",
+        type=number(0, 1e5, "Hz", low_open=True),
+        default=1000.0,
+        metavar="HZ",
+        help="output sample rate [Hz] (default 1000)",
+    )
     parser.add_argument("--csv", metavar="OUT.csv", help="write the time series")
-    parser.add_argument("--plot", metavar="OUT.png", help="plot speed, current and tool height over time")
-    parser.add_argument("--summary", action="store_true", help="print mean/min/max shaft speed [rpm] over the last second")
-    parser.set_defaults(handler=run, inputs=("profile", "machine", "model"), outputs=("csv", "plot"), plots=("plot",))
+    parser.add_argument(
+        "--plot", metavar="OUT.png", help="plot speed, current and tool height over time"
+    )
+    parser.add_argument(
+        "--summary",
+        action="store_true",
+        help="print mean/min/max shaft speed [rpm] over the last second",
+    )
+    parser.set_defaults(
+        handler=run,
+        inputs=("profile", "machine", "model"),
+        outputs=("csv", "plot"),
+        plots=("plot",),
+    )
 
 
 def motor_inputs_from_args(args: argparse.Namespace, machine):
@@ -80,8 +159,13 @@ def motor_inputs_from_args(args: argparse.Namespace, machine):
     elif args.profile is not None:
         from mechanism.files.tables import read_table
 
-        header = read_table(args.profile, required=["time"], optional=["voltage", "voltage_V"],
-                            aliases={"time": ["time_s"]}, what="input profile")
+        header = read_table(
+            args.profile,
+            required=["time"],
+            optional=["voltage", "voltage_V"],
+            aliases={"time": ["time_s"]},
+            what="input profile",
+        )
         if "voltage" in header.columns or "voltage_V" in header.columns:
             main = VoltageProfile.from_csv(args.profile)
         else:
@@ -105,7 +189,9 @@ def run(args: argparse.Namespace) -> int:
 
     if not (args.csv or args.plot or args.summary):
         raise UserError("nothing to output: give --csv, --plot and/or --summary")
-    if args.duration is not None and 0 < args.duration <= 3600:  # else the simulation names the range
+    if (
+        args.duration is not None and 0 < args.duration <= 3600
+    ):  # else the simulation names the range
         from mechanism.files.limits import check_elements
 
         check_elements(args.duration * args.rate * 16, "--duration x --rate")
@@ -120,11 +206,19 @@ def run(args: argparse.Namespace) -> int:
         if args.thermal and motor.thermal is None:
             motor = replace(motor, thermal=Thermal())
     elif args.inductance is not None or args.cogging is not None or args.thermal:
-        raise UserError(f"--inductance, --cogging and --thermal change a dc motor; the main motor on "
-                        f"{description.motor_joint} is a {description.motor['type']} drive")
-    config = MachineConfig(warm_s=args.warm_s, layers=args.layers, needle=not args.no_needle, feeding=args.feeding,
-                           belt_tension=args.belt_tension, motor=motor,
-                           timestep_s=None if args.timestep is None else args.timestep * 1e-3)
+        raise UserError(
+            f"--inductance, --cogging and --thermal change a dc motor; the main motor on "
+            f"{description.motor_joint} is a {description.motor['type']} drive"
+        )
+    config = MachineConfig(
+        warm_s=args.warm_s,
+        layers=args.layers,
+        needle=not args.no_needle,
+        feeding=args.feeding,
+        belt_tension=args.belt_tension,
+        motor=motor,
+        timestep_s=None if args.timestep is None else args.timestep * 1e-3,
+    )
     machine = Machine(description, config)
     voltage = motor_inputs_from_args(args, machine)
     duration = args.duration
@@ -138,22 +232,36 @@ def run(args: argparse.Namespace) -> int:
         from mechanism.dynamics.reduced import ReducedModel
 
         if isinstance(voltage, dict) or len(machine.drives) > 1:
-            raise UserError("the reduced model drives one dc motor with --voltage, --duty or a voltage_V profile")
-        result = ReducedModel(machine).simulate(voltage, duration, start_angle_rad=start, sample_rate_hz=args.rate)
+            raise UserError(
+                "the reduced model drives one dc motor with --voltage, --duty or a voltage_V profile"
+            )
+        result = ReducedModel(machine).simulate(
+            voltage, duration, start_angle_rad=start, sample_rate_hz=args.rate
+        )
     else:
-        result = simulate(voltage, duration, machine=machine, start_angle_rad=start, sample_rate_hz=args.rate,
-                          progress=True)
+        result = simulate(
+            voltage,
+            duration,
+            machine=machine,
+            start_angle_rad=start,
+            sample_rate_hz=args.rate,
+            progress=True,
+        )
     if args.csv:
-        comments = [f"mechanism simulate: machine {machine.name} ({machine.model_path.name}); shaft {machine.shaft_joint}",
-                    f"warm_s: {args.warm_s:g}; layers: {args.layers}; needle: {not args.no_needle}; feeding: {args.feeding}; "
-                    f"belt tension: {args.belt_tension}; model: {'reduced' if args.reduced else 'full multibody'}"]
+        comments = [
+            f"mechanism simulate: machine {machine.name} ({machine.model_path.name}); shaft {machine.shaft_joint}",
+            f"warm_s: {args.warm_s:g}; layers: {args.layers}; needle: {not args.no_needle}; feeding: {args.feeding}; "
+            f"belt tension: {args.belt_tension}; model: {'reduced' if args.reduced else 'full multibody'}",
+        ]
         write_table(args.csv, result.columns(), comments=comments)
     if args.plot:
         plot_simulation(result, args.plot)
     if args.summary:
         last = min(1.0, duration)
         s = result.speed_summary(last)
-        print(f"shaft speed over the last {last:g} s: mean {s['mean_rpm']:.1f} rpm, "
-              f"min {s['min_rpm']:.1f} rpm, max {s['max_rpm']:.1f} rpm")
+        print(
+            f"shaft speed over the last {last:g} s: mean {s['mean_rpm']:.1f} rpm, "
+            f"min {s['min_rpm']:.1f} rpm, max {s['max_rpm']:.1f} rpm"
+        )
     sys.stdout.flush()
     return 0

@@ -22,22 +22,62 @@ def register(subparsers) -> None:
             "effects that need whole turns are refused."
         ),
     )
-    parser.add_argument("--effect", metavar="NAME[,NAME]",
-                        help="concealed effect(s), comma-separated; 'none' for the clean machine (see --list)")
-    parser.add_argument("--machine", metavar="FILE.toml",
-                        help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
-                             "scales from (default: the shipped Sapphire 870's thesis-identified numbers)")
-    parser.add_argument("--seed", type=number(0, 2**32 - 1, integer=True), default=0, metavar="N",
-                        help="random seed: machine parameters, effect magnitudes, voltage profile, start angle, noise (default 0)")
-    parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), default=60.0, metavar="S", help="recording length [s] (default 60)")
-    parser.add_argument("--rate", type=number(100, 10000, "Hz"), default=1000.0, metavar="HZ", help="sample rate, 100-10000 Hz (default 1000)")
-    parser.add_argument("--counts", type=number(500, 20000, integer=True), default=20000, metavar="N", help="encoder counts per shaft turn (default 20000)")
-    parser.add_argument("-o", "--output", metavar="REC.csv",
-                        help="recording to write (REC.csv, REC.csv.gz, REC.parquet or REC.mat); the truth goes to REC.truth.json")
-    parser.add_argument("--format", choices=["csv", "csv.gz", "parquet", "mat"],
-                        help="recording format (default: from the -o file name, which must agree); parquet needs "
-                             "pip install 'mechanism[parquet]'")
-    parser.add_argument("--list", action="store_true", help="print the effect vocabulary with one line of physics each and exit")
+    parser.add_argument(
+        "--effect",
+        metavar="NAME[,NAME]",
+        help="concealed effect(s), comma-separated; 'none' for the clean machine (see --list)",
+    )
+    parser.add_argument(
+        "--machine",
+        metavar="FILE.toml",
+        help="machine description: the drive (ratio, motor, CAD inertia, friction) every bound and start "
+        "scales from (default: the shipped Sapphire 870's thesis-identified numbers)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=number(0, 2**32 - 1, integer=True),
+        default=0,
+        metavar="N",
+        help="random seed: machine parameters, effect magnitudes, voltage profile, start angle, noise (default 0)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=number(0, 3600, "s", low_open=True),
+        default=60.0,
+        metavar="S",
+        help="recording length [s] (default 60)",
+    )
+    parser.add_argument(
+        "--rate",
+        type=number(100, 10000, "Hz"),
+        default=1000.0,
+        metavar="HZ",
+        help="sample rate, 100-10000 Hz (default 1000)",
+    )
+    parser.add_argument(
+        "--counts",
+        type=number(500, 20000, integer=True),
+        default=20000,
+        metavar="N",
+        help="encoder counts per shaft turn (default 20000)",
+    )
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="REC.csv",
+        help="recording to write (REC.csv, REC.csv.gz, REC.parquet or REC.mat); the truth goes to REC.truth.json",
+    )
+    parser.add_argument(
+        "--format",
+        choices=["csv", "csv.gz", "parquet", "mat"],
+        help="recording format (default: from the -o file name, which must agree); parquet needs "
+        "pip install 'mechanism[parquet]'",
+    )
+    parser.add_argument(
+        "--list",
+        action="store_true",
+        help="print the effect vocabulary with one line of physics each and exit",
+    )
     parser.set_defaults(handler=run, outputs=("output", _truth_output))
 
 
@@ -59,7 +99,9 @@ def run(args) -> int:
 
     if args.list:
         width = max(map(len, EFFECTS))
-        print(f"{'none':<{width}}  the clean machine: thesis lumped model, Coulomb + viscous friction, stick-slip")
+        print(
+            f"{'none':<{width}}  the clean machine: thesis lumped model, Coulomb + viscous friction, stick-slip"
+        )
         for effect in EFFECTS.values():
             print(f"{effect.name:<{width}}  {effect.physics}")
         return 0
@@ -70,15 +112,23 @@ def run(args) -> int:
         from mechanism.testbench.recording import recording_format
 
         if recording_format(args.output)[0] != args.format:
-            raise UserError(f"--format {args.format} but the file name {args.output} ends as a {recording_format(args.output)[0]} file")
+            raise UserError(
+                f"--format {args.format} but the file name {args.output} ends as a {recording_format(args.output)[0]} file"
+            )
         if args.format == "parquet":
             from mechanism.files.formats import require_pyarrow
 
             require_pyarrow(".parquet")
     from mechanism.cli._nominal import drive_nominal
 
-    recording = make_recording(args.effect, seed=args.seed, duration_s=args.duration, nominal=drive_nominal(args),
-                               sample_rate_hz=args.rate, encoder_counts_per_rev=args.counts)
+    recording = make_recording(
+        args.effect,
+        seed=args.seed,
+        duration_s=args.duration,
+        nominal=drive_nominal(args),
+        sample_rate_hz=args.rate,
+        encoder_counts_per_rev=args.counts,
+    )
     csv_path, truth_path = write_recording(recording, args.output, args.format)
     what = ", ".join(recording.effects) or "no effect (clean)"
     print(f"wrote {csv_path} ({len(recording.time)} samples, {what}) and {truth_path}")

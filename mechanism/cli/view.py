@@ -5,7 +5,12 @@ from __future__ import annotations
 from mechanism.files.limits import number
 
 from mechanism.cli._inputs import add_input_arguments, has_inputs, inputs_from_args
-from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, description_from_args, inspection_target
+from mechanism.cli._machine import (
+    DRIVER_HELP,
+    add_machine_arguments,
+    description_from_args,
+    inspection_target,
+)
 
 ORDER = 50
 
@@ -26,16 +31,41 @@ def register(subparsers) -> None:
     )
     add_machine_arguments(parser)
     motion = parser.add_mutually_exclusive_group()
-    motion.add_argument("--cycle", action="store_true", help="one arm shaft revolution (the default)")
+    motion.add_argument(
+        "--cycle", action="store_true", help="one arm shaft revolution (the default)"
+    )
     add_input_arguments(parser, motion)
-    motion.add_argument("--recording", metavar="FILE", help="replay a recording CSV (time, voltage, arm_angle) kinematically")
-    parser.add_argument("--duration", type=number(0, 3600, "s", low_open=True), metavar="S", help="simulated time [s] (with --voltage)")
-    parser.add_argument("--frames", type=int, default=120, metavar="N", help="animation frames (default 120)")
-    parser.add_argument("--probe", action="append", default=[], metavar="NAME", help="mark a part frame or named frame (repeatable)")
-    parser.add_argument("--pairs", metavar="A:B[,C:D...]", help="show the clearance minimum of these part pairs")
+    motion.add_argument(
+        "--recording",
+        metavar="FILE",
+        help="replay a recording CSV (time, voltage, arm_angle) kinematically",
+    )
+    parser.add_argument(
+        "--duration",
+        type=number(0, 3600, "s", low_open=True),
+        metavar="S",
+        help="simulated time [s] (with --voltage)",
+    )
+    parser.add_argument(
+        "--frames", type=int, default=120, metavar="N", help="animation frames (default 120)"
+    )
+    parser.add_argument(
+        "--probe",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="mark a part frame or named frame (repeatable)",
+    )
+    parser.add_argument(
+        "--pairs", metavar="A:B[,C:D...]", help="show the clearance minimum of these part pairs"
+    )
     parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--html", metavar="OUT.html", help="write the self-contained animation")
-    parser.add_argument("--serve", action="store_true", help="start a live meshcat server on localhost and wait (Ctrl-C ends)")
+    parser.add_argument(
+        "--serve",
+        action="store_true",
+        help="start a live meshcat server on localhost and wait (Ctrl-C ends)",
+    )
     parser.set_defaults(handler=run, inputs=("machine", "model", "recording"), outputs=("html",))
 
 
@@ -47,16 +77,28 @@ def run(args) -> int:
         raise UserError("nothing to do: give --html OUT.html and/or --serve")
     dynamic = has_inputs(args)
     if dynamic and args.recording:
-        raise UserError("choose one motion: a simulation (--voltage, --goal, --current) or --recording")
+        raise UserError(
+            "choose one motion: a simulation (--voltage, --goal, --current) or --recording"
+        )
     if dynamic and args.duration is None:
         raise UserError("--voltage needs --duration (simulated time in seconds)")
     if args.duration is not None and not dynamic:
         raise UserError("--duration belongs to a simulated motion (--voltage)")
     path, driver, description = inspection_target(args)
     description = description or description_from_args(args)
-    summary = view(args.html, path, inputs_from_args(args, description) if dynamic else None, args.duration,
-                   args.recording, args.frames, args.probe, args.pairs, serve=args.serve, driver=driver,
-                   description=description)
+    summary = view(
+        args.html,
+        path,
+        inputs_from_args(args, description) if dynamic else None,
+        args.duration,
+        args.recording,
+        args.frames,
+        args.probe,
+        args.pairs,
+        serve=args.serve,
+        driver=driver,
+        description=description,
+    )
     for note in summary["notes"]:
         print(note)
     if args.html:

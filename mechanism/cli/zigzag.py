@@ -54,37 +54,116 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--spm", type=number(0, 5000, "stitches/min", low_open=True), required=True, metavar="STITCHES_PER_MIN",
-                        help="sewing speed [stitches per minute] = arm shaft rpm")
-    parser.add_argument("--width-mm", type=number(0, 50, "mm", low_open=True), default=None, metavar="MM",
-                        help="sideways move [mm] (default: the full zigzag width, 7 mm)")
-    parser.add_argument("--rate", type=number(0, 1e5, "steps/s", low_open=True), default=None, metavar="STEPS_PER_S",
-                        help="stepper slew rate [full steps/s] (default: the thesis's 1000)")
-    parser.add_argument("--ramp-steps", type=number(0, 1e4, "steps"), default=0.0, metavar="STEPS",
-                        help="linear ramps at both ends of the move [full steps] (default 0: abrupt)")
-    parser.add_argument("--model", default="circuit", choices=["circuit", "physical"], help="motor model (default circuit)")
-    parser.add_argument("--mode", default="full", metavar="full|half|microN", help="drive mode (default full)")
-    parser.add_argument("--needle", default="machine", choices=["machine", "slider-crank"],
-                        help="needle height source (default machine; see below)")
-    parser.add_argument("--machine", metavar="FILE.toml",
-                        help="machine description for --needle machine: its tool's height table (default: the shipped sewing machine)")
-    parser.add_argument("--machine-model", metavar="MJCF",
-                        help="an MJCF with the description's names instead of its model")
-    parser.add_argument("--needle-csv", metavar="FILE", help="needle height table (overrides --needle)")
-    parser.add_argument("--crank-mm", type=number(0, 1000, "mm", low_open=True), default=16.5, metavar="MM", help="slider-crank: crank radius [mm] (default 16.5)")
-    parser.add_argument("--rod-mm", type=number(0, 1e4, "mm", low_open=True), default=50.0, metavar="MM", help="slider-crank: rod length [mm] (default 50)")
-    parser.add_argument("--tdc-height-mm", type=number(-1000, 1000, "mm"), default=21.0, metavar="MM",
-                        help="slider-crank: needle point above the plate at TDC [mm] (default 21)")
-    parser.add_argument("--clearance-mm", type=number(0, 100, "mm"), default=0.0, metavar="MM",
-                        help="fabric thickness: the needle must be this far above the plate to move [mm] (default 0)")
-    parser.add_argument("--tolerance-mm", type=number(0, 100, "mm", low_open=True), default=None, metavar="MM",
-                        help="the move is done when the needle stays this close to its target [mm] "
-                             "(default half a step, 0.0875 mm)")
-    parser.add_argument("--stitches", type=number(1, 1000, integer=True), default=6, metavar="N", help="stitches simulated for --csv/--plot (default 6)")
+    parser.add_argument(
+        "--spm",
+        type=number(0, 5000, "stitches/min", low_open=True),
+        required=True,
+        metavar="STITCHES_PER_MIN",
+        help="sewing speed [stitches per minute] = arm shaft rpm",
+    )
+    parser.add_argument(
+        "--width-mm",
+        type=number(0, 50, "mm", low_open=True),
+        default=None,
+        metavar="MM",
+        help="sideways move [mm] (default: the full zigzag width, 7 mm)",
+    )
+    parser.add_argument(
+        "--rate",
+        type=number(0, 1e5, "steps/s", low_open=True),
+        default=None,
+        metavar="STEPS_PER_S",
+        help="stepper slew rate [full steps/s] (default: the thesis's 1000)",
+    )
+    parser.add_argument(
+        "--ramp-steps",
+        type=number(0, 1e4, "steps"),
+        default=0.0,
+        metavar="STEPS",
+        help="linear ramps at both ends of the move [full steps] (default 0: abrupt)",
+    )
+    parser.add_argument(
+        "--model",
+        default="circuit",
+        choices=["circuit", "physical"],
+        help="motor model (default circuit)",
+    )
+    parser.add_argument(
+        "--mode", default="full", metavar="full|half|microN", help="drive mode (default full)"
+    )
+    parser.add_argument(
+        "--needle",
+        default="machine",
+        choices=["machine", "slider-crank"],
+        help="needle height source (default machine; see below)",
+    )
+    parser.add_argument(
+        "--machine",
+        metavar="FILE.toml",
+        help="machine description for --needle machine: its tool's height table (default: the shipped sewing machine)",
+    )
+    parser.add_argument(
+        "--machine-model",
+        metavar="MJCF",
+        help="an MJCF with the description's names instead of its model",
+    )
+    parser.add_argument(
+        "--needle-csv", metavar="FILE", help="needle height table (overrides --needle)"
+    )
+    parser.add_argument(
+        "--crank-mm",
+        type=number(0, 1000, "mm", low_open=True),
+        default=16.5,
+        metavar="MM",
+        help="slider-crank: crank radius [mm] (default 16.5)",
+    )
+    parser.add_argument(
+        "--rod-mm",
+        type=number(0, 1e4, "mm", low_open=True),
+        default=50.0,
+        metavar="MM",
+        help="slider-crank: rod length [mm] (default 50)",
+    )
+    parser.add_argument(
+        "--tdc-height-mm",
+        type=number(-1000, 1000, "mm"),
+        default=21.0,
+        metavar="MM",
+        help="slider-crank: needle point above the plate at TDC [mm] (default 21)",
+    )
+    parser.add_argument(
+        "--clearance-mm",
+        type=number(0, 100, "mm"),
+        default=0.0,
+        metavar="MM",
+        help="fabric thickness: the needle must be this far above the plate to move [mm] (default 0)",
+    )
+    parser.add_argument(
+        "--tolerance-mm",
+        type=number(0, 100, "mm", low_open=True),
+        default=None,
+        metavar="MM",
+        help="the move is done when the needle stays this close to its target [mm] "
+        "(default half a step, 0.0875 mm)",
+    )
+    parser.add_argument(
+        "--stitches",
+        type=number(1, 1000, integer=True),
+        default=6,
+        metavar="N",
+        help="stitches simulated for --csv/--plot (default 6)",
+    )
     parser.add_argument("--csv", metavar="OUT.csv", help="write the needle path of the stitch run")
     parser.add_argument("--plot", metavar="OUT.png", help="plot the needle path of the stitch run")
-    parser.add_argument("--json", metavar="OUT.json", help="write the move check (and stitch summary) as JSON")
-    parser.set_defaults(handler=run, inputs=("needle_csv", "machine_model", "machine"), outputs=("csv", "plot", "json"), plots=("plot",))
+    parser.add_argument(
+        "--json", metavar="OUT.json", help="write the move check (and stitch summary) as JSON"
+    )
+    parser.set_defaults(
+        handler=run,
+        inputs=("needle_csv", "machine_model", "machine"),
+        outputs=("csv", "plot", "json"),
+        plots=("plot",),
+    )
 
 
 def run(args) -> int:
@@ -107,27 +186,53 @@ def run(args) -> int:
         needle = zigzag.machine_needle_profile(args.machine, args.machine_model)
     else:
         needle = zigzag.NeedleProfile.slider_crank(args.crank_mm, args.rod_mm, args.tdc_height_mm)
-    options = dict(width_mm=args.width_mm, rate=args.rate, kind=args.model, mode=args.mode,
-                   clearance_mm=args.clearance_mm, tolerance_mm=args.tolerance_mm)
+    options = dict(
+        width_mm=args.width_mm,
+        rate=args.rate,
+        kind=args.model,
+        mode=args.mode,
+        clearance_mm=args.clearance_mm,
+        tolerance_mm=args.tolerance_mm,
+    )
     check = zigzag.check_move(args.spm, needle, ramp_steps=args.ramp_steps, **options)
     print(f"needle: {needle.name}")
-    print(f"at {args.spm:g} stitches/min the needle is above the fabric from {check.exit_angle_deg:.1f} to "
-          f"{check.entry_angle_deg:.1f} deg arm angle: {check.window_s * 1e3:.1f} ms")
-    finished = (f"done after {check.move_time_s * 1e3:.1f} ms (arm at {check.finish_angle_deg:.1f} deg, "
-                f"needle {check.needle_z_at_finish_mm:+.1f} mm)" if math.isfinite(check.move_time_s)
-                else "never settles (lost steps)")
-    print(f"a {check.width_mm:.3f} mm move ({check.steps} steps at {check.rate_steps_s:g} steps/s): {finished}")
-    print("FLAGGED: the needle is still moving sideways when it enters the fabric" if check.flagged
-          else f"fits, with {check.margin_s * 1e3:.1f} ms to spare")
+    print(
+        f"at {args.spm:g} stitches/min the needle is above the fabric from {check.exit_angle_deg:.1f} to "
+        f"{check.entry_angle_deg:.1f} deg arm angle: {check.window_s * 1e3:.1f} ms"
+    )
+    finished = (
+        f"done after {check.move_time_s * 1e3:.1f} ms (arm at {check.finish_angle_deg:.1f} deg, "
+        f"needle {check.needle_z_at_finish_mm:+.1f} mm)"
+        if math.isfinite(check.move_time_s)
+        else "never settles (lost steps)"
+    )
+    print(
+        f"a {check.width_mm:.3f} mm move ({check.steps} steps at {check.rate_steps_s:g} steps/s): {finished}"
+    )
+    print(
+        "FLAGGED: the needle is still moving sideways when it enters the fabric"
+        if check.flagged
+        else f"fits, with {check.margin_s * 1e3:.1f} ms to spare"
+    )
     result = {"move": check.as_dict()}
     if args.csv or args.plot:
         sewing = zigzag.sew(args.spm, needle, stitches=args.stitches, **options)
         result["stitches"] = sewing.summary
         s = sewing.summary
-        print(f"{s['stitches']} zigzag stitches: worst sideways error in the fabric {s['worst_error_in_fabric_mm']:.3f} mm"
-              + (f", moving in the fabric in stitches {s['stitches_moving_in_fabric']}" if s["stitches_moving_in_fabric"] else ""))
+        print(
+            f"{s['stitches']} zigzag stitches: worst sideways error in the fabric {s['worst_error_in_fabric_mm']:.3f} mm"
+            + (
+                f", moving in the fabric in stitches {s['stitches_moving_in_fabric']}"
+                if s["stitches_moving_in_fabric"]
+                else ""
+            )
+        )
         if args.csv:
-            write_table(args.csv, sewing.columns, comments=[f"needle: {needle.name}", f"stitches_per_minute: {args.spm:g}"])
+            write_table(
+                args.csv,
+                sewing.columns,
+                comments=[f"needle: {needle.name}", f"stitches_per_minute: {args.spm:g}"],
+            )
         if args.plot:
             zigzag.plot_sewing(sewing, args.plot)
     if args.json:

@@ -14,5 +14,7 @@ from importlib import resources
 @functools.lru_cache(maxsize=None)
 def thesis() -> dict:
     """The parsed reference file (treat as read-only)."""
-    text = resources.files("mechanism.data").joinpath("tegsten2008.json").read_text(encoding="utf-8")
+    text = (
+        resources.files("mechanism.data").joinpath("tegsten2008.json").read_text(encoding="utf-8")
+    )
     return json.loads(text)

@@ -2,8 +2,17 @@
 
 from mechanism.lazy import lazy_exports
 
-__all__, __getattr__, __dir__ = lazy_exports(__name__, {
-    "simulation": ("simulate", "simulate_batch", "SimulationResult", "plot_simulation", "MAX_DURATION_S"),
-    "reduced": ("ReducedModel", "reduced_model"),
-    "lumped": ("DriveNominal", "MotorConstants"),
-})
+__all__, __getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "simulation": (
+            "simulate",
+            "simulate_batch",
+            "SimulationResult",
+            "plot_simulation",
+            "MAX_DURATION_S",
+        ),
+        "reduced": ("ReducedModel", "reduced_model"),
+        "lumped": ("DriveNominal", "MotorConstants"),
+    },
+)

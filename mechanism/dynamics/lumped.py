@@ -57,7 +57,12 @@ class MotorConstants:
     @property
     def emf_damping_arm(self) -> float:
         """Arm-side back-emf damping n^2 Kt Ke / R [Nm s/rad]."""
-        return self.ratio**2 * self.torque_constant_Nm_per_A * self.back_emf_V_s_per_rad / self.resistance_ohm
+        return (
+            self.ratio**2
+            * self.torque_constant_Nm_per_A
+            * self.back_emf_V_s_per_rad
+            / self.resistance_ohm
+        )
 
 
 @dataclass(frozen=True)
@@ -78,7 +83,9 @@ class DriveNominal:
     viscous_shaft_Nm_s_per_rad: float
     joint_ratios: tuple[tuple[str, float], ...] = ()
     supply_V: float | None = None
-    tool_in_fabric: bool = True  # the machine has a tool that works in fabric (a needle-penetration load can exist)
+    tool_in_fabric: bool = (
+        True  # the machine has a tool that works in fabric (a needle-penetration load can exist)
+    )
     zero_meaning: str = "needle top"  # what shaft angle 0 is, for reports
     # The shaft's travel when it rocks between stops (shaft angles [rad], lower first); None
     # for a shaft that turns whole revolutions.
@@ -129,15 +136,22 @@ class DriveNominal:
                 out[name] = abs(float(r))
         return out
 
-    def scaled(self, inertia: float = 1.0, ratio: float | None = None, torque: float = 1.0, **motor) -> "DriveNominal":
+    def scaled(
+        self, inertia: float = 1.0, ratio: float | None = None, torque: float = 1.0, **motor
+    ) -> "DriveNominal":
         """Another machine of the same kind (tests, benches): inertia and friction scaled,
         another ratio, other motor constants."""
         from dataclasses import replace
 
         m = replace(self.motor, ratio=ratio or self.motor.ratio, **motor)
-        return replace(self, motor=m, inertia_kgm2=self.inertia_kgm2 * inertia, linkage=None,
-                       coulomb_shaft_Nm=self.coulomb_shaft_Nm * torque,
-                       viscous_shaft_Nm_s_per_rad=self.viscous_shaft_Nm_s_per_rad * torque)
+        return replace(
+            self,
+            motor=m,
+            inertia_kgm2=self.inertia_kgm2 * inertia,
+            linkage=None,
+            coulomb_shaft_Nm=self.coulomb_shaft_Nm * torque,
+            viscous_shaft_Nm_s_per_rad=self.viscous_shaft_Nm_s_per_rad * torque,
+        )
 
 
 @dataclass
@@ -152,7 +166,9 @@ class Signals:
     ratio: float
     source_index: np.ndarray | None = None  # windows of a long recording: their samples in it
     whole: "Signals | None" = None  # ... and the whole recording's signals
-    parent: "Signals | None" = None  # a subset (see :meth:`subset`): the signals it was taken from ...
+    parent: "Signals | None" = (
+        None  # a subset (see :meth:`subset`): the signals it was taken from ...
+    )
     parent_index: np.ndarray | None = None  # ... and its samples there
     _cache: dict = field(default_factory=dict, repr=False)
     _memos: dict = field(default_factory=dict, repr=False)
@@ -186,8 +202,18 @@ class Signals:
         index = np.asarray(index, dtype=np.int64)
         whole = self.whole if self.whole is not None else self
         source = self.source_index[index] if self.source_index is not None else index
-        sub = Signals(self.time_s[index], self.voltage_V[index], self.arm_angle_rad[index], self.velocity_rad_s[index],
-                      self.dt, ratio=self.ratio, source_index=source, whole=whole, parent=self, parent_index=index)
+        sub = Signals(
+            self.time_s[index],
+            self.voltage_V[index],
+            self.arm_angle_rad[index],
+            self.velocity_rad_s[index],
+            self.dt,
+            ratio=self.ratio,
+            source_index=source,
+            whole=whole,
+            parent=self,
+            parent_index=index,
+        )
         sub._cache["mid"] = self.drive_angle_rad[index]
         return sub
 
@@ -201,7 +227,9 @@ class Signals:
         """A quantity that integrates over the recording's past (warmth, copper temperature):
         ``compute(signals)`` on the whole recording, read at these samples."""
         if self.parent is not None:
-            return self.memo(kind, key, lambda: self.parent.history(kind, key, compute)[self.parent_index])
+            return self.memo(
+                kind, key, lambda: self.parent.history(kind, key, compute)[self.parent_index]
+            )
         if self.whole is None:
             return self.memo(kind, key, lambda: compute(self))
         return self.memo(kind, key, lambda: compute(self.whole)[self.source_index])
@@ -267,7 +295,9 @@ class Drive:
     belt_gap_rad: float = 0.0  # half the belt's free play (backlash), belt mode
 
     @classmethod
-    def constant(cls, signals: Signals, voltage: np.ndarray, inertia: float, viscous: float, coulomb: float) -> "Drive":
+    def constant(
+        cls, signals: Signals, voltage: np.ndarray, inertia: float, viscous: float, coulomb: float
+    ) -> "Drive":
         n = len(signals)
         return cls(
             voltage_V=np.asarray(voltage, dtype=float),  # shared, never modified in place
@@ -297,14 +327,22 @@ class Segments:
         return len(self.starts)
 
     def subset(self, mask: np.ndarray) -> "Segments":
-        return Segments(self.starts[mask], self.length, self.score_begin[mask], self.score_end[mask], self.is_fit[mask])
+        return Segments(
+            self.starts[mask],
+            self.length,
+            self.score_begin[mask],
+            self.score_end[mask],
+            self.is_fit[mask],
+        )
 
     def window_indices(self) -> np.ndarray:
         """(n_segments, length) recording sample indices of every window sample."""
         return self.starts[:, None] + np.arange(self.length)[None, :]
 
 
-def make_segments(n_samples: int, dt: float, segment_s: float = 1.0, burn_in_s: float = 0.25, pad: int = 10) -> Segments:
+def make_segments(
+    n_samples: int, dt: float, segment_s: float = 1.0, burn_in_s: float = 0.25, pad: int = 10
+) -> Segments:
     """Tile the recording into scored segments of ``segment_s``; each window starts
     ``burn_in_s`` (plus the differentiator's half window ``pad``) earlier so that the
     restart from the measured velocity has died out before scoring begins. Segments
@@ -327,7 +365,13 @@ def make_segments(n_samples: int, dt: float, segment_s: float = 1.0, burn_in_s: 
     # recording's first and last ``pad`` samples are not scored)
     score_begin = np.maximum(begins - starts, pad)
     score_end = np.minimum(ends - starts, length - pad)
-    return Segments(starts.astype(np.int64), int(length), score_begin.astype(np.int64), score_end.astype(np.int64), is_fit)
+    return Segments(
+        starts.astype(np.int64),
+        int(length),
+        score_begin.astype(np.int64),
+        score_end.astype(np.int64),
+        is_fit,
+    )
 
 
 class _DriveParams(ctypes.Structure):
@@ -360,50 +404,101 @@ def _kernel():
     return fn
 
 
-SUBSTEPS = 1  # the exponential step is exact for the linear part; more substeps change nothing measurable
+SUBSTEPS = (
+    1  # the exponential step is exact for the linear part; more substeps change nothing measurable
+)
 
 
-def simulate(drive: Drive, motor: MotorConstants, segments: Segments, w0: np.ndarray, dt: float,
-             substeps: int = SUBSTEPS, use_native: bool = True) -> np.ndarray:
+def simulate(
+    drive: Drive,
+    motor: MotorConstants,
+    segments: Segments,
+    w0: np.ndarray,
+    dt: float,
+    substeps: int = SUBSTEPS,
+    use_native: bool = True,
+) -> np.ndarray:
     """Arm velocity [rad/s] at every window sample, shape (n_segments, length)."""
     kernel = _kernel() if use_native else None
     if kernel is None:
         return simulate_numpy(drive, motor, segments, w0, dt, substeps)
-    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (
-        drive.voltage_V, drive.tau_motor_Nm, drive.tau_arm_Nm, drive.coulomb_Nm, drive.static_excess_Nm,
-        drive.viscous_Nm_s, drive.inertia_kgm2, drive.quadratic_Nm_s2)]
+    arrays = [
+        np.ascontiguousarray(a, dtype=np.float64)
+        for a in (
+            drive.voltage_V,
+            drive.tau_motor_Nm,
+            drive.tau_arm_Nm,
+            drive.coulomb_Nm,
+            drive.static_excess_Nm,
+            drive.viscous_Nm_s,
+            drive.inertia_kgm2,
+            drive.quadratic_Nm_s2,
+        )
+    ]
     n_seg = len(segments)
     out = np.empty((n_seg, segments.length), dtype=np.float64)
     starts = np.ascontiguousarray(segments.starts, dtype=np.int32)
     lengths = np.full(n_seg, segments.length, dtype=np.int32)
     offsets = (np.arange(n_seg, dtype=np.int32) * segments.length).astype(np.int32)
     w0 = np.ascontiguousarray(w0, dtype=np.float64)
-    params = _DriveParams(motor.gain_arm, motor.emf_damping_arm, drive.stribeck_velocity_rad_s,
-                          drive.stribeck_exponent, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s,
-                          drive.motor_inertia_kgm2, dt, int(substeps), drive.belt_gap_rad)
+    params = _DriveParams(
+        motor.gain_arm,
+        motor.emf_damping_arm,
+        drive.stribeck_velocity_rad_s,
+        drive.stribeck_exponent,
+        drive.belt_stiffness_Nm_rad,
+        drive.belt_damping_Nm_s,
+        drive.motor_inertia_kgm2,
+        dt,
+        int(substeps),
+        drive.belt_gap_rad,
+    )
     dp = ctypes.POINTER(ctypes.c_double)
     ip = ctypes.POINTER(ctypes.c_int)
-    kernel(ctypes.byref(params), *[a.ctypes.data_as(dp) for a in arrays], n_seg,
-           starts.ctypes.data_as(ip), lengths.ctypes.data_as(ip), offsets.ctypes.data_as(ip),
-           w0.ctypes.data_as(dp), out.ctypes.data_as(dp))
+    kernel(
+        ctypes.byref(params),
+        *[a.ctypes.data_as(dp) for a in arrays],
+        n_seg,
+        starts.ctypes.data_as(ip),
+        lengths.ctypes.data_as(ip),
+        offsets.ctypes.data_as(ip),
+        w0.ctypes.data_as(dp),
+        out.ctypes.data_as(dp),
+    )
     return out
 
 
 def _friction(fk, fx, w, drive: Drive):
     if not np.any(fx):
         return fk
-    return fk + fx * np.exp(-np.power(np.abs(w) / drive.stribeck_velocity_rad_s, drive.stribeck_exponent))
+    return fk + fx * np.exp(
+        -np.power(np.abs(w) / drive.stribeck_velocity_rad_s, drive.stribeck_exponent)
+    )
 
 
-def simulate_numpy(drive: Drive, motor: MotorConstants, segments: Segments, w0: np.ndarray, dt: float,
-                   substeps: int = SUBSTEPS) -> np.ndarray:
+def simulate_numpy(
+    drive: Drive,
+    motor: MotorConstants,
+    segments: Segments,
+    w0: np.ndarray,
+    dt: float,
+    substeps: int = SUBSTEPS,
+) -> np.ndarray:
     """The kernel's equations in numpy, vectorised over segments (the fallback)."""
     idx = segments.window_indices()
     n_seg, length = idx.shape
     out = np.empty((n_seg, length))
     gain, c_emf = motor.gain_arm, motor.emf_damping_arm
-    u, tm, ta, fk, fx, cv, jt, q = (drive.voltage_V, drive.tau_motor_Nm, drive.tau_arm_Nm, drive.coulomb_Nm,
-                                    drive.static_excess_Nm, drive.viscous_Nm_s, drive.inertia_kgm2, drive.quadratic_Nm_s2)
+    u, tm, ta, fk, fx, cv, jt, q = (
+        drive.voltage_V,
+        drive.tau_motor_Nm,
+        drive.tau_arm_Nm,
+        drive.coulomb_Nm,
+        drive.static_excess_Nm,
+        drive.viscous_Nm_s,
+        drive.inertia_kgm2,
+        drive.quadratic_Nm_s2,
+    )
     w = np.array(w0, dtype=float)
     if drive.belt_stiffness_Nm_rad > 0:
         return _simulate_belt_numpy(drive, motor, idx, w, dt, substeps)
@@ -423,20 +518,32 @@ def simulate_numpy(drive: Drive, motor: MotorConstants, segments: Segments, w0: 
             wss = (f - _friction(fk[k], fx[k], w, drive) * direction) / c
             wh = wss + (w - wss) * decay_half
             wh = np.where(np.sign(wh) == -direction, 0.0, wh)
-            wss = (drive_torque - q[k] * wh * wh - _friction(fk[k], fx[k], wh, drive) * direction) / c
+            wss = (
+                drive_torque - q[k] * wh * wh - _friction(fk[k], fx[k], wh, drive) * direction
+            ) / c
             wn = wss + (w - wss) * decay
             wn = np.where(np.sign(wn) == -direction, 0.0, wn)
             w = np.where(stuck, 0.0, wn)
     return out
 
 
-def _simulate_belt_numpy(drive: Drive, motor: MotorConstants, idx: np.ndarray, w: np.ndarray, dt: float, substeps: int) -> np.ndarray:
+def _simulate_belt_numpy(
+    drive: Drive, motor: MotorConstants, idx: np.ndarray, w: np.ndarray, dt: float, substeps: int
+) -> np.ndarray:
     n_seg, length = idx.shape
     out = np.empty((n_seg, length))
     gain, c_emf = motor.gain_arm, motor.emf_damping_arm
     jm, kb, cb = drive.motor_inertia_kgm2, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s
-    u, tm, ta, fk, fx, cv, jt, q = (drive.voltage_V, drive.tau_motor_Nm, drive.tau_arm_Nm, drive.coulomb_Nm,
-                                    drive.static_excess_Nm, drive.viscous_Nm_s, drive.inertia_kgm2, drive.quadratic_Nm_s2)
+    u, tm, ta, fk, fx, cv, jt, q = (
+        drive.voltage_V,
+        drive.tau_motor_Nm,
+        drive.tau_arm_Nm,
+        drive.coulomb_Nm,
+        drive.static_excess_Nm,
+        drive.viscous_Nm_s,
+        drive.inertia_kgm2,
+        drive.quadratic_Nm_s2,
+    )
     k0 = idx[:, 0]
     wr = np.sqrt(kb * (1 / jm + 1 / (jt[k0] - jm)))
     nsub = int(max(substeps, np.ceil(np.max(wr) * dt / 0.25)))

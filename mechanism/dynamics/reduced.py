@@ -29,16 +29,36 @@ from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic
 from mechanism.machine.machine import Machine, MachineConfig
 from mechanism.dynamics.simulation import MAX_DURATION_S, SimulationResult, unstable
 
+
 class _Tables(ctypes.Structure):
-    _POINTERS = ("inertia", "dinertia", "gravity", "motor_ratio", "viscous", "cogging", "needle_depth", "needle_dz",
-                 "friction_ratio", "friction_scale", "friction_static_scale", "friction_params")
+    _POINTERS = (
+        "inertia",
+        "dinertia",
+        "gravity",
+        "motor_ratio",
+        "viscous",
+        "cogging",
+        "needle_depth",
+        "needle_dz",
+        "friction_ratio",
+        "friction_scale",
+        "friction_static_scale",
+        "friction_params",
+    )
     _fields_ = [(name, ctypes.c_void_p) for name in _POINTERS] + [  # type: ignore[assignment]
-        ("n", ctypes.c_int), ("nfriction", ctypes.c_int),
-        ("kt", ctypes.c_double), ("ke", ctypes.c_double), ("resistance", ctypes.c_double),
-        ("supply_V", ctypes.c_double), ("series_ohm", ctypes.c_double),
-        ("fabric_down", ctypes.c_double), ("fabric_up", ctypes.c_double),
-        ("fabric_thickness", ctypes.c_double), ("fabric_ramp", ctypes.c_double),
-        ("stick_velocity", ctypes.c_double)]
+        ("n", ctypes.c_int),
+        ("nfriction", ctypes.c_int),
+        ("kt", ctypes.c_double),
+        ("ke", ctypes.c_double),
+        ("resistance", ctypes.c_double),
+        ("supply_V", ctypes.c_double),
+        ("series_ohm", ctypes.c_double),
+        ("fabric_down", ctypes.c_double),
+        ("fabric_up", ctypes.c_double),
+        ("fabric_thickness", ctypes.c_double),
+        ("fabric_ramp", ctypes.c_double),
+        ("stick_velocity", ctypes.c_double),
+    ]
 
 
 @dataclass
@@ -53,14 +73,25 @@ class ReducedModel:
     def __post_init__(self):
         motor = self.machine.motor
         if not getattr(self.machine, "rotates", True):
-            raise UserError(f"the reduced model follows a shaft that turns whole revolutions; {self.machine.shaft_joint} "
-                            "rocks between hard stops: use the full multibody model (simulate without --reduced, sweep --full)")
+            raise UserError(
+                f"the reduced model follows a shaft that turns whole revolutions; {self.machine.shaft_joint} "
+                "rocks between hard stops: use the full multibody model (simulate without --reduced, sweep --full)"
+            )
         if motor.inductance_H:
             raise UserError("the reduced model uses the quasi-static motor current (no inductance)")
         n = self.n if not motor.cogging_Nm else max(self.n, 4096)
-        self.tables = self.machine.tables if n == 720 else compute_tables(
-            self.machine.model, self.machine.shaft_joint, self.machine.tool_site, n,
-            self.machine.frame.zero_rad, self.machine.frame.direction)
+        self.tables = (
+            self.machine.tables
+            if n == 720
+            else compute_tables(
+                self.machine.model,
+                self.machine.shaft_joint,
+                self.machine.tool_site,
+                n,
+                self.machine.frame.zero_rad,
+                self.machine.frame.direction,
+            )
+        )
         t = self.tables
         self._motor_ratio = t.ratios[self.machine.motor_joint]
         self._friction = []
@@ -77,8 +108,14 @@ class ReducedModel:
         self._viscous = viscous
         cog = np.zeros(n)
         if motor.cogging_Nm:
-            cog = self._motor_ratio * motor.cogging_Nm * np.sin(
-                motor.cogging_poles * t.positions[self.machine.motor_joint] + motor.cogging_phase_rad)
+            cog = (
+                self._motor_ratio
+                * motor.cogging_Nm
+                * np.sin(
+                    motor.cogging_poles * t.positions[self.machine.motor_joint]
+                    + motor.cogging_phase_rad
+                )
+            )
         self._cogging = cog
         fabric = self.machine.fabric
         if fabric.layers:
@@ -95,12 +132,19 @@ class ReducedModel:
         motor, supply = self.machine.motor, self.machine.supply
         if supply:
             return supply.current(motor, voltage, motor_velocity)
-        return (np.asarray(voltage) - motor.back_emf_V_s_rad * np.asarray(motor_velocity)) / motor.resistance_ohm
+        return (
+            np.asarray(voltage) - motor.back_emf_V_s_rad * np.asarray(motor_velocity)
+        ) / motor.resistance_ohm
 
     def static_friction(self, angle):
         """Break-away torque at the arm [N m] at rest at ``angle`` (a float, or an array for an array)."""
-        total = sum((abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
-                     for (r, _, law), s in zip(self._friction, self._static_scales)), np.zeros(np.shape(angle)))
+        total = sum(
+            (
+                abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
+                for (r, _, law), s in zip(self._friction, self._static_scales)
+            ),
+            np.zeros(np.shape(angle)),
+        )
         return float(total) if np.ndim(angle) == 0 else total
 
     def generalized_force(self, angle, velocity, voltage):
@@ -110,25 +154,49 @@ class ReducedModel:
         motor = self.machine.motor
         rm = periodic_interp(self._motor_ratio, angle)
         force = rm * motor.torque_constant_Nm_A * self.motor_current(voltage, rm * velocity)
-        force += periodic_interp(self._cogging, angle) - 0.5 * t.at("dinertia_drad", angle) * velocity**2
+        force += (
+            periodic_interp(self._cogging, angle) - 0.5 * t.at("dinertia_drad", angle) * velocity**2
+        )
         force -= t.at("gravity_torque_Nm", angle) + periodic_interp(self._viscous, angle) * velocity
         for r, s, law in self._friction:
             ratio = periodic_interp(r, angle)
-            force -= ratio * law.sliding_level(ratio * velocity) * periodic_interp(s, angle) * np.sign(ratio * velocity)
+            force -= (
+                ratio
+                * law.sliding_level(ratio * velocity)
+                * periodic_interp(s, angle)
+                * np.sign(ratio * velocity)
+            )
         if self.machine.fabric.layers:
             dz = periodic_interp(self._needle_dz, angle)
-            force += dz * self.machine.fabric.force(periodic_interp(self._needle_depth, angle), dz * velocity)
+            force += dz * self.machine.fabric.force(
+                periodic_interp(self._needle_depth, angle), dz * velocity
+            )
         return float(force) if np.ndim(force) == 0 else force
 
-    def simulate(self, voltage: VoltageProfile | float, duration_s: float, start_angle_rad: float = 0.0,
-                 sample_rate_hz: float = 1000.0, substeps: int = 2, start_velocity_rad_s: float = 0.0) -> SimulationResult:
+    def simulate(
+        self,
+        voltage: VoltageProfile | float,
+        duration_s: float,
+        start_angle_rad: float = 0.0,
+        sample_rate_hz: float = 1000.0,
+        substeps: int = 2,
+        start_velocity_rad_s: float = 0.0,
+    ) -> SimulationResult:
         if not 0 < duration_s <= MAX_DURATION_S:
-            raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
+            raise UserError(
+                f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}"
+            )
         if not isinstance(voltage, VoltageProfile):
             voltage = VoltageProfile.constant(voltage)
         self.machine.check_voltage(voltage)
-        if not (np.isfinite(start_angle_rad) and np.isfinite(start_velocity_rad_s) and 10 <= sample_rate_hz <= 100_000):
-            raise UserError("start angle and velocity must be finite and the sample rate 10 Hz to 100 kHz")
+        if not (
+            np.isfinite(start_angle_rad)
+            and np.isfinite(start_velocity_rad_s)
+            and 10 <= sample_rate_hz <= 100_000
+        ):
+            raise UserError(
+                "start angle and velocity must be finite and the sample rate 10 Hz to 100 kHz"
+            )
         nsample = int(round(duration_s * sample_rate_hz))
         dt = 1.0 / (sample_rate_hz * substeps)
         volts = voltage(np.arange(nsample * substeps) * dt)
@@ -137,7 +205,9 @@ class ReducedModel:
         out = np.zeros((nsample, 3))
         library = native.load("reduced")
         if library is not None:
-            self._run_native(library, volts, dt, substeps, start_angle_rad, start_velocity_rad_s, out)
+            self._run_native(
+                library, volts, dt, substeps, start_angle_rad, start_velocity_rad_s, out
+            )
         else:
             self._run_python(volts, dt, substeps, start_angle_rad, start_velocity_rad_s, out)
         bad = ~np.isfinite(out).all(axis=1)
@@ -176,27 +246,65 @@ class ReducedModel:
             keep.append(array)
             return array.ctypes.data
 
-        ratios = np.concatenate([r for r, _, _ in self._friction]) if self._friction else np.zeros(1)
-        scales = np.concatenate([s for _, s, _ in self._friction]) if self._friction else np.zeros(1)
+        ratios = (
+            np.concatenate([r for r, _, _ in self._friction]) if self._friction else np.zeros(1)
+        )
+        scales = (
+            np.concatenate([s for _, s, _ in self._friction]) if self._friction else np.zeros(1)
+        )
         static_scales = np.concatenate(self._static_scales) if self._friction else np.zeros(1)
-        params = np.array([[law.coulomb, law.static_level, law.stribeck_velocity, STRIBECK_LAWS[law.stribeck],
-                            law.tustin_exponent] for _, _, law in self._friction] or [[0.0] * 5]).ravel()
+        params = np.array(
+            [
+                [
+                    law.coulomb,
+                    law.static_level,
+                    law.stribeck_velocity,
+                    STRIBECK_LAWS[law.stribeck],
+                    law.tustin_exponent,
+                ]
+                for _, _, law in self._friction
+            ]
+            or [[0.0] * 5]
+        ).ravel()
         motor, fabric, supply = self.machine.motor, self.machine.fabric, self.machine.supply
         tables = _Tables(
-            ptr(t.inertia_kgm2), ptr(t.dinertia_drad), ptr(t.gravity_torque_Nm), ptr(self._motor_ratio),
-            ptr(self._viscous), ptr(self._cogging), ptr(self._needle_depth), ptr(self._needle_dz),
-            ptr(ratios), ptr(scales), ptr(static_scales), ptr(params), n, len(self._friction),
-            motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, motor.resistance_ohm,
-            supply.supply_V if supply else 0.0, supply.series_ohm if supply else 0.0,
+            ptr(t.inertia_kgm2),
+            ptr(t.dinertia_drad),
+            ptr(t.gravity_torque_Nm),
+            ptr(self._motor_ratio),
+            ptr(self._viscous),
+            ptr(self._cogging),
+            ptr(self._needle_depth),
+            ptr(self._needle_dz),
+            ptr(ratios),
+            ptr(scales),
+            ptr(static_scales),
+            ptr(params),
+            n,
+            len(self._friction),
+            motor.torque_constant_Nm_A,
+            motor.back_emf_V_s_rad,
+            motor.resistance_ohm,
+            supply.supply_V if supply else 0.0,
+            supply.series_ohm if supply else 0.0,
             fabric.piercing_force_N if fabric.layers else 0.0,
             fabric.drag_fraction * fabric.piercing_force_N if fabric.layers else 0.0,
-            fabric.thickness_m, fabric.point_taper_mm * 1e-3, self._stick_velocity())
+            fabric.thickness_m,
+            fabric.point_taper_mm * 1e-3,
+            self._stick_velocity(),
+        )
         volts = np.ascontiguousarray(volts, dtype=np.float64)
         library.mechanism_reduced_run.restype = None
         library.mechanism_reduced_run(
-            ctypes.byref(tables), volts.ctypes.data_as(ctypes.c_void_p), ctypes.c_int(len(volts)),
-            ctypes.c_int(substeps), ctypes.c_double(dt), ctypes.c_double(angle0), ctypes.c_double(velocity0),
-            out.ctypes.data_as(ctypes.c_void_p))
+            ctypes.byref(tables),
+            volts.ctypes.data_as(ctypes.c_void_p),
+            ctypes.c_int(len(volts)),
+            ctypes.c_int(substeps),
+            ctypes.c_double(dt),
+            ctypes.c_double(angle0),
+            ctypes.c_double(velocity0),
+            out.ctypes.data_as(ctypes.c_void_p),
+        )
 
     def _run_python(self, volts, dt, substeps, angle0, velocity0, out) -> None:
         """Same scheme as native/reduced.c, in Python (slow; machines without a compiler)."""
@@ -227,5 +335,7 @@ class ReducedModel:
             out[k] = theta, omega, (omega - start) / (dt * substeps)
 
 
-def reduced_model(description=None, config: MachineConfig | None = None, n: int = 720) -> ReducedModel:
+def reduced_model(
+    description=None, config: MachineConfig | None = None, n: int = 720
+) -> ReducedModel:
     return ReducedModel(Machine(description, config), n)

@@ -37,16 +37,32 @@ def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool, guard=N
     states = np.empty((nstep, len(state)))
     sensors = np.empty((nstep, model.nsensordata))
     warmstart = data.qacc_warmstart.copy()
-    with tqdm(total=nstep * model.opt.timestep, unit="s", disable=not progress or None,
-              desc="simulating", bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated") as bar:
+    with tqdm(
+        total=nstep * model.opt.timestep,
+        unit="s",
+        disable=not progress or None,
+        desc="simulating",
+        bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated",
+    ) as bar:
         for start in range(0, nstep, CHUNK_STEPS):
             stop = min(nstep, start + CHUNK_STEPS)
             chunk_state, chunk_sensors = mujoco.rollout.rollout(
-                model, data, state[None, :], control[None, start:stop], nstep=stop - start,
-                initial_warmstart=warmstart[None, :])
+                model,
+                data,
+                state[None, :],
+                control[None, start:stop],
+                nstep=stop - start,
+                initial_warmstart=warmstart[None, :],
+            )
             states[start:stop], sensors[start:stop] = chunk_state[0], chunk_sensors[0]
-            check_stable(model, data, states[start:stop], sensors[start:stop], start * model.opt.timestep,
-                         control[start:stop])
+            check_stable(
+                model,
+                data,
+                states[start:stop],
+                sensors[start:stop],
+                start * model.opt.timestep,
+                control[start:stop],
+            )
             if guard is not None:
                 guard(states[start:stop], start * model.opt.timestep)
             state = states[stop - 1]
@@ -57,16 +73,26 @@ def _rollout_in_chunks(model, data, control: np.ndarray, progress: bool, guard=N
 
 MUJOCO_MAX_VALUE = 1e10  # mjMAXVAL: larger controls and states count as diverged
 _INSTABILITY_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS", "mjWARN_BADCTRL")
-LIKELY_CAUSE = ("likely cause: a time step too large for the model's stiffness (try a smaller --timestep) or a "
-                "parameter out of its physical range (inductance, friction, loads, voltage)")
+LIKELY_CAUSE = (
+    "likely cause: a time step too large for the model's stiffness (try a smaller --timestep) or a "
+    "parameter out of its physical range (inductance, friction, loads, voltage)"
+)
 
 
 def unstable(time_s: float, what: str) -> UserError:
-    return UserError(f"the simulation became unstable at t = {time_s:.4f} s ({what}); {LIKELY_CAUSE}")
+    return UserError(
+        f"the simulation became unstable at t = {time_s:.4f} s ({what}); {LIKELY_CAUSE}"
+    )
 
 
-def check_stable(model, data, states: np.ndarray, sensors: np.ndarray, start_s: float,
-                 control: np.ndarray | None = None) -> None:
+def check_stable(
+    model,
+    data,
+    states: np.ndarray,
+    sensors: np.ndarray,
+    start_s: float,
+    control: np.ndarray | None = None,
+) -> None:
     """UserError at the first sign of instability in a rollout chunk: MuJoCo's warning
     counters (it zeroes a bad control, or resets the state after a bad acceleration, and goes
     on), a time that stops increasing (that reset), any non-finite state or sensor value."""
@@ -76,16 +102,24 @@ def check_stable(model, data, states: np.ndarray, sensors: np.ndarray, start_s: 
         bad |= ~(np.abs(control) < MUJOCO_MAX_VALUE).all(axis=1)
     first = int(np.argmax(bad)) if bad.any() else None
     when = start_s + (first or 0) * model.opt.timestep
-    for name in _INSTABILITY_WARNINGS if data is not None else ():  # a batch's threads share their data
+    for name in (
+        _INSTABILITY_WARNINGS if data is not None else ()
+    ):  # a batch's threads share their data
         warning = getattr(mujoco.mjtWarning, name)
         if data.warning[warning].number:
-            raise unstable(when, f"MuJoCo: {mujoco.mju_warningText(warning, data.warning[warning].lastinfo)}")
+            raise unstable(
+                when, f"MuJoCo: {mujoco.mju_warningText(warning, data.warning[warning].lastinfo)}"
+            )
     if first is not None:
         raise unstable(when, "non-finite or reset state")
 
 
-RUNAWAY_EXTENT = 10.0  # a body this many times the model's size from its centre has left the machine
-RUNAWAY_SPEED = 1.5  # a motor this many times faster than its no-load speed is driven by numbers, not physics
+RUNAWAY_EXTENT = (
+    10.0  # a body this many times the model's size from its centre has left the machine
+)
+RUNAWAY_SPEED = (
+    1.5  # a motor this many times faster than its no-load speed is driven by numbers, not physics
+)
 RUNAWAY_BODY_STRIDE = 20  # body positions are checked every 20 steps (and at each chunk's end)
 
 
@@ -93,7 +127,10 @@ def _ancestor_joint(model: mujoco.MjModel, body: int) -> str:
     """The nearest joint at or above ``body`` (what lets it move)."""
     while body > 0:
         if model.body_jntnum[body]:
-            return model.joint(int(model.body_jntadr[body])).name or f"joint {int(model.body_jntadr[body])}"
+            return (
+                model.joint(int(model.body_jntadr[body])).name
+                or f"joint {int(model.body_jntadr[body])}"
+            )
         body = int(model.body_parentid[body])
     return "none"
 
@@ -115,14 +152,24 @@ def runaway_guard(machine: Machine, voltages_V: np.ndarray):
     limits = []  # (joint, dof, no-load speed [rad/s], at what voltage)
     for joint, drive in machine.drives.items():
         if isinstance(drive, DCMotor):
-            column = np.atleast_2d(voltages_V)[:, machine.model.actuator(actuator_name(machine.description, joint)).id] \
-                if np.ndim(voltages_V) == 2 else np.asarray(voltages_V)
-            volts = max(float(np.max(np.abs(column))) if np.size(column) else 0.0, supply) or STALL_VOLTAGE_V
+            column = (
+                np.atleast_2d(voltages_V)[
+                    :, machine.model.actuator(actuator_name(machine.description, joint)).id
+                ]
+                if np.ndim(voltages_V) == 2
+                else np.asarray(voltages_V)
+            )
+            volts = (
+                max(float(np.max(np.abs(column))) if np.size(column) else 0.0, supply)
+                or STALL_VOLTAGE_V
+            )
         else:
             volts = STALL_VOLTAGE_V
         speed = drive.no_load_speed_rad_s(volts)
         if speed is not None:
-            limits.append((joint, int(machine.model.jnt_dofadr[machine.model.joint(joint).id]), speed, volts))
+            limits.append(
+                (joint, int(machine.model.jnt_dofadr[machine.model.joint(joint).id]), speed, volts)
+            )
     data = mujoco.MjData(model)
     dt = model.opt.timestep
 
@@ -143,19 +190,23 @@ def runaway_guard(machine: Machine, voltages_V: np.ndarray):
             if far.size:
                 body = int(far[np.argmax(distance[far])]) + 1
                 joint = _ancestor_joint(model, body)
-                raise UserError(f"the run left the machine at t = {start_s + (i + 1) * dt:.4f} s: body "
-                                f"{model.body(body).name or body} (joint {joint}) is {distance[body - 1] * 1e3:.4g} mm "
-                                f"from the model's centre, more than {RUNAWAY_EXTENT:g} times its size "
-                                f"({extent * 1e3:.4g} mm): a joint without a limit or damping ran away (give "
-                                f'[limits."{joint}"] or [friction."{joint}"] viscous_Nm_s_per_rad)')
+                raise UserError(
+                    f"the run left the machine at t = {start_s + (i + 1) * dt:.4f} s: body "
+                    f"{model.body(body).name or body} (joint {joint}) is {distance[body - 1] * 1e3:.4g} mm "
+                    f"from the model's centre, more than {RUNAWAY_EXTENT:g} times its size "
+                    f"({extent * 1e3:.4g} mm): a joint without a limit or damping ran away (give "
+                    f'[limits."{joint}"] or [friction."{joint}"] viscous_Nm_s_per_rad)'
+                )
         if first_fast is not None:
             assert fast_motor is not None  # set together with first_fast
             joint, dof, no_load, volts = fast_motor
             rpm = abs(float(states[first_fast, 1 + nq + dof])) * 60 / (2 * np.pi)
-            raise UserError(f"the motor joint {joint} turned at {rpm:.4g} rpm at t = "
-                            f"{start_s + (first_fast + 1) * dt:.4f} s, more than {RUNAWAY_SPEED:g} times its no-load "
-                            f"speed ({no_load * 60 / (2 * np.pi):.4g} rpm at {volts:g} V): the numbers are not "
-                            f"physical; {LIKELY_CAUSE}")
+            raise UserError(
+                f"the motor joint {joint} turned at {rpm:.4g} rpm at t = "
+                f"{start_s + (first_fast + 1) * dt:.4f} s, more than {RUNAWAY_SPEED:g} times its no-load "
+                f"speed ({no_load * 60 / (2 * np.pi):.4g} rpm at {volts:g} V): the numbers are not "
+                f"physical; {LIKELY_CAUSE}"
+            )
 
     return check
 
@@ -171,9 +222,13 @@ class SimulationResult:
     needle_z_mm: np.ndarray
     motor_velocity_rad_s: np.ndarray
     metadata: dict = field(default_factory=dict)
-    state: np.ndarray | None = None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
+    state: np.ndarray | None = (
+        None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
+    )
     sensordata: np.ndarray | None = None  # the model's sensors after each sample (full model only)
-    joints: dict[str, np.ndarray] = field(default_factory=dict)  # every joint's position/velocity, each motor's input/current
+    joints: dict[str, np.ndarray] = field(
+        default_factory=dict
+    )  # every joint's position/velocity, each motor's input/current
 
     def columns(self) -> dict[str, np.ndarray]:
         return {
@@ -201,7 +256,11 @@ class SimulationResult:
     def speed_summary(self, last_s: float = 1.0) -> dict[str, float]:
         """Mean / min / max arm speed [rpm] over the last ``last_s`` seconds."""
         rpm = self.arm_velocity_rad_s[self.window(last_s)] * 60 / (2 * np.pi)
-        return {"mean_rpm": float(rpm.mean()), "min_rpm": float(rpm.min()), "max_rpm": float(rpm.max())}
+        return {
+            "mean_rpm": float(rpm.mean()),
+            "min_rpm": float(rpm.min()),
+            "max_rpm": float(rpm.max()),
+        }
 
 
 def simulate(
@@ -218,18 +277,27 @@ def simulate(
     machine = machine or Machine(None, config)
     run = _Run(machine, voltage, duration_s, start_angle_rad, sample_rate_hz)
     guard = runaway_guard(machine, run.control)
-    state, sensordata = _rollout_in_chunks(machine.model, machine.data, run.control, progress, guard)
+    state, sensordata = _rollout_in_chunks(
+        machine.model, machine.data, run.control, progress, guard
+    )
     return run.result(state, sensordata)
 
 
-def simulate_batch(machines: list[Machine], voltages: list[VoltageProfile | float], duration_s: float,
-                   start_angle_rad: float = 0.0, sample_rate_hz: float = 1000.0,
-                   threads: int = 1) -> list[SimulationResult | UserError]:
+def simulate_batch(
+    machines: list[Machine],
+    voltages: list[VoltageProfile | float],
+    duration_s: float,
+    start_angle_rad: float = 0.0,
+    sample_rate_hz: float = 1000.0,
+    threads: int = 1,
+) -> list[SimulationResult | UserError]:
     """Run many machines of one size signature (variants of one model) in a single
     ``mujoco.rollout`` call on its thread pool; each result equals :func:`simulate`'s (the
     state carries everything, so one long rollout is the chunked one). A run that became
     unstable is returned as its UserError, in its place."""
-    runs = [_Run(m, v, duration_s, start_angle_rad, sample_rate_hz) for m, v in zip(machines, voltages)]
+    runs = [
+        _Run(m, v, duration_s, start_angle_rad, sample_rate_hz) for m, v in zip(machines, voltages)
+    ]
     if not runs:
         return []
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -238,7 +306,9 @@ def simulate_batch(machines: list[Machine], voltages: list[VoltageProfile | floa
     warmstart = np.array([m.data.qacc_warmstart for m in machines])
     control = np.array([r.control for r in runs])
     datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(threads, len(runs))))]
-    states, sensors = mujoco.rollout.rollout(models, datas, initial, control, initial_warmstart=warmstart)
+    states, sensors = mujoco.rollout.rollout(
+        models, datas, initial, control, initial_warmstart=warmstart
+    )
     results: list[SimulationResult | UserError] = []
     for run, state, sensor in zip(runs, states, sensors):
         try:
@@ -259,10 +329,18 @@ def _state(model, data, spec) -> np.ndarray:
 class _Run:
     """One run's controls (the machine reset to its start) and the unpacking of its states."""
 
-    def __init__(self, machine: Machine, voltage: VoltageProfile | float, duration_s: float, start_angle_rad: float,
-                 sample_rate_hz: float):
+    def __init__(
+        self,
+        machine: Machine,
+        voltage: VoltageProfile | float,
+        duration_s: float,
+        start_angle_rad: float,
+        sample_rate_hz: float,
+    ):
         if not 0 < duration_s <= MAX_DURATION_S:
-            raise UserError(f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}")
+            raise UserError(
+                f"duration must be positive and at most {MAX_DURATION_S:g} s, got {duration_s:g}"
+            )
         if not 10 <= sample_rate_hz <= 100_000:
             raise UserError("sample rate must be between 10 Hz and 100 kHz")
         from mechanism.files.limits import check_elements
@@ -273,13 +351,22 @@ class _Run:
         self.substeps = max(1, int(round(1.0 / (sample_rate_hz * dt))))
         self.nsample = int(round(duration_s * sample_rate_hz))
         nstep = self.nsample * self.substeps
-        width = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) + model.nsensordata + model.nu + 1
-        check_elements(float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step")
+        width = (
+            mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+            + model.nsensordata
+            + model.nu
+            + 1
+        )
+        check_elements(
+            float(nstep) * width, f"a {duration_s:g} s run at a {dt * 1e3:g} ms time step"
+        )
         machine.reset(start_angle_rad)
         self.control = np.zeros((nstep, model.nu))
         times = np.arange(nstep) * dt
         for joint, profile in motor_inputs(machine, voltage).items():
-            self.control[:, model.actuator(actuator_name(machine.description, joint)).id] = profile(times)
+            self.control[:, model.actuator(actuator_name(machine.description, joint)).id] = profile(
+                times
+            )
 
     def result(self, state: np.ndarray, sensordata: np.ndarray) -> SimulationResult:
         machine, model, dt, substeps = self.machine, self.machine.model, self.dt, self.substeps
@@ -298,22 +385,34 @@ class _Run:
         current = torque / machine.motor.torque_constant_Nm_A
         if machine.motor.cogging_Nm:  # the electromagnetic part only
             motor_angle = qpos[:, machine.motor_qpos]
-            cog = machine.motor.cogging_Nm * np.sin(machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad)
+            cog = machine.motor.cogging_Nm * np.sin(
+                machine.motor.cogging_poles * motor_angle + machine.motor.cogging_phase_rad
+            )
             current = (torque - cog) / machine.motor.torque_constant_Nm_A
-        if machine.supply:  # the limit acts in the passive callback: the sensor sees the commanded current
+        if (
+            machine.supply
+        ):  # the limit acts in the passive callback: the sensor sees the commanded current
             motor = machine.motor
             commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
             current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
         needle = machine.tool_height_mm_at(arm_angle)
-        joints = joint_columns(machine, qpos[samples], qvel[samples], self.control[samples], sensordata[samples])
+        joints = joint_columns(
+            machine, qpos[samples], qvel[samples], self.control[samples], sensordata[samples]
+        )
         voltage, current = applied[samples], current[samples]
         main = machine.drives[machine.motor_joint]
-        if not isinstance(main, DCMotor):  # the main motor's terminal voltage and current, not its command
+        if not isinstance(
+            main, DCMotor
+        ):  # the main motor's terminal voltage and current, not its command
             current = joints[f"{machine.motor_joint}_current_A"]
             if isinstance(main, ServoDrive):
-                voltage = main.voltage(applied[samples], qpos[samples, machine.motor_qpos], motor_velocity[samples])
+                voltage = main.voltage(
+                    applied[samples], qpos[samples, machine.motor_qpos], motor_velocity[samples]
+                )
             else:
-                voltage = np.full(len(samples), np.nan)  # a current drive's voltage is its amplifier's business
+                voltage = np.full(
+                    len(samples), np.nan
+                )  # a current drive's voltage is its amplifier's business
         return SimulationResult(
             time_s=(samples + 1) * dt,
             voltage_V=voltage,
@@ -323,8 +422,14 @@ class _Run:
             arm_acceleration_rad_s2=acceleration,
             needle_z_mm=needle[samples],
             motor_velocity_rad_s=motor_velocity[samples],
-            metadata={"timestep_s": dt, "native_callbacks": machine.native, "start_angle_rad": self.start_angle_rad,
-                      "sensor_columns": {model.sensor(i).name: int(model.sensor_adr[i]) for i in range(model.nsensor)}},
+            metadata={
+                "timestep_s": dt,
+                "native_callbacks": machine.native,
+                "start_angle_rad": self.start_angle_rad,
+                "sensor_columns": {
+                    model.sensor(i).name: int(model.sensor_adr[i]) for i in range(model.nsensor)
+                },
+            },
             state=state[samples],
             sensordata=sensordata[samples],
             joints=joints,
@@ -340,21 +445,27 @@ def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
 
     description = machine.description
     if not isinstance(inputs, dict) and input_unit(description, machine.motor_joint) != "V":
-        raise UserError(f"a voltage drives a dc motor; the main motor on {machine.motor_joint} is a "
-                        f"{description.motor['type']} drive: give its input by joint "
-                        f"({'--goal' if input_unit(description, machine.motor_joint) == 'rad' else '--current'} "
-                        f"{machine.motor_joint}=...)")
+        raise UserError(
+            f"a voltage drives a dc motor; the main motor on {machine.motor_joint} is a "
+            f"{description.motor['type']} drive: give its input by joint "
+            f"({'--goal' if input_unit(description, machine.motor_joint) == 'rad' else '--current'} "
+            f"{machine.motor_joint}=...)"
+        )
     given = dict(inputs) if isinstance(inputs, dict) else {machine.motor_joint: inputs}
     for joint in given:
         if joint not in machine.drives:
-            raise UserError(f"no motor on joint {joint!r}; the described motors: {', '.join(machine.drives)}")
+            raise UserError(
+                f"no motor on joint {joint!r}; the described motors: {', '.join(machine.drives)}"
+            )
     out = {}
     for joint, drive in machine.drives.items():
         value = given.get(joint)
         unit = input_unit(description, joint)
         if value is None:
             if isinstance(drive, ServoDrive):
-                value = float(machine.data.qpos[machine.model.jnt_qposadr[machine.model.joint(joint).id]])
+                value = float(
+                    machine.data.qpos[machine.model.jnt_qposadr[machine.model.joint(joint).id]]
+                )
             else:
                 value = 0.0
         if not isinstance(value, VoltageProfile):
@@ -362,7 +473,9 @@ def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
             if not np.isfinite(value):
                 raise UserError(f"input of the motor on {joint}: must be a finite number of {unit}")
             if joint == machine.motor_joint and unit == "V" and not isinstance(inputs, dict):
-                value = VoltageProfile.constant(value)  # the one-motor voltage keeps its range check
+                value = VoltageProfile.constant(
+                    value
+                )  # the one-motor voltage keeps its range check
             else:
                 value = VoltageProfile(np.array([0.0]), np.array([value]))
         if joint == machine.motor_joint and unit == "V":
@@ -371,8 +484,13 @@ def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
     return out
 
 
-def joint_columns(machine: Machine, qpos: np.ndarray, qvel: np.ndarray, control: np.ndarray,
-                  sensordata: np.ndarray) -> dict[str, np.ndarray]:
+def joint_columns(
+    machine: Machine,
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    control: np.ndarray,
+    sensordata: np.ndarray,
+) -> dict[str, np.ndarray]:
     """Every hinge's and slide's position and velocity (``JOINT_pos_rad``/``JOINT_vel_rad_s``, or
     ``_mm``/``_mm_s``), each motor's input (``JOINT_input_V|rad|A``) and current (``JOINT_current_A``)."""
     from mechanism.machine.machine import actuator_name, input_unit, torque_sensor_name
@@ -382,7 +500,10 @@ def joint_columns(machine: Machine, qpos: np.ndarray, qvel: np.ndarray, control:
     out: dict[str, np.ndarray] = {}
     for j in range(model.njnt):
         name, kind = model.joint(j).name, int(model.jnt_type[j])
-        if not name or kind not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        if not name or kind not in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
             continue
         q, v = qpos[:, model.jnt_qposadr[j]], qvel[:, model.jnt_dofadr[j]]
         if kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
@@ -399,9 +520,13 @@ def joint_columns(machine: Machine, qpos: np.ndarray, qvel: np.ndarray, control:
         elif isinstance(drive, CurrentDrive):
             current = drive.current(command)
         else:
-            torque = sensordata[:, model.sensor(torque_sensor_name(machine.description, joint)).adr[0]]
+            torque = sensordata[
+                :, model.sensor(torque_sensor_name(machine.description, joint)).adr[0]
+            ]
             if drive.cogging_Nm:
-                torque = torque - drive.cogging_Nm * np.sin(drive.cogging_poles * q + drive.cogging_phase_rad)
+                torque = torque - drive.cogging_Nm * np.sin(
+                    drive.cogging_poles * q + drive.cogging_phase_rad
+                )
             current = torque / drive.torque_constant_Nm_A
         out[f"{joint}_current_A"] = np.asarray(current, dtype=float)
     return out

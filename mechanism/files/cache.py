@@ -38,7 +38,11 @@ KINDS = ("models", "native")
 def cache_root() -> Path:
     """Where mechanism keeps what it builds once (compiled kernels, converted CAD exports):
     ``$MECHANISM_CACHE/mechanism``, else ``$XDG_CACHE_HOME/mechanism``, else ``~/.cache/mechanism``."""
-    root = os.environ.get("MECHANISM_CACHE") or os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    root = (
+        os.environ.get("MECHANISM_CACHE")
+        or os.environ.get("XDG_CACHE_HOME")
+        or Path.home() / ".cache"
+    )
     return Path(root) / "mechanism"
 
 
@@ -65,11 +69,15 @@ def file_hash(path: Path) -> str:
 
 
 def _folder_hashes(folder: Path) -> dict[str, str]:
-    return {str(p.relative_to(folder)): file_hash(p) for p in sorted(folder.rglob("*"))
-            if p.is_file() and p.name != MANIFEST}
+    return {
+        str(p.relative_to(folder)): file_hash(p)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name != MANIFEST
+    }
 
 
 # ---------------------------------------------------------------- folder entries
+
 
 def seal_folder(folder: Path, key: str) -> None:
     """Write ``folder``'s manifest: the hash of each of its files and the ``key`` it was built for."""
@@ -127,6 +135,7 @@ def cached_folder(folder: Path, key: str, build, what: str) -> Path:
 
 # ---------------------------------------------------------------- file entries
 
+
 def _sidecar(path: Path) -> Path:
     return path.with_name(path.name + ".sha256")
 
@@ -158,6 +167,7 @@ def install_file(temporary: Path, path: Path) -> None:
 
 # ---------------------------------------------------------------- size, clearing
 
+
 @dataclass
 class CacheInfo:
     root: Path
@@ -166,8 +176,10 @@ class CacheInfo:
     limit_bytes: int
 
     def describe(self) -> str:
-        return (f"cache {self.root}: {self.entries} entries, {self.bytes / 2**20:.1f} MiB "
-                f"(bound {self.limit_bytes / 2**20:.0f} MiB, set by MECHANISM_CACHE_MAX_MB)")
+        return (
+            f"cache {self.root}: {self.entries} entries, {self.bytes / 2**20:.1f} MiB "
+            f"(bound {self.limit_bytes / 2**20:.0f} MiB, set by MECHANISM_CACHE_MAX_MB)"
+        )
 
 
 def _size(path: Path) -> int:
@@ -181,8 +193,11 @@ def _entries() -> list[Path]:
     found: list[Path] = []
     for kind in KINDS:
         with contextlib.suppress(OSError):
-            found.extend(p for p in (cache_root() / kind).iterdir()
-                         if not p.name.startswith(".") and not p.name.endswith(".sha256"))
+            found.extend(
+                p
+                for p in (cache_root() / kind).iterdir()
+                if not p.name.startswith(".") and not p.name.endswith(".sha256")
+            )
     return found
 
 

@@ -55,7 +55,9 @@ class LineTracker(io.TextIOBase):
         self.flush()
 
 
-TERMINAL_CODES = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")  # colours and cursor moves (OpenCASCADE colours its messages)
+TERMINAL_CODES = re.compile(
+    r"\x1b\[[0-9;?]*[A-Za-z]"
+)  # colours and cursor moves (OpenCASCADE colours its messages)
 
 
 def summarize(text: str, limit: int = 300) -> str:

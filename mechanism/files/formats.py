@@ -42,7 +42,12 @@ from typing import IO, Callable, Iterator, Mapping, Sequence
 import numpy as np
 
 from mechanism.errors import UserError
-from mechanism.files.limits import check_elements, max_input_bytes, read_bounded, read_stream_bounded
+from mechanism.files.limits import (
+    check_elements,
+    max_input_bytes,
+    read_bounded,
+    read_stream_bounded,
+)
 from mechanism.files.tables import header_comments
 
 # format name -> (file name endings, optional extra or None, library, module)
@@ -117,16 +122,22 @@ def detect_format(path: str | os.PathLike) -> tuple[str, str | None]:
     for fmt, (endings, _) in FORMATS.items():
         if name.endswith(endings):
             if compression and fmt not in ("csv", "json"):
-                raise UserError(f"recording {path}: a compressed {fmt} file ({compression}) is not read; "
-                                f"{fmt} compresses inside the file")
+                raise UserError(
+                    f"recording {path}: a compressed {fmt} file ({compression}) is not read; "
+                    f"{fmt} compresses inside the file"
+                )
             return fmt, compression
     if compression:  # rec.gz, rec.zip: text inside
         return "csv", compression
     known = ", ".join(e for endings, _ in FORMATS.values() for e in endings)
-    raise UserError(f"recording {path}: unknown file type; expected one of {known} (csv/tsv/json also as .gz, .bz2, .xz, .zip)")
+    raise UserError(
+        f"recording {path}: unknown file type; expected one of {known} (csv/tsv/json also as .gz, .bz2, .xz, .zip)"
+    )
 
 
-def read_columns(path: str | os.PathLike, what: str = "recording", records: str | None = None) -> Columns:
+def read_columns(
+    path: str | os.PathLike, what: str = "recording", records: str | None = None
+) -> Columns:
     """Every column of a recording file (see the module docstring). ``records``: for JSON,
     the key (dotted for nested objects) holding the list of records."""
     path = Path(path)
@@ -136,8 +147,13 @@ def read_columns(path: str | os.PathLike, what: str = "recording", records: str 
     if compression:
         raw = _decompress(raw, compression, label)
     readers: dict[str, Callable[[bytes, str], tuple[dict, dict]]] = {
-        "csv": _read_csv, "mat": _read_mat, "parquet": _read_parquet, "feather": _read_feather, "tdms": _read_tdms,
-        "json": lambda data, where: _read_json(data, where, records)}
+        "csv": _read_csv,
+        "mat": _read_mat,
+        "parquet": _read_parquet,
+        "feather": _read_feather,
+        "tdms": _read_tdms,
+        "json": lambda data, where: _read_json(data, where, records),
+    }
     try:
         columns, metadata = readers[fmt](raw, label)
     except UserError:
@@ -162,7 +178,9 @@ def _needs(module: str, extension: str, extra: str, package: str):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise UserError(f"reading {extension} needs {package}: pip install 'mechanism[{extra}]'") from None
+        raise UserError(
+            f"reading {extension} needs {package}: pip install 'mechanism[{extra}]'"
+        ) from None
 
 
 def require_pyarrow(extension: str = ".parquet"):
@@ -172,10 +190,13 @@ def require_pyarrow(extension: str = ".parquet"):
 
 # -- compression ------------------------------------------------------------------------------
 
+
 def _decompress(raw: bytes, compression: str, label: str) -> bytes:
     limit = max_input_bytes()
-    too_big = UserError(f"{label}: decompresses to more than the input limit of {limit // 2**20} MiB "
-                        f"(raise it with MECHANISM_MAX_INPUT_MB)")
+    too_big = UserError(
+        f"{label}: decompresses to more than the input limit of {limit // 2**20} MiB "
+        f"(raise it with MECHANISM_MAX_INPUT_MB)"
+    )
     if compression == ".zip":
         try:
             archive = zipfile.ZipFile(io.BytesIO(raw))
@@ -183,29 +204,54 @@ def _decompress(raw: bytes, compression: str, label: str) -> bytes:
         except (zipfile.BadZipFile, OSError, ValueError) as exc:
             raise UserError(f"{label}: not a readable zip archive ({_one_line(exc)})") from None
         if len(members) != 1:
-            raise UserError(f"{label}: a zip archive must hold exactly one file, this one holds {len(members)}")
+            raise UserError(
+                f"{label}: a zip archive must hold exactly one file, this one holds {len(members)}"
+            )
         member = members[0]
         if member.file_size > limit:
             raise too_big
         try:
             stream: IO[bytes] = archive.open(member)
-        except (zipfile.BadZipFile, OSError, ValueError, RuntimeError, NotImplementedError, zlib.error) as exc:
+        except (
+            zipfile.BadZipFile,
+            OSError,
+            ValueError,
+            RuntimeError,
+            NotImplementedError,
+            zlib.error,
+        ) as exc:
             raise UserError(f"{label}: not a readable zip archive ({_one_line(exc)})") from None
     else:
         source = io.BytesIO(raw)
-        stream = (gzip.GzipFile(fileobj=source) if compression == ".gz"  # type: ignore[assignment]
-                  else bz2.BZ2File(source) if compression == ".bz2" else lzma.LZMAFile(source))
+        stream = (
+            gzip.GzipFile(fileobj=source)
+            if compression == ".gz"  # type: ignore[assignment]
+            else bz2.BZ2File(source)
+            if compression == ".bz2"
+            else lzma.LZMAFile(source)
+        )
     try:
         with stream:
             return read_stream_bounded(stream, limit, too_big)
     except UserError:
         raise
-    except (OSError, EOFError, lzma.LZMAError, zipfile.BadZipFile, ValueError, RuntimeError, NotImplementedError,
-            zlib.error) as exc:
-        raise UserError(f"{label}: corrupt or truncated {compression} data ({_one_line(exc)})") from None
+    except (
+        OSError,
+        EOFError,
+        lzma.LZMAError,
+        zipfile.BadZipFile,
+        ValueError,
+        RuntimeError,
+        NotImplementedError,
+        zlib.error,
+    ) as exc:
+        raise UserError(
+            f"{label}: corrupt or truncated {compression} data ({_one_line(exc)})"
+        ) from None
 
 
 # -- text tables --------------------------------------------------------------------------------
+
 
 def _text_to_numbers(values: Sequence[str], label: str) -> np.ndarray:
     out = np.empty(len(values))
@@ -231,9 +277,13 @@ def _text_to_numbers(values: Sequence[str], label: str) -> np.ndarray:
         if first is None:
             first = stamp
         try:
-            out[i] = (stamp - first).total_seconds()  # exact to the microsecond, unlike epoch seconds in a float
+            out[i] = (
+                stamp - first
+            ).total_seconds()  # exact to the microsecond, unlike epoch seconds in a float
         except TypeError:
-            raise UserError(f"{label}, value {i + 1}: time stamps with and without a time zone") from None
+            raise UserError(
+                f"{label}, value {i + 1}: time stamps with and without a time zone"
+            ) from None
     if not np.all(np.isfinite(out)):
         i = int(np.flatnonzero(~np.isfinite(out))[0])
         raise UserError(f"{label}, value {i + 1}: NaN or inf is not allowed")
@@ -278,7 +328,9 @@ def _read_csv(raw: bytes, label: str):
             if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
                 continue
             if len(row) != len(header):
-                raise UserError(f"{label}: line {row_number} has {len(row)} fields, the header has {len(header)}")
+                raise UserError(
+                    f"{label}: line {row_number} has {len(row)} fields, the header has {len(header)}"
+                )
             for cells, cell in zip(block, row):
                 cells.append(cell)
             if len(block[0]) >= CHUNK_ROWS:
@@ -343,6 +395,7 @@ def _is_number(text: str, delimiter: str | None) -> bool:
 
 # -- JSON ---------------------------------------------------------------------------------------
 
+
 def _read_json(raw: bytes, label: str, records: str | None):
     try:
         text = raw.decode("utf-8-sig")
@@ -367,8 +420,14 @@ def _read_json(raw: bytes, label: str, records: str | None):
     if records:
         for key in records.split("."):
             if not isinstance(data, dict) or key not in data:
-                found = ", ".join(map(str, list(data)[:12])) if isinstance(data, dict) else type(data).__name__
-                raise UserError(f"{label}: no key {key!r} holding the records (records = {records!r}); found {found}")
+                found = (
+                    ", ".join(map(str, list(data)[:12]))
+                    if isinstance(data, dict)
+                    else type(data).__name__
+                )
+                raise UserError(
+                    f"{label}: no key {key!r} holding the records (records = {records!r}); found {found}"
+                )
             data = data[key]
     elif isinstance(data, dict) and not all(isinstance(v, list) for v in data.values()):
         lists = [k for k, v in data.items() if isinstance(v, list) and v and isinstance(v[0], dict)]
@@ -382,10 +441,14 @@ def _read_json(raw: bytes, label: str, records: str | None):
         if not data:
             raise UserError(f"{label}: no records")
         flat_columns = {}
-        check_elements(float(len(data)) * max(1, len(data[0]) if isinstance(data[0], dict) else 1), label)
+        check_elements(
+            float(len(data)) * max(1, len(data[0]) if isinstance(data[0], dict) else 1), label
+        )
         for i, record in enumerate(data):
             if not isinstance(record, dict):
-                raise UserError(f"{label}: record {i + 1} is {type(record).__name__}, expected an object of named values")
+                raise UserError(
+                    f"{label}: record {i + 1} is {type(record).__name__}, expected an object of named values"
+                )
             for name, value in _flatten(record).items():
                 column = flat_columns.setdefault(name, [None] * i)
                 column.append(value)
@@ -393,14 +456,19 @@ def _read_json(raw: bytes, label: str, records: str | None):
                 if len(column) < i + 1:
                     column.append(None)
     else:
-        hint = "; name the key holding them with records = \"...\"" if isinstance(data, dict) else ""
+        hint = '; name the key holding them with records = "..."' if isinstance(data, dict) else ""
         raise UserError(f"{label}: expected a list of records{hint}")
     columns: dict[str, object] = {}
     for name, values in flat_columns.items():
         if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             columns[name] = np.asarray(values, dtype=float)
-        elif all(v is None or (isinstance(v, (int, float, str)) and not isinstance(v, bool)) for v in values):
-            columns[name] = [v if v is None else str(v) for v in values]  # numbers as text, time stamps, gaps
+        elif all(
+            v is None or (isinstance(v, (int, float, str)) and not isinstance(v, bool))
+            for v in values
+        ):
+            columns[name] = [
+                v if v is None else str(v) for v in values
+            ]  # numbers as text, time stamps, gaps
     return columns, metadata
 
 
@@ -417,8 +485,13 @@ def _flatten(record: dict, prefix: str = "") -> dict:
 
 # -- MATLAB -------------------------------------------------------------------------------------
 
+
 def _read_mat(raw: bytes, label: str):
-    if raw[:128].find(b"MATLAB 7.3") >= 0 or raw[:8] == b"\x89HDF\r\n\x1a\n" or raw[512:520] == b"\x89HDF\r\n\x1a\n":
+    if (
+        raw[:128].find(b"MATLAB 7.3") >= 0
+        or raw[:8] == b"\x89HDF\r\n\x1a\n"
+        or raw[512:520] == b"\x89HDF\r\n\x1a\n"
+    ):
         return _read_mat73(raw, label)
     import scipy.io
 
@@ -428,7 +501,9 @@ def _read_mat(raw: bytes, label: str):
     except Exception as exc:  # noqa: BLE001
         raise UserError(f"{label}: not a readable MATLAB file ({_one_line(exc)})") from None
     check_elements(float(sum(math.prod(shape) for _, shape, _ in found)), label)
-    data = scipy.io.loadmat(io.BytesIO(raw), squeeze_me=True, struct_as_record=False, mat_dtype=False)
+    data = scipy.io.loadmat(
+        io.BytesIO(raw), squeeze_me=True, struct_as_record=False, mat_dtype=False
+    )
     columns: dict[str, object] = {}
     metadata: dict[str, str] = {}
     for name, value in data.items():
@@ -453,25 +528,31 @@ def _inflate_mat5(raw: bytes, label: str) -> bytes:
     limit = max_input_bytes()
     parts, total, at = [raw[:128]], 128, 128
     while at + 8 <= len(raw):
-        kind, size = struct.unpack(order + "II", raw[at:at + 8])
+        kind, size = struct.unpack(order + "II", raw[at : at + 8])
         end = at + 8 + size
         if end > len(raw):
-            raise UserError(f"{label}: truncated (a variable claims {size} bytes, {len(raw) - at - 8} remain)")
+            raise UserError(
+                f"{label}: truncated (a variable claims {size} bytes, {len(raw) - at - 8} remain)"
+            )
         if kind == 15:  # miCOMPRESSED: inflate at most what the limit leaves
             inflater = zlib.decompressobj()
             try:
-                element = inflater.decompress(raw[at + 8:end], limit - total + 1)
+                element = inflater.decompress(raw[at + 8 : end], limit - total + 1)
             except zlib.error as exc:
-                raise UserError(f"{label}: corrupt compressed variable ({_one_line(exc)})") from None
+                raise UserError(
+                    f"{label}: corrupt compressed variable ({_one_line(exc)})"
+                ) from None
             if len(element) > limit - total:
-                raise UserError(f"{label}: a compressed variable inflates past the input limit of {limit // 2**20} MiB "
-                                f"(raise it with MECHANISM_MAX_INPUT_MB)")
+                raise UserError(
+                    f"{label}: a compressed variable inflates past the input limit of {limit // 2**20} MiB "
+                    f"(raise it with MECHANISM_MAX_INPUT_MB)"
+                )
             parts.append(element)
             total += len(element)
             at = end
         else:
             padded = end + (-size % 8)
-            parts.append(raw[at:min(padded, len(raw))])
+            parts.append(raw[at : min(padded, len(raw))])
             total += min(padded, len(raw)) - at
             at = padded
     return b"".join(parts)
@@ -534,6 +615,7 @@ def _read_mat73(raw: bytes, label: str):
 
 # -- Arrow --------------------------------------------------------------------------------------
 
+
 def _arrow_columns(table, label: str) -> dict:
     columns: dict[str, object] = {}
     for name in table.column_names:
@@ -551,7 +633,7 @@ def _arrow_columns(table, label: str) -> dict:
 
 
 def _timestamp_seconds(kind: str) -> float:
-    unit = kind[len("timestamp["):].split(",")[0].rstrip("]")
+    unit = kind[len("timestamp[") :].split(",")[0].rstrip("]")
     return {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}.get(unit, 1e-9)
 
 
@@ -565,11 +647,16 @@ def _read_parquet(raw: bytes, label: str):
     check_elements(float(meta.num_rows) * meta.num_columns, label)
     total = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
     if total > max_input_bytes():
-        raise UserError(f"{label}: declares {total / 2**20:.3g} MiB of data, more than the input limit of "
-                        f"{max_input_bytes() // 2**20} MiB (raise it with MECHANISM_MAX_INPUT_MB)")
+        raise UserError(
+            f"{label}: declares {total / 2**20:.3g} MiB of data, more than the input limit of "
+            f"{max_input_bytes() // 2**20} MiB (raise it with MECHANISM_MAX_INPUT_MB)"
+        )
     table = handle.read()
-    metadata = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (table.schema.metadata or {}).items()
-                if not k.startswith(b"ARROW:") and k != b"pandas"}
+    metadata = {
+        k.decode(errors="replace"): v.decode(errors="replace")
+        for k, v in (table.schema.metadata or {}).items()
+        if not k.startswith(b"ARROW:") and k != b"pandas"
+    }
     return _arrow_columns(table, label), metadata
 
 
@@ -590,12 +677,15 @@ def _read_feather(raw: bytes, label: str):
 
 # -- LabVIEW TDMS -------------------------------------------------------------------------------
 
+
 def _read_tdms(raw: bytes, label: str):
     nptdms = _needs("nptdms", ".tdms", "tdms", "npTDMS")
     from nptdms.log import log_manager
 
     level = log_manager.log_level
-    log_manager.set_level(logging.ERROR)  # its warnings about a damaged file would be third-party text on stderr
+    log_manager.set_level(
+        logging.ERROR
+    )  # its warnings about a damaged file would be third-party text on stderr
     try:
         return _read_tdms_quietly(nptdms, raw, label)
     finally:
@@ -609,13 +699,17 @@ def _check_tdms_segments(raw: bytes, label: str) -> None:
 
     at = 0
     while at < len(raw):
-        lead = raw[at:at + 28]
+        lead = raw[at : at + 28]
         if len(lead) < 28 or lead[:4] not in (b"TDSm", b"TDSh"):
-            raise UserError(f"{label}: not a TDMS file, or truncated (no segment lead-in at byte {at})")
+            raise UserError(
+                f"{label}: not a TDMS file, or truncated (no segment lead-in at byte {at})"
+            )
         order = ">" if struct.unpack("<I", lead[4:8])[0] & (1 << 6) else "<"  # kTocBigEndian
         length = struct.unpack(order + "Q", lead[12:20])[0]
         if at + 28 + length > len(raw):
-            raise UserError(f"{label}: truncated (a segment at byte {at} states {length} bytes, {len(raw) - at - 28} remain)")
+            raise UserError(
+                f"{label}: truncated (a segment at byte {at} states {length} bytes, {len(raw) - at - 28} remain)"
+            )
         at += 28 + length
 
 
@@ -632,8 +726,10 @@ def _read_tdms_quietly(nptdms, raw: bytes, label: str):
         for channel in group.channels():
             values = channel[:]
             if len(values) < declared.get((group.name, channel.name), 0):
-                raise UserError(f"{label}: truncated (channel {group.name}/{channel.name} holds {len(values)} of its "
-                                f"{declared[(group.name, channel.name)]} values)")
+                raise UserError(
+                    f"{label}: truncated (channel {group.name}/{channel.name} holds {len(values)} of its "
+                    f"{declared[(group.name, channel.name)]} values)"
+                )
             if len(values) < 2:
                 continue
             if np.asarray(values).dtype.kind == "M":  # LabVIEW time stamps
@@ -652,8 +748,14 @@ def _read_tdms_quietly(nptdms, raw: bytes, label: str):
 
 # -- writing (the test bench) -------------------------------------------------------------------
 
-def write_columns(path: str | os.PathLike, columns: Mapping[str, np.ndarray], comments: Sequence[str] = (),
-                  fmt: str = "csv", metadata: Mapping[str, str] | None = None) -> Path:
+
+def write_columns(
+    path: str | os.PathLike,
+    columns: Mapping[str, np.ndarray],
+    comments: Sequence[str] = (),
+    fmt: str = "csv",
+    metadata: Mapping[str, str] | None = None,
+) -> Path:
     """Write named columns (units in the names) as ``fmt`` (one of :data:`WRITE_FORMATS`),
     atomically. CSV carries ``comments`` as ``#`` lines; Parquet and MAT carry ``metadata``
     (``key: value``) in the file's own metadata / a ``metadata`` text variable."""
@@ -680,14 +782,18 @@ def write_columns(path: str | os.PathLike, columns: Mapping[str, np.ndarray], co
         import pyarrow.parquet as pq
 
         table = pa.table({k: np.asarray(v, dtype=float) for k, v in columns.items()})
-        table = table.replace_schema_metadata({k.encode(): str(v).encode() for k, v in metadata.items()})
+        table = table.replace_schema_metadata(
+            {k.encode(): str(v).encode() for k, v in metadata.items()}
+        )
         with atomic_path(path) as temporary:
             pq.write_table(table, temporary)
         return path
     if fmt == "mat":
         import scipy.io
 
-        data: dict[str, object] = {k: np.asarray(v, dtype=float).reshape(-1, 1) for k, v in columns.items()}
+        data: dict[str, object] = {
+            k: np.asarray(v, dtype=float).reshape(-1, 1) for k, v in columns.items()
+        }
         data.update({f"meta_{k}": str(v) for k, v in metadata.items()})
         with atomic_file(path, "wb") as handle:
             scipy.io.savemat(handle, data, do_compression=True)

@@ -53,7 +53,9 @@ def install() -> None:
     """SIGINT and SIGTERM raise :class:`Interrupted` (once); SIGXFSZ is ignored."""
     if threading.current_thread() is not threading.main_thread():
         return
-    numbers = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGXFSZ] if hasattr(signal, "SIGXFSZ") else [])
+    numbers = [signal.SIGINT, signal.SIGTERM] + (
+        [signal.SIGXFSZ] if hasattr(signal, "SIGXFSZ") else []
+    )
     previous = {number: signal.getsignal(number) for number in numbers}
     signal.signal(signal.SIGINT, _handler)
     signal.signal(signal.SIGTERM, _handler)

@@ -52,8 +52,10 @@ def read_bounded(path: str | os.PathLike, what: str, limit: int | None = None) -
     limit = max_input_bytes() if limit is None else limit
     if path.is_dir():
         raise UserError(f"{what} {path}: is a folder, expected a file")
-    too_big = UserError(f"{what} {path}: larger than the input limit of {_size(limit)}"
-                        + (" (raise it with MECHANISM_MAX_INPUT_MB)" if adjustable else ""))
+    too_big = UserError(
+        f"{what} {path}: larger than the input limit of {_size(limit)}"
+        + (" (raise it with MECHANISM_MAX_INPUT_MB)" if adjustable else "")
+    )
     try:
         with open(path, "rb") as handle:
             return read_stream_bounded(handle, limit, too_big)
@@ -83,8 +85,10 @@ def check_elements(count: float, what: str) -> None:
     memory this machine has available."""
     limit = max_elements()
     if not count <= limit:
-        raise UserError(f"{what}: {count:.3g} values would need {count * 8 / 2**30:.3g} GiB, more than the limit of "
-                        f"{limit:.3g} values ({limit * 8 / 2**30:.3g} GiB; raise it with MECHANISM_MAX_ELEMENTS)")
+        raise UserError(
+            f"{what}: {count:.3g} values would need {count * 8 / 2**30:.3g} GiB, more than the limit of "
+            f"{limit:.3g} values ({limit * 8 / 2**30:.3g} GiB; raise it with MECHANISM_MAX_ELEMENTS)"
+        )
     check_memory(count * 8, what)
 
 
@@ -132,13 +136,21 @@ def check_memory(needed_bytes: float, what: str) -> None:
     """UserError before allocating when ``needed_bytes`` exceeds the memory available now."""
     available = available_memory_bytes()
     if available is not None and not needed_bytes <= available:
-        raise UserError(f"{what}: would need about {_size(needed_bytes)} of memory, more than the {_size(available)} "
-                        "this machine has available; ask for less (a shorter run, a lower rate, a smaller export) "
-                        "or run it on a larger machine")
+        raise UserError(
+            f"{what}: would need about {_size(needed_bytes)} of memory, more than the {_size(available)} "
+            "this machine has available; ask for less (a shorter run, a lower rate, a smaller export) "
+            "or run it on a larger machine"
+        )
 
 
-def check_number(value, what: str, low: float | None = None, high: float | None = None, unit: str = "",
-                 low_open: bool = False) -> float:
+def check_number(
+    value,
+    what: str,
+    low: float | None = None,
+    high: float | None = None,
+    unit: str = "",
+    low_open: bool = False,
+) -> float:
     """``value`` as a float when finite and within ``[low, high]`` (``(low, high]`` with
     ``low_open``), else a UserError naming ``what`` and the range."""
     problem = range_problem(value, low, high, unit, low_open)
@@ -172,8 +184,13 @@ def describe_range(low=None, high=None, unit: str = "", low_open: bool = False) 
     return "any finite number"
 
 
-def number(low: float | None = None, high: float | None = None, unit: str = "", low_open: bool = False,
-           integer: bool = False):
+def number(
+    low: float | None = None,
+    high: float | None = None,
+    unit: str = "",
+    low_open: bool = False,
+    integer: bool = False,
+):
     """An argparse ``type`` for a finite number in range: a bad value is one ``error:`` line
     naming the option and the range (exit 2) before any work."""
 

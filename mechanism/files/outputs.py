@@ -27,7 +27,9 @@ from pathlib import Path
 from mechanism.errors import UserError
 from mechanism.files.interrupts import deferred
 
-_active: contextvars.ContextVar["Transaction | None"] = contextvars.ContextVar("mechanism_transaction", default=None)
+_active: contextvars.ContextVar["Transaction | None"] = contextvars.ContextVar(
+    "mechanism_transaction", default=None
+)
 
 
 def _umask_mode(mode: int = 0o666) -> int:
@@ -65,11 +67,14 @@ def _disk_error(path: Path, exc: BaseException) -> UserError | None:
     problem = disk_problem(exc)
     if problem is None:
         return None
-    return UserError(f"output {path}: cannot write it, {problem}; nothing was published and the previous "
-                     "output is kept")
+    return UserError(
+        f"output {path}: cannot write it, {problem}; nothing was published and the previous "
+        "output is kept"
+    )
 
 
 # ---------------------------------------------------------------- locks
+
 
 def lock_wait_s() -> float:
     """How long publishing waits for another run publishing the same output
@@ -78,7 +83,9 @@ def lock_wait_s() -> float:
     try:
         return max(0.0, float(text)) if text else 60.0
     except ValueError:
-        raise UserError(f"$MECHANISM_LOCK_WAIT_S must be a number of seconds, got {text!r}") from None
+        raise UserError(
+            f"$MECHANISM_LOCK_WAIT_S must be a number of seconds, got {text!r}"
+        ) from None
 
 
 def lock_path(path: str | os.PathLike) -> Path:
@@ -115,7 +122,9 @@ def _try_lock(lock: Path) -> int | None:
         except FileNotFoundError:
             same = False
         if same:  # not a file its last holder removed after we opened it
-            with contextlib.suppress(OSError):  # the pid only names the holder: a full disk may refuse it
+            with contextlib.suppress(
+                OSError
+            ):  # the pid only names the holder: a full disk may refuse it
                 os.ftruncate(fd, 0)
                 os.write(fd, f"{os.getpid()}\n".encode())
             return fd
@@ -147,7 +156,8 @@ def output_lock(paths, wait_s: float | None = None, busy: str | None = None):
                     break
                 except OSError as exc:
                     raise _disk_error(path, exc) or UserError(
-                        f"output {path}: cannot create its lock {lock.name} ({exc.strerror})") from None
+                        f"output {path}: cannot create its lock {lock.name} ({exc.strerror})"
+                    ) from None
                 if fd is not None:
                     held.append((lock, fd))
                     break
@@ -155,8 +165,10 @@ def output_lock(paths, wait_s: float | None = None, busy: str | None = None):
                     holder = _lock_holder(lock)
                     if busy:
                         raise UserError(busy.format(path=path, holder=holder))
-                    raise UserError(f"output {path}: another run{holder} is writing it and did not finish in "
-                                    f"{wait_s:g} s; wait for it (or raise MECHANISM_LOCK_WAIT_S)")
+                    raise UserError(
+                        f"output {path}: another run{holder} is writing it and did not finish in "
+                        f"{wait_s:g} s; wait for it (or raise MECHANISM_LOCK_WAIT_S)"
+                    )
                 time.sleep(0.05)
         yield
     finally:
@@ -178,11 +190,14 @@ def _clean_stale_lock(path: Path) -> None:
 
 # ---------------------------------------------------------------- temporaries and leftovers
 
+
 def _temp_prefix(path: Path) -> str:
     return f".{path.name}.{os.getpid()}."
 
 
-_LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[A-Za-z0-9_]+\.(?P<kind>tmp|old)(?P<suffix>\.[^.]*)?$")
+_LEFTOVER = re.compile(
+    r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[A-Za-z0-9_]+\.(?P<kind>tmp|old)(?P<suffix>\.[^.]*)?$"
+)
 
 
 def _alive(pid: int) -> bool:
@@ -258,7 +273,13 @@ def _renameat2():
         with contextlib.suppress(OSError, AttributeError):
             libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
             fn = libc.renameat2
-            fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+            fn.argtypes = [
+                ctypes.c_int,
+                ctypes.c_char_p,
+                ctypes.c_int,
+                ctypes.c_char_p,
+                ctypes.c_uint,
+            ]
         _renameat2.fn = fn
     return _renameat2.fn
 
@@ -293,6 +314,7 @@ def swap_in_folder(new: Path, path: Path) -> None:
 
 
 # ---------------------------------------------------------------- the transaction
+
 
 @dataclass
 class Transaction:
@@ -342,9 +364,13 @@ class Transaction:
                     try:
                         os.link(destination, backup)
                     except OSError as exc:
-                        if disk_problem(exc):  # no room even for a link: stop before replacing anything
+                        if disk_problem(
+                            exc
+                        ):  # no room even for a link: stop before replacing anything
                             raise
-                        backup = None  # a file system without hard links: published without a way back
+                        backup = (
+                            None  # a file system without hard links: published without a way back
+                        )
                 try:
                     os.replace(temporary, destination)
                 except BaseException:
@@ -414,8 +440,9 @@ def _in_staged_folder(path) -> bool:
     if current is None:
         return False
     path = Path(path).absolute()
-    return any(folder and temporary.absolute() in path.parents for temporary, _, folder in current.staged) or any(
-        building.absolute() in path.parents for building in current.building)
+    return any(
+        folder and temporary.absolute() in path.parents for temporary, _, folder in current.staged
+    ) or any(building.absolute() in path.parents for building in current.building)
 
 
 def _prepare(path, current: Transaction) -> Path:
@@ -447,7 +474,8 @@ def _temporary_file(path: Path, suffix: str) -> Path:
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=suffix, dir=path.parent)
     except OSError as exc:
         raise _disk_error(path, exc) or UserError(
-            f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
+            f"output {path}: cannot write in {path.parent} ({exc.strerror})"
+        ) from None
     os.close(fd)
     os.chmod(tmp, _umask_mode())
     return Path(tmp)
@@ -507,7 +535,8 @@ def atomic_dir(path: str | os.PathLike, keep: bool = False):
             tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
         except OSError as exc:
             raise _disk_error(path, exc) or UserError(
-                f"output {path}: cannot write in {path.parent} ({exc.strerror})") from None
+                f"output {path}: cannot write in {path.parent} ({exc.strerror})"
+            ) from None
         with _staged(current, path, tmp, folder=True):
             if keep and path.is_dir():
                 _clone(path, tmp)
@@ -538,7 +567,9 @@ def _same_or_inside(path: Path, folder: Path) -> bool:
     return path == folder or folder in path.parents
 
 
-def check_not_input(output: str | os.PathLike, inputs, what: str = "output", folder: bool = False) -> None:
+def check_not_input(
+    output: str | os.PathLike, inputs, what: str = "output", folder: bool = False
+) -> None:
     """UserError when ``output`` is one of ``inputs`` or, for a folder replaced as a whole,
     holds one (links resolved)."""
     out = Path(output).resolve()
@@ -547,7 +578,9 @@ def check_not_input(output: str | os.PathLike, inputs, what: str = "output", fol
             continue
         source = Path(item).resolve()
         if out == source or (folder and out in source.parents):
-            raise UserError(f"{what} {output}: would overwrite the input {item}; choose another path")
+            raise UserError(
+                f"{what} {output}: would overwrite the input {item}; choose another path"
+            )
 
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
@@ -580,12 +613,16 @@ def check_outputs(inputs=(), files=(), folders=(), plots=()) -> None:
             continue
         key = Path(path).resolve()
         if key in seen:
-            raise UserError(f"{label} {path}: is also the output of {seen[key]}; choose different paths")
+            raise UserError(
+                f"{label} {path}: is also the output of {seen[key]}; choose different paths"
+            )
         seen[key] = label
     for label, path in plots:
         if path and Path(path).suffix.lower() not in PLOT_SUFFIXES:
-            raise UserError(f"{label} {path}: unknown plot format {Path(path).suffix or '(none)'!r}; "
-                            f"use {', '.join(PLOT_SUFFIXES)}")
+            raise UserError(
+                f"{label} {path}: unknown plot format {Path(path).suffix or '(none)'!r}; "
+                f"use {', '.join(PLOT_SUFFIXES)}"
+            )
     for label, path in files:
         if not path:
             continue
@@ -599,13 +636,19 @@ def check_outputs(inputs=(), files=(), folders=(), plots=()) -> None:
             continue
         path = Path(path)
         if os.path.lexists(path) and not path.is_dir():
-            raise UserError(f"{label} {path}: exists and is not a folder (it is replaced as a whole: remove it or "
-                            "choose another name)")
+            raise UserError(
+                f"{label} {path}: exists and is not a folder (it is replaced as a whole: remove it or "
+                "choose another name)"
+            )
         check_not_input(path, inputs, label, folder=True)
-        inside = [other for other, lab in seen.items() if lab != label and path.resolve() in other.parents]
+        inside = [
+            other for other, lab in seen.items() if lab != label and path.resolve() in other.parents
+        ]
         if inside:
-            raise UserError(f"{label} {path}: the folder is replaced as a whole, and {seen[inside[0]]} "
-                            f"{inside[0]} lies inside it")
+            raise UserError(
+                f"{label} {path}: the folder is replaced as a whole, and {seen[inside[0]]} "
+                f"{inside[0]} lies inside it"
+            )
         _check_writable(label, path)
 
 
@@ -619,15 +662,20 @@ def publish_files(pairs, folder: str | os.PathLike | None = None, inputs=()) -> 
     protected = {Path(p).resolve() for p in inputs if p is not None}
     for _, destination in pairs:
         if destination.resolve() in protected:
-            raise UserError(f"output {destination}: would overwrite an input of this run; choose another folder or name")
+            raise UserError(
+                f"output {destination}: would overwrite an input of this run; choose another folder or name"
+            )
     with transaction(independent=True):  # the caller reads these files back at once
         _publish_files(pairs, Path(folder) if folder is not None else None)
 
 
 def _publish_files(pairs, folder: Path | None) -> None:
     here = Path.cwd().resolve()
-    if (folder is not None and not _same_or_inside(here, folder.resolve())
-            and all(_same_or_inside(dst.resolve(), folder.resolve()) for _, dst in pairs)):
+    if (
+        folder is not None
+        and not _same_or_inside(here, folder.resolve())
+        and all(_same_or_inside(dst.resolve(), folder.resolve()) for _, dst in pairs)
+    ):
         with atomic_dir(folder, keep=True) as new:
             for source, destination in pairs:
                 target = new / destination.resolve().relative_to(folder.resolve())

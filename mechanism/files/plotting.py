@@ -14,5 +14,10 @@ from mechanism.files.outputs import atomic_path  # noqa: E402
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=os.path.splitext(str(path))[1].lstrip(".") or "png")
+        fig.savefig(
+            tmp,
+            dpi=dpi,
+            bbox_inches="tight",
+            format=os.path.splitext(str(path))[1].lstrip(".") or "png",
+        )
     plt.close(fig)

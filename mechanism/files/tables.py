@@ -74,7 +74,9 @@ def header_comments(lines: Sequence[str], label: str) -> tuple[dict[str, str], i
     the header line (blank and other comment lines are skipped)."""
     metadata: dict[str, str] = {}
     start = 0
-    while start < len(lines) and (lines[start].lstrip().startswith("#") or not lines[start].strip()):
+    while start < len(lines) and (
+        lines[start].lstrip().startswith("#") or not lines[start].strip()
+    ):
         comment = lines[start].lstrip().lstrip("#").strip()
         if ":" in comment:
             key, value = comment.split(":", 1)
@@ -85,8 +87,14 @@ def header_comments(lines: Sequence[str], label: str) -> tuple[dict[str, str], i
     return metadata, start
 
 
-def parse_table(text: str, required: Sequence[str] = (), optional: Sequence[str] = (),
-                aliases: Mapping[str, Sequence[str]] | None = None, min_rows: int = 1, label: str = "table") -> Table:
+def parse_table(
+    text: str,
+    required: Sequence[str] = (),
+    optional: Sequence[str] = (),
+    aliases: Mapping[str, Sequence[str]] | None = None,
+    min_rows: int = 1,
+    label: str = "table",
+) -> Table:
     """:func:`read_table` on text already read (``label`` names it in errors)."""
     lines = text.splitlines()
     metadata, start = header_comments(lines, label)
@@ -118,15 +126,21 @@ def parse_table(text: str, required: Sequence[str] = (), optional: Sequence[str]
         if row[0].lstrip().startswith("#"):
             continue
         if len(row) != len(header):
-            raise UserError(f"{label}: line {row_number} has {len(row)} fields, the header has {len(header)}")
+            raise UserError(
+                f"{label}: line {row_number} has {len(row)} fields, the header has {len(header)}"
+            )
         for name, col in index.items():
             cell = row[col].strip()
             try:
                 number = float(cell)
             except ValueError:
-                raise UserError(f"{label}: line {row_number}, column {header[col]}: not a number ({cell[:20]!r})") from None
+                raise UserError(
+                    f"{label}: line {row_number}, column {header[col]}: not a number ({cell[:20]!r})"
+                ) from None
             if not math.isfinite(number):
-                raise UserError(f"{label}: line {row_number}, column {header[col]}: value is {cell} (NaN/inf not allowed)")
+                raise UserError(
+                    f"{label}: line {row_number}, column {header[col]}: value is {cell} (NaN/inf not allowed)"
+                )
             values[name].append(number)
     n_rows = len(next(iter(values.values()))) if values else 0
     if n_rows < min_rows:
@@ -141,7 +155,9 @@ def check_increasing(time: np.ndarray, label: str, name: str = "time") -> None:
     if bad.size:
         i = int(bad[0])
         kind = "duplicated" if steps[i] == 0 else "decreasing"
-        raise UserError(f"{label}: {name} is not strictly increasing ({kind} at data row {i + 2}: {time[i]} then {time[i + 1]})")
+        raise UserError(
+            f"{label}: {name} is not strictly increasing ({kind} at data row {i + 2}: {time[i]} then {time[i + 1]})"
+        )
 
 
 def write_table(
@@ -152,7 +168,10 @@ def write_table(
 ) -> Path:
     """Write columns (names with units, e.g. ``time_s``) as CSV, atomically."""
     names = list(columns)
-    data = [np.asarray(list(v) if not isinstance(v, np.ndarray) else v, dtype=float) for v in columns.values()]
+    data = [
+        np.asarray(list(v) if not isinstance(v, np.ndarray) else v, dtype=float)
+        for v in columns.values()
+    ]
     n = {len(d) for d in data}
     if len(n) > 1:
         raise ValueError(f"columns of different lengths: {dict(zip(names, map(len, data)))}")

@@ -42,9 +42,16 @@ from mechanism.kinematics.cycle import DEFAULT_RESOLUTION_DEG, cycle_angles
 from mechanism.errors import UserError, close_matches
 from mechanism.kinematics.pose import approach, joint_dof, named_joint, solve_pose
 from mechanism.inspection.shapes import PartShape, overlap_volume, penetration
-from mechanism.tolerances import ANGLE_TOLERANCE_RAD, DEPTH_ANGLE_TOLERANCE_RAD, BOUNDARY_TOLERANCE_RAD, HULL_TOLERANCE_M
+from mechanism.tolerances import (
+    ANGLE_TOLERANCE_RAD,
+    DEPTH_ANGLE_TOLERANCE_RAD,
+    BOUNDARY_TOLERANCE_RAD,
+    HULL_TOLERANCE_M,
+)
 
-MINIMA_REFINED = 3  # at most this many local minima refined per pair (those that may hold the smallest)
+MINIMA_REFINED = (
+    3  # at most this many local minima refined per pair (those that may hold the smallest)
+)
 SPEED_MARGIN = 1.25  # travel is measured between samples (chords): allow 25% more along the way
 HULL_DISTMAX_M = 1.0
 
@@ -77,10 +84,14 @@ def parse_pairs(text: str | Sequence[str], model: mujoco.MjModel) -> list[Pair]:
         if not sep or not a or not b or ":" in b:
             raise UserError(f"pair {item!r}: expected two part names as A:B")
         if a == b:
-            raise UserError(f"pair {item!r} names the same part twice; a clearance needs two different parts")
+            raise UserError(
+                f"pair {item!r} names the same part twice; a clearance needs two different parts"
+            )
         for name in (a, b):
             if name not in names:
-                raise UserError(f"pair {item!r}: no part named {name!r} with a shape; close matches: {close_matches(name, names)}")
+                raise UserError(
+                    f"pair {item!r}: no part named {name!r} with a shape; close matches: {close_matches(name, names)}"
+                )
         pair = Pair(a, b)
         if pair not in pairs and Pair(b, a) not in pairs:
             pairs.append(pair)
@@ -100,7 +111,10 @@ def all_pairs(model: mujoco.MjModel) -> list[Pair]:
     for body in range(1, model.nbody):
         joined.add(frozenset((int(weld[body]), int(weld[model.body_parentid[body]]))))
     for eq in range(model.neq):
-        if int(model.eq_type[eq]) in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)) and model.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_BODY:
+        if (
+            int(model.eq_type[eq]) in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD))
+            and model.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_BODY
+        ):
             joined.add(frozenset((int(weld[model.eq_obj1id[eq]]), int(weld[model.eq_obj2id[eq]]))))
     pairs = []
     for a, b in itertools.combinations(names, 2):
@@ -115,7 +129,9 @@ def all_pairs(model: mujoco.MjModel) -> list[Pair]:
 
 
 def _has_shape(model, name) -> bool:
-    return any(model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE for g in parts.shape_geoms(model, name))
+    return any(
+        model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE for g in parts.shape_geoms(model, name)
+    )
 
 
 @dataclass
@@ -202,15 +218,21 @@ class ClearanceSweep:
         self.pairs = list(pairs)
         names = sorted({name for pair in self.pairs for name in (pair.a, pair.b)})
         self.shapes = {name: PartShape(model, name) for name in names}
-        self.zero, self.direction = (float(frame.zero_rad), float(frame.direction)) if frame is not None else (0.0, 1.0)
+        self.zero, self.direction = (
+            (float(frame.zero_rad), float(frame.direction)) if frame is not None else (0.0, 1.0)
+        )
         self.periodic = travel is None or travel.rotates
         if self.periodic:
-            self.angles = self.zero + cycle_angles(revolutions, resolution_deg)  # increasing joint positions
+            self.angles = self.zero + cycle_angles(
+                revolutions, resolution_deg
+            )  # increasing joint positions
             self.period = np.radians(360.0 * revolutions)
             self._start = model.qpos0.copy()
         else:
             self.angles = travel.samples(np.radians(resolution_deg))
-            self.period = (self.angles[-1] - self.angles[0]) * len(self.angles) / (len(self.angles) - 1)
+            self.period = (
+                (self.angles[-1] - self.angles[0]) * len(self.angles) / (len(self.angles) - 1)
+            )
             approach(model, self.data, driver, float(self.angles[0]))
             self._start = self.data.qpos.copy()
 
@@ -244,8 +266,15 @@ class ClearanceSweep:
         n = len(self.angles)
         step = self.period / n
         # shown only on a terminal and only once the check has taken 2 s (many pairs, fine steps)
-        with tqdm(total=n + len(self.pairs), desc="clearance", unit="step", file=sys.stderr, leave=False,
-                  disable=not progress or None, delay=2.0) as bar:
+        with tqdm(
+            total=n + len(self.pairs),
+            desc="clearance",
+            unit="step",
+            file=sys.stderr,
+            leave=False,
+            disable=not progress or None,
+            delay=2.0,
+        ) as bar:
             poses, lower, travel = self._sample(bar.update)
             results = self._pairs(poses, lower, travel, step, full_curve, bar.update)
         self._start = poses[0].copy()  # the next run (a variant) starts near this branch
@@ -255,7 +284,9 @@ class ClearanceSweep:
         n = len(self.angles)
         results = []
         for k, pair in enumerate(self.pairs):
-            dip = SPEED_MARGIN * np.maximum(travel[k], np.roll(travel[k], 1))  # over the step before or after
+            dip = SPEED_MARGIN * np.maximum(
+                travel[k], np.roll(travel[k], 1)
+            )  # over the step before or after
             reach = lower[k] - dip  # no exact distance within ±1 sample can be smaller
             exact = np.full(n, np.nan)
             smallest = np.inf
@@ -304,7 +335,10 @@ class ClearanceSweep:
         turn = np.arccos(np.clip((np.trace(relative, axis1=2, axis2=3) - 1) / 2, -1.0, 1.0))
         reach = shift + turn * model.geom_rbound[geoms]
         index = {g: j for j, g in enumerate(geoms)}
-        part_travel = {name: reach[:, [index[g] for g in shape.geoms]].max(axis=1) for name, shape in self.shapes.items()}
+        part_travel = {
+            name: reach[:, [index[g] for g in shape.geoms]].max(axis=1)
+            for name, shape in self.shapes.items()
+        }
         travel = np.array([part_travel[pair.a] + part_travel[pair.b] for pair in self.pairs])
         return poses, lower, travel
 
@@ -314,7 +348,9 @@ class ClearanceSweep:
         for shape in self.shapes.values():
             shape.update(self.data)
 
-    def _pair_result(self, pair: Pair, exact: np.ndarray, dip: np.ndarray, poses: np.ndarray, step: float) -> PairClearance:
+    def _pair_result(
+        self, pair: Pair, exact: np.ndarray, dip: np.ndarray, poses: np.ndarray, step: float
+    ) -> PairClearance:
         n = len(self.angles)
         known = np.nan_to_num(exact, nan=np.inf)  # skipped samples are far (their bound says so)
         smallest = known.min()
@@ -329,7 +365,9 @@ class ClearanceSweep:
         minima = [
             int(i)
             for i in np.flatnonzero(np.isfinite(known) & ~hit)
-            if known[i] <= known[before(i)] and known[i] <= known[after(i)] and known[i] - dip[i] <= smallest
+            if known[i] <= known[before(i)]
+            and known[i] <= known[after(i)]
+            and known[i] - dip[i] <= smallest
         ]
         minima = sorted(minima, key=lambda i: known[i])[:MINIMA_REFINED]
         overlaps = [
@@ -346,17 +384,28 @@ class ClearanceSweep:
                 overlaps.append(_Overlap([angle], [poses[i]]))
             elif best is None or value < best[1]:
                 best = (angle, value, pa, pb)
-        interferences = sorted((self._interference(pair, o, step) for o in overlaps), key=lambda i: i.start_deg)
+        interferences = sorted(
+            (self._interference(pair, o, step) for o in overlaps), key=lambda i: i.start_deg
+        )
         if interferences:
             deepest = max(interferences, key=lambda item: item.depth_mm)
-            result = PairClearance(pair, -deepest.depth_mm, deepest.angle_deg, deepest.point_a_mm, deepest.point_b_mm, interferences)
+            result = PairClearance(
+                pair,
+                -deepest.depth_mm,
+                deepest.angle_deg,
+                deepest.point_a_mm,
+                deepest.point_b_mm,
+                interferences,
+            )
         else:
             # no overlap: the smallest sample is a minimum, and its refinement did not find one either
             assert best is not None
             angle, value, pa, pb = best
             result = PairClearance(pair, value * 1e3, self._degrees(angle), pa * 1e3, pb * 1e3)
         result.grid_angle_deg = np.array([self._degrees(a) for a in self.angles])
-        result.driver_angle_deg = float(np.degrees(self.zero + self.direction * np.radians(result.angle_deg)))
+        result.driver_angle_deg = float(
+            np.degrees(self.zero + self.direction * np.radians(result.angle_deg))
+        )
         result.grid_distance_mm = exact * 1e3
         return result
 
@@ -380,10 +429,15 @@ class ClearanceSweep:
             method="bounded",
             options={"xatol": ANGLE_TOLERANCE_RAD},
         )
-        candidates = [(float(found.x), *self.distance_at(pair, float(found.x), start)), (center, *self.distance_at(pair, center, start))]
+        candidates = [
+            (float(found.x), *self.distance_at(pair, float(found.x), start)),
+            (center, *self.distance_at(pair, center, start)),
+        ]
         return min(candidates, key=lambda item: item[1])
 
-    def _boundary(self, pair: Pair, free_angle: float, hit_angle: float, start: np.ndarray) -> float:
+    def _boundary(
+        self, pair: Pair, free_angle: float, hit_angle: float, start: np.ndarray
+    ) -> float:
         """Bisection for the angle where the parts start to overlap."""
         while abs(hit_angle - free_angle) > BOUNDARY_TOLERANCE_RAD:
             middle = 0.5 * (free_angle + hit_angle)
@@ -409,7 +463,9 @@ class ClearanceSweep:
         else:
             lo = self._boundary(pair, inside[0] - step, inside[0], starts[0])
             hi = self._boundary(pair, inside[-1] + step, inside[-1], starts[-1])
-            if not self.periodic:  # the overlap runs up to an end of the travel: no boundary beyond it
+            if (
+                not self.periodic
+            ):  # the overlap runs up to an end of the travel: no boundary beyond it
                 lo = lo if inside[0] > self.angles[0] else float(self.angles[0])
                 hi = hi if inside[-1] < self.angles[-1] else float(self.angles[-1])
         # the worst angle is where the overlap volume peaks (one mesh boolean per trial,
@@ -417,7 +473,9 @@ class ClearanceSweep:
         volumes = [self._volume(pair, a, s) for a, s in zip(inside, starts)]
         k = int(np.nanargmax(volumes)) if np.isfinite(volumes).any() else 0
         angle, start = inside[k], starts[k]
-        if not whole_cycle and np.isfinite(volumes[k]):  # NaN: a mesh is not closed, no volume or depth
+        if not whole_cycle and np.isfinite(
+            volumes[k]
+        ):  # NaN: a mesh is not closed, no volume or depth
             found = minimize_scalar(
                 lambda x: -self._volume(pair, x, start),
                 bounds=(max(angle - step, lo), min(angle + step, hi)),
@@ -461,7 +519,9 @@ class _Overlap:
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """Runs of True in a boolean array as (first, last) index pairs (no wrap-around)."""
     edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()))
+    return list(
+        zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist())
+    )
 
 
 def _periodic_runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -549,7 +609,9 @@ def check_clearance(
     travel = travel or inspection_travel(model, driver, description)
     frame = inspection_frame(model, driver, description, travel)
     sweep = ClearanceSweep(model, pairs, driver, revolutions, resolution_deg, travel, frame)
-    return ClearanceReport(sweep.run(progress=progress), required_mm, driver, revolutions, resolution_deg)
+    return ClearanceReport(
+        sweep.run(progress=progress), required_mm, driver, revolutions, resolution_deg
+    )
 
 
 def write_rows(path: str | os.PathLike, rows: Sequence[dict], comments: Sequence[str] = ()) -> None:
@@ -566,7 +628,9 @@ def write_rows(path: str | os.PathLike, rows: Sequence[dict], comments: Sequence
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]), lineterminator="\n")
         writer.writeheader()
         for row in rows:
-            writer.writerow({k: (f"{v:.9g}" if isinstance(v, float) else v) for k, v in row.items()})
+            writer.writerow(
+                {k: (f"{v:.9g}" if isinstance(v, float) else v) for k, v in row.items()}
+            )
 
 
 def write_json(path: str | os.PathLike, payload: dict) -> None:

@@ -54,8 +54,12 @@ class NeedleMotion:
     hook_passage_angle_deg: float | None = None
     needle_rise_at_passage_mm: float | None = None  # needle height above BDC at the passage
     hook_point_to_needle_axis_mm: float | None = None  # at the passage
-    hook_point_clearance_mm: float | None = None  # hook point to the needle surface (mesh) at the passage
-    hook_point_above_eye_mm: float | None = None  # hook point above the needle-eye centre at the passage
+    hook_point_clearance_mm: float | None = (
+        None  # hook point to the needle surface (mesh) at the passage
+    )
+    hook_point_above_eye_mm: float | None = (
+        None  # hook point above the needle-eye centre at the passage
+    )
     speed_rpm: float | None = None
     notes: list[str] = field(default_factory=list)
 
@@ -90,15 +94,18 @@ class NeedleMotion:
         ]
         w = self.arm_speed_rad_s
         if w is not None:
-            lines.append(f"at {self.speed_rpm:g} rpm: peak velocity {vel * w / 1000:.3f} m/s, "
-                         f"peak acceleration {acc * w**2 / 1000:.1f} m/s^2")
+            lines.append(
+                f"at {self.speed_rpm:g} rpm: peak velocity {vel * w / 1000:.3f} m/s, "
+                f"peak acceleration {acc * w**2 / 1000:.1f} m/s^2"
+            )
         if self.hook_passage_angle_deg is not None:
             lines.append(
                 f"hook point passes the needle at shaft angle {self.hook_passage_angle_deg:.2f} deg: needle "
                 f"{self.needle_rise_at_passage_mm:.3f} mm above bottom dead centre, hook point "
                 f"{self.hook_point_above_eye_mm:.3f} mm above the eye centre, "
                 f"{self.hook_point_to_needle_axis_mm:.3f} mm from the needle axis, "
-                f"{self.hook_point_clearance_mm:.3f} mm clear of the needle")
+                f"{self.hook_point_clearance_mm:.3f} mm clear of the needle"
+            )
         lines.append(f"tool height measured from {self.plate_reference}")
         lines += [f"note: {note}" for note in self.notes]
         return lines
@@ -130,13 +137,28 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
         raise UserError(f"speed must be a positive number of rpm (got {speed_rpm})")
     machine = machine or load_machine()
     if not machine.tool_site:
-        raise UserError(f"machine {machine.name}: its description names no tool ([tool] site): no tool motion to compute")
+        raise UserError(
+            f"machine {machine.name}: its description names no tool ([tool] site): no tool motion to compute"
+        )
     tool, hook = machine.description.section("tool"), machine.description.section("hook")
-    roles = _Roles(machine.tool_site, tool.get("eye_site"), tool.get("part"), hook.get("joint"), hook.get("site"))
+    roles = _Roles(
+        machine.tool_site,
+        tool.get("eye_site"),
+        tool.get("part"),
+        hook.get("joint"),
+        hook.get("site"),
+    )
     model, shaft = machine.model, machine.shaft_joint
     up = up_axis(model)
-    tables = compute_tables(model, shaft, roles.tip, n=samples, zero_rad=machine.frame.zero_rad,
-                            direction=machine.frame.direction, span=machine.shaft_span_rad)
+    tables = compute_tables(
+        model,
+        shaft,
+        roles.tip,
+        n=samples,
+        zero_rad=machine.frame.zero_rad,
+        direction=machine.frame.direction,
+        span=machine.shaft_span_rad,
+    )
     rocks = not tables.periodic
     data = mujoco.MjData(model)
     notes: list[str] = []
@@ -172,29 +194,50 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
 
     if rocks:  # a rocking drive: the tool's highest and lowest points over the travel
         tdc, bdc = float(theta[int(np.argmax(z))]), float(theta[int(np.argmin(z))])
-        notes.append(f"the shaft rocks between {math.degrees(theta[0]):.4g} and {math.degrees(theta[-1]):.4g} deg: "
-                     "the tool's top and bottom are its highest and lowest points over that travel")
+        notes.append(
+            f"the shaft rocks between {math.degrees(theta[0]):.4g} and {math.degrees(theta[-1]):.4g} deg: "
+            "the tool's top and bottom are its highest and lowest points over that travel"
+        )
     else:
         tdc = _velocity_zero(theta, velocity, falling=True)
         bdc = _velocity_zero(theta, velocity, falling=False)
     tdc_z, bdc_z = needle_z_at(tdc), needle_z_at(bdc)
 
     # the hook timing needs the hook joint, the hook point's site and the needle eye's site
-    hook_joint = roles.hook_joint if roles.hook_point is not None and roles.eye is not None else None
+    hook_joint = (
+        roles.hook_joint if roles.hook_point is not None and roles.eye is not None else None
+    )
     has_hook = hook_joint is not None
-    hook_angle = np.degrees(tables.positions[hook_joint]) if hook_joint is not None else np.full(samples, np.nan)
+    hook_angle = (
+        np.degrees(tables.positions[hook_joint])
+        if hook_joint is not None
+        else np.full(samples, np.nan)
+    )
     motion = NeedleMotion(
-        arm_angle_deg=np.degrees(theta), needle_z_mm=z, needle_velocity_mm_per_rad=velocity,
-        needle_acceleration_mm_per_rad2=acceleration, hook_angle_deg=hook_angle,
-        hook_point_to_needle_mm=np.full(samples, np.nan), stroke_mm=tdc_z - bdc_z,
+        arm_angle_deg=np.degrees(theta),
+        needle_z_mm=z,
+        needle_velocity_mm_per_rad=velocity,
+        needle_acceleration_mm_per_rad2=acceleration,
+        hook_angle_deg=hook_angle,
+        hook_point_to_needle_mm=np.full(samples, np.nan),
+        stroke_mm=tdc_z - bdc_z,
         tdc_angle_deg=math.degrees(tdc) if rocks else _signed_deg(tdc),
-        bdc_angle_deg=math.degrees(bdc) if rocks else math.degrees(bdc) % 360.0, tdc_z_mm=tdc_z,
-        bdc_z_mm=bdc_z, plate_reference=reference, speed_rpm=speed_rpm, notes=notes)
+        bdc_angle_deg=math.degrees(bdc) if rocks else math.degrees(bdc) % 360.0,
+        tdc_z_mm=tdc_z,
+        bdc_z_mm=bdc_z,
+        plate_reference=reference,
+        speed_rpm=speed_rpm,
+        notes=notes,
+    )
     if has_hook and rocks:
-        notes.append("hook timing is computed for a shaft turning whole revolutions, not for one that rocks")
+        notes.append(
+            "hook timing is computed for a shaft turning whole revolutions, not for one that rocks"
+        )
         return motion
     if not has_hook:
-        notes.append("no hook described ([hook] joint and site, [tool] eye_site): hook timing not computed")
+        notes.append(
+            "no hook described ([hook] joint and site, [tool] eye_site): hook timing not computed"
+        )
         return motion
     hook = _HookGeometry(model, data, roles)
     offsets, distances = np.zeros(samples), np.zeros(samples)
@@ -204,17 +247,23 @@ def needle_motion(machine=None, samples: int = 360, speed_rpm: float | None = No
     motion.hook_point_to_needle_mm = distances * 1000.0
     passage = hook.passage(theta, offsets, solve=pose_at)
     if passage is None:
-        notes.append("the hook point never passes the needle while the needle is at the hook's height")
+        notes.append(
+            "the hook point never passes the needle while the needle is at the hook's height"
+        )
         return motion
     pose_at(passage)
     _, across = hook.offset_and_distance()
     motion.hook_passage_angle_deg = math.degrees(passage) % 360.0
     motion.needle_rise_at_passage_mm = (up @ data.site(roles.tip).xpos - plate_z) * 1000.0 - bdc_z
     motion.hook_point_to_needle_axis_mm = across * 1000.0
-    motion.hook_point_above_eye_mm = float(up @ (data.site(roles.hook_point).xpos - data.site(roles.eye).xpos)) * 1000.0
+    motion.hook_point_above_eye_mm = (
+        float(up @ (data.site(roles.hook_point).xpos - data.site(roles.eye).xpos)) * 1000.0
+    )
     clearance = hook.clearance_to_needle_mesh()
     if clearance is None:
-        notes.append("no tool part mesh described ([tool] part): clearance to the needle surface not computed")
+        notes.append(
+            "no tool part mesh described ([tool] part): clearance to the needle surface not computed"
+        )
     else:
         motion.hook_point_clearance_mm = clearance * 1000.0
     return motion
@@ -228,7 +277,9 @@ class _HookGeometry:
 
         self.model, self.data, self.roles = model, data, roles
         self.joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, roles.hook_joint)
-        self.geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, roles.part) if roles.part else -1
+        self.geom = (
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, roles.part) if roles.part else -1
+        )
 
     def _frames(self):
         d = self.data
@@ -293,7 +344,11 @@ class _HookGeometry:
 
         from mechanism.inspection.shapes import PartShape
 
-        if self.roles.part is None or self.geom < 0 or self.model.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH:
+        if (
+            self.roles.part is None
+            or self.geom < 0
+            or self.model.geom_type[self.geom] != mujoco.mjtGeom.mjGEOM_MESH
+        ):
             return None
         needle = PartShape(self.model, self.roles.part)
         needle.update(self.data)
@@ -326,12 +381,19 @@ def _signed_deg(angle: float) -> float:
 
 
 def _check_samples(samples) -> int:
-    if isinstance(samples, bool) or int(samples) != samples or not MIN_SAMPLES <= samples <= MAX_SAMPLES:
-        raise UserError(f"samples must be a whole number from {MIN_SAMPLES} to {MAX_SAMPLES} (got {samples})")
+    if (
+        isinstance(samples, bool)
+        or int(samples) != samples
+        or not MIN_SAMPLES <= samples <= MAX_SAMPLES
+    ):
+        raise UserError(
+            f"samples must be a whole number from {MIN_SAMPLES} to {MAX_SAMPLES} (got {samples})"
+        )
     return int(samples)
 
 
 # ----------------------------------------------------------------------------- outputs
+
 
 def write_csv(motion: NeedleMotion, path: str | os.PathLike) -> Path:
     from mechanism.files.tables import write_table
@@ -352,10 +414,18 @@ def plot(motion: NeedleMotion, path: str | os.PathLike) -> None:
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 8.5))
     series = [
         (motion.needle_z_mm, "needle point [mm]"),
-        (motion.needle_velocity_mm_per_rad * (w if per_speed else 1.0) / (1000.0 if per_speed else 1.0),
-         "velocity [m/s]" if per_speed else "velocity [mm/rad]\n(mm/s per rad/s)"),
-        (motion.needle_acceleration_mm_per_rad2 * (w**2 if per_speed else 1.0) / (1000.0 if per_speed else 1.0),
-         "acceleration [m/s²]" if per_speed else "acceleration [mm/rad²]"),
+        (
+            motion.needle_velocity_mm_per_rad
+            * (w if per_speed else 1.0)
+            / (1000.0 if per_speed else 1.0),
+            "velocity [m/s]" if per_speed else "velocity [mm/rad]\n(mm/s per rad/s)",
+        ),
+        (
+            motion.needle_acceleration_mm_per_rad2
+            * (w**2 if per_speed else 1.0)
+            / (1000.0 if per_speed else 1.0),
+            "acceleration [m/s²]" if per_speed else "acceleration [mm/rad²]",
+        ),
     ]
     for ax, (values, label) in zip(axes, series):
         ax.plot(angle, values, color="tab:blue", lw=1.6)
@@ -370,20 +440,41 @@ def plot(motion: NeedleMotion, path: str | os.PathLike) -> None:
     top.axhline(0.0, color="tab:brown", lw=2.0, alpha=0.6, label="needle-plate top")
     top.plot([motion.tdc_angle_deg], [motion.tdc_z_mm], "v", color="0.3")
     top.plot([motion.bdc_angle_deg], [motion.bdc_z_mm], "^", color="0.3")
-    top.annotate(f"TDC {motion.tdc_angle_deg:.1f}°", (motion.tdc_angle_deg, motion.tdc_z_mm), xytext=(6, -12),
-                 textcoords="offset points", fontsize=8)
-    top.annotate(f"BDC {motion.bdc_angle_deg:.1f}°", (motion.bdc_angle_deg, motion.bdc_z_mm), xytext=(6, 4),
-                 textcoords="offset points", fontsize=8)
-    if motion.hook_passage_angle_deg is not None and motion.needle_rise_at_passage_mm is not None:  # set together
+    top.annotate(
+        f"TDC {motion.tdc_angle_deg:.1f}°",
+        (motion.tdc_angle_deg, motion.tdc_z_mm),
+        xytext=(6, -12),
+        textcoords="offset points",
+        fontsize=8,
+    )
+    top.annotate(
+        f"BDC {motion.bdc_angle_deg:.1f}°",
+        (motion.bdc_angle_deg, motion.bdc_z_mm),
+        xytext=(6, 4),
+        textcoords="offset points",
+        fontsize=8,
+    )
+    if (
+        motion.hook_passage_angle_deg is not None and motion.needle_rise_at_passage_mm is not None
+    ):  # set together
         z_pass = motion.bdc_z_mm + motion.needle_rise_at_passage_mm
-        top.plot([motion.hook_passage_angle_deg], [z_pass], "o", color="tab:red",
-                 label=(f"hook point passes: {motion.hook_passage_angle_deg:.1f}°, needle +"
-                        f"{motion.needle_rise_at_passage_mm:.2f} mm from BDC, {motion.hook_point_clearance_mm:.2f} mm clear"
-                        if motion.hook_point_clearance_mm is not None else
-                        f"hook point passes: {motion.hook_passage_angle_deg:.1f}°"))
+        top.plot(
+            [motion.hook_passage_angle_deg],
+            [z_pass],
+            "o",
+            color="tab:red",
+            label=(
+                f"hook point passes: {motion.hook_passage_angle_deg:.1f}°, needle +"
+                f"{motion.needle_rise_at_passage_mm:.2f} mm from BDC, {motion.hook_point_clearance_mm:.2f} mm clear"
+                if motion.hook_point_clearance_mm is not None
+                else f"hook point passes: {motion.hook_passage_angle_deg:.1f}°"
+            ),
+        )
     top.legend(loc="upper center", fontsize=8)
-    top.set_title(f"Needle motion over one arm revolution (stroke {motion.stroke_mm:.2f} mm"
-                  + (f", {motion.speed_rpm:g} rpm)" if per_speed else ")"))
+    top.set_title(
+        f"Needle motion over one arm revolution (stroke {motion.stroke_mm:.2f} mm"
+        + (f", {motion.speed_rpm:g} rpm)" if per_speed else ")")
+    )
     axes[-1].set_xlabel("arm angle [deg] (0 = needle top dead centre)")
     axes[-1].set_xlim(0, 360)
     axes[-1].set_xticks(range(0, 361, 45))

@@ -39,7 +39,13 @@ import mujoco
 import numpy as np
 
 from mechanism.machine import parts
-from mechanism.kinematics.cycle import DEFAULT_RESOLUTION_DEG, DEFAULT_SPEED_RPM, cycle_angles, kinematic_cycle, set_state
+from mechanism.kinematics.cycle import (
+    DEFAULT_RESOLUTION_DEG,
+    DEFAULT_SPEED_RPM,
+    cycle_angles,
+    kinematic_cycle,
+    set_state,
+)
 from mechanism.errors import UserError, close_matches
 
 KINEMATIC = {
@@ -66,11 +72,15 @@ class Probe:
 
     def __post_init__(self):
         if self.quantity not in QUANTITIES:
-            raise UserError(f"unknown probe quantity {self.quantity!r}; choose from {', '.join(QUANTITIES)}")
+            raise UserError(
+                f"unknown probe quantity {self.quantity!r}; choose from {', '.join(QUANTITIES)}"
+            )
         if self.point_mm is not None:
             point = tuple(float(v) for v in self.point_mm)
             if len(point) != 3 or not all(np.isfinite(point)):
-                raise UserError(f"probe point {self.point_mm!r}: expected three finite numbers X,Y,Z in mm")
+                raise UserError(
+                    f"probe point {self.point_mm!r}: expected three finite numbers X,Y,Z in mm"
+                )
             object.__setattr__(self, "point_mm", point)
 
     @property
@@ -148,8 +158,14 @@ def add_probes(spec: mujoco.MjSpec, probes: Iterable[Probe]) -> list[AttachedPro
         else:
             equalities = joint[1]
             first = equalities[0]
-            anchors = [model.eq_data[e, 0:3] for e in equalities if model.eq_obj1id[e] == model.eq_obj1id[first]]
-            _add_site(spec, model, int(model.eq_obj1id[first]), np.mean(anchors, axis=0) + point, name)
+            anchors = [
+                model.eq_data[e, 0:3]
+                for e in equalities
+                if model.eq_obj1id[e] == model.eq_obj1id[first]
+            ]
+            _add_site(
+                spec, model, int(model.eq_obj1id[first]), np.mean(anchors, axis=0) + point, name
+            )
             attached.append(AttachedProbe(probe, name, None, loop_joint=probe.target))
     return attached
 
@@ -169,14 +185,23 @@ def _load_joint(model, name: str):
     equalities = parts.loop_equalities(model, name)
     if equalities:
         connects = [e for e in equalities if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT]
-        if len(connects) != len(equalities) or model.eq_objtype[connects[0]] != mujoco.mjtObj.mjOBJ_BODY:
-            raise UserError(f"joint {name!r}: loads are available for loop joints closed by body connect constraints only")
+        if (
+            len(connects) != len(equalities)
+            or model.eq_objtype[connects[0]] != mujoco.mjtObj.mjOBJ_BODY
+        ):
+            raise UserError(
+                f"joint {name!r}: loads are available for loop joints closed by body connect constraints only"
+            )
         return ("loop", connects)
     try:
         parts.find_frame(model, name)
     except UserError:
-        candidates = parts.joint_names(model) + parts.loop_joint_names(model) + parts.frame_names(model)
-        raise UserError(f"no joint or part named {name!r} in the model; close matches: {close_matches(name, candidates)}") from None
+        candidates = (
+            parts.joint_names(model) + parts.loop_joint_names(model) + parts.frame_names(model)
+        )
+        raise UserError(
+            f"no joint or part named {name!r} in the model; close matches: {close_matches(name, candidates)}"
+        ) from None
     return None
 
 
@@ -185,7 +210,9 @@ def _add_site(spec, model, body: int, pos, name: str) -> None:
         return
     body_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)
     element = spec.body(body_name) if body_name else spec.bodies[body]
-    element.add_site(name=name, pos=[float(v) for v in pos], size=[0.001, 0, 0], group=5, rgba=[1, 0.2, 0.1, 1])
+    element.add_site(
+        name=name, pos=[float(v) for v in pos], size=[0.001, 0, 0], group=5, rgba=[1, 0.2, 0.1, 1]
+    )
 
 
 def _add_sensor(spec, sensor_type, site: str) -> None:
@@ -193,7 +220,9 @@ def _add_sensor(spec, sensor_type, site: str) -> None:
         spec.add_sensor(name=site, type=sensor_type, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
 
 
-def read_probes(model: mujoco.MjModel, data: mujoco.MjData, attached: Sequence[AttachedProbe]) -> list[float]:
+def read_probes(
+    model: mujoco.MjModel, data: mujoco.MjData, attached: Sequence[AttachedProbe]
+) -> list[float]:
     """The current values of all probes (flattened in column order), from ``sensordata``
     and, for loop joints, ``efc_force``; ``data`` must be at the acceleration stage."""
     values: list[float] = []
@@ -209,7 +238,9 @@ def read_probes(model: mujoco.MjModel, data: mujoco.MjData, attached: Sequence[A
         if item.sensor is not None:  # sensor frame = site frame; report in world
             vector = data.site_xmat[site].reshape(3, 3) @ data.sensor(item.sensor).data
         else:
-            assert item.loop_joint is not None  # add_probes gives every probe without a sensor its loop joint
+            assert (
+                item.loop_joint is not None
+            )  # add_probes gives every probe without a sensor its loop joint
             vector = _loop_load(model, data, item.loop_joint, data.site_xpos[site], quantity)
         values.extend([*vector, float(np.linalg.norm(vector))])
     return values
@@ -261,9 +292,13 @@ def probe_cycle(
     model = _compile(spec)
     data = mujoco.MjData(model)
     joints = parts.joint_names(model)
-    driver = named_joint(driver)  # None reached close_matches: a TypeError instead of this UserError
+    driver = named_joint(
+        driver
+    )  # None reached close_matches: a TypeError instead of this UserError
     if driver not in joints:
-        raise UserError(f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}")
+        raise UserError(
+            f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}"
+        )
     omega = speed_rpm * 2 * np.pi / 60
     travel = inspection_travel(model, driver, description)
     frame = inspection_frame(model, driver, description, travel)
@@ -276,25 +311,34 @@ def probe_cycle(
     states = kinematic_cycle(model, angles, omega, driver, data)
     rows, torque = [], []
     for i in range(len(states.angle)):
-        torque.append(set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i], driver))
+        torque.append(
+            set_state(model, data, states.qpos[i], states.qvel[i], states.qacc[i], driver)
+        )
         rows.append(read_probes(model, data, attached))
     table = np.asarray(rows).reshape(len(states.angle), -1)
     columns = {"time_s": states.time, f"{driver}_angle_rad": states.angle}
     described = description is not None and driver == description.shaft_joint
     if described:  # the described shaft angle: 0 at its zero, rising as the motor turns forward
         shaft = frame.direction * (states.angle - frame.zero_rad)
-        columns["shaft_angle_rad"] = np.mod(shaft, 2 * np.pi) if travel.rotates and revolutions <= 1 else shaft
+        columns["shaft_angle_rad"] = (
+            np.mod(shaft, 2 * np.pi) if travel.rotates and revolutions <= 1 else shaft
+        )
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     columns[f"{driver}_drive_torque_Nm"] = np.asarray(torque)
     comments = [
-        (f"kinematic cycle: {driver} at a constant {speed_rpm:g} rpm, {revolutions:g} revolution(s), every {resolution_deg:g} deg"
-         if travel.rotates else f"kinematic cycle: {travel.text()} at a constant {speed_rpm:g} rpm, every {resolution_deg:g} deg"),
+        (
+            f"kinematic cycle: {driver} at a constant {speed_rpm:g} rpm, {revolutions:g} revolution(s), every {resolution_deg:g} deg"
+            if travel.rotates
+            else f"kinematic cycle: {travel.text()} at a constant {speed_rpm:g} rpm, every {resolution_deg:g} deg"
+        ),
         "world frame, z up; loads: rigid inverse dynamics without friction; force/torque = load on the child side of the joint",
         f"{driver}_drive_torque_Nm: torque the driver must supply to hold the constant speed",
     ]
     if described:
-        comments.append("shaft_angle_rad: the described shaft angle (0 at its zero); "
-                        f"{driver}_angle_rad: the joint's own coordinate (0 at the export's pose)")
+        comments.append(
+            "shaft_angle_rad: the described shaft angle (0 at its zero); "
+            f"{driver}_angle_rad: the joint's own coordinate (0 at the export's pose)"
+        )
     return ProbeResult(columns, comments, "shaft_angle_rad" if described else f"{driver}_angle_rad")
 
 
@@ -331,14 +375,20 @@ def probe_simulation(
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     comments = [
         f"dynamic simulation of {machine.name}: "
-        + (f"{voltage:g} V" if not isinstance(voltage, dict) else ", ".join(f"{j} {v:g}" for j, v in voltage.items()))
+        + (
+            f"{voltage:g} V"
+            if not isinstance(voltage, dict)
+            else ", ".join(f"{j} {v:g}" for j, v in voltage.items())
+        )
         + f" for {duration_s:g} s from rest at shaft angle 0",
         "world frame, z up; force/torque = load on the child side of the joint, with friction and loads",
     ]
     return ProbeResult(columns, comments, "time_s")
 
 
-def parse_probes(parts_args: Sequence[str], quantities: Sequence[str], points: Sequence[str] = ()) -> list[Probe]:
+def parse_probes(
+    parts_args: Sequence[str], quantities: Sequence[str], points: Sequence[str] = ()
+) -> list[Probe]:
     """Probes from CLI-style groups: each ``parts_args`` entry is a comma list of names;
     ``quantities`` and ``points`` have one entry for all groups or one per group (a
     quantity entry may be a comma list; a point is ``X,Y,Z`` in mm)."""
@@ -346,12 +396,18 @@ def parse_probes(parts_args: Sequence[str], quantities: Sequence[str], points: S
     if not groups or not all(groups):
         raise UserError("give at least one --part NAME")
     if len(quantities) not in (1, len(groups)):
-        raise UserError(f"--quantity given {len(quantities)} times for {len(groups)} --part groups: give it once or once per --part")
+        raise UserError(
+            f"--quantity given {len(quantities)} times for {len(groups)} --part groups: give it once or once per --part"
+        )
     if len(points) not in (0, 1, len(groups)):
-        raise UserError(f"--point given {len(points)} times for {len(groups)} --part groups: give it once or once per --part")
+        raise UserError(
+            f"--point given {len(points)} times for {len(groups)} --part groups: give it once or once per --part"
+        )
     probes = []
     for i, names in enumerate(groups):
-        wanted = [q.strip() for q in quantities[0 if len(quantities) == 1 else i].split(",") if q.strip()]
+        wanted = [
+            q.strip() for q in quantities[0 if len(quantities) == 1 else i].split(",") if q.strip()
+        ]
         point = None
         if points:
             text = points[0 if len(points) == 1 else i]
@@ -387,7 +443,9 @@ def run_probes(
         raise UserError("a dynamic run needs both a voltage and a duration")
     if voltage is not None and duration_s is not None:  # both or neither, checked above
         return probe_simulation(probes, voltage, duration_s, description, progress)
-    return probe_cycle(load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver, description)
+    return probe_cycle(
+        load_spec(model_path), probes, speed_rpm, revolutions, resolution_deg, driver, description
+    )
 
 
 def plot_probes(result: ProbeResult, probes: Sequence[Probe], path: str | os.PathLike) -> None:
@@ -399,11 +457,17 @@ def plot_probes(result: ProbeResult, probes: Sequence[Probe], path: str | os.Pat
         x, xlabel = np.degrees(x), result.x_name[: -len("_rad")] + " [deg]"
     else:
         x, xlabel = x, "time [s]"
-    fig, axes = plt.subplots(len(probes), 1, figsize=(8, 2.4 * len(probes)), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(probes), 1, figsize=(8, 2.4 * len(probes)), sharex=True, squeeze=False
+    )
     for ax, probe in zip(axes[:, 0], probes):
         for name in probe.columns:
             ax.plot(x, result.columns[name], label=name)
-        unit = KINEMATIC[probe.quantity][2] if probe.quantity in KINEMATIC else LOADS[probe.quantity][3]
+        unit = (
+            KINEMATIC[probe.quantity][2]
+            if probe.quantity in KINEMATIC
+            else LOADS[probe.quantity][3]
+        )
         ax.set_ylabel(f"{probe.quantity} [{unit.replace('_', '/')}]")
         ax.legend(fontsize=7, loc="best")
         ax.grid(alpha=0.3)

@@ -36,7 +36,9 @@ from mechanism.machine import parts
 from mechanism.errors import UserError
 from mechanism.tolerances import MIN_DEPTH_SPACING_M
 
-PRIMITIVE_SECTIONS = 256  # tessellation of primitives for the overlap solid only (distances use exact primitives)
+PRIMITIVE_SECTIONS = (
+    256  # tessellation of primitives for the overlap solid only (distances use exact primitives)
+)
 DEPTH_REFINEMENT = 4  # overlap surface refined to (overlap size / this) ...
 FINE_PASS_VERTICES = 3  # ... then 8x finer around the deepest few vertices
 ON_SURFACE_M = 1e-9  # a point this close to a surface lies on it
@@ -64,7 +66,9 @@ def _fcl_geometry(model: mujoco.MjModel, geom: int):
     if kind == T.mjGEOM_ELLIPSOID:
         return fcl.Ellipsoid(*size)
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or f"#{geom}"
-    raise UserError(f"geom {name!r}: type {mujoco.mjtGeom(kind).name[7:].lower()} is not supported in clearance checks")
+    raise UserError(
+        f"geom {name!r}: type {mujoco.mjtGeom(kind).name[7:].lower()} is not supported in clearance checks"
+    )
 
 
 def mesh_triangles(model: mujoco.MjModel, geom: int) -> tuple[np.ndarray, np.ndarray]:
@@ -72,10 +76,14 @@ def mesh_triangles(model: mujoco.MjModel, geom: int) -> tuple[np.ndarray, np.nda
     mesh = model.geom_dataid[geom]
     v0, nv = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
     f0, nf = model.mesh_faceadr[mesh], model.mesh_facenum[mesh]
-    return model.mesh_vert[v0 : v0 + nv].astype(float), model.mesh_face[f0 : f0 + nf].astype(np.int64)
+    return model.mesh_vert[v0 : v0 + nv].astype(float), model.mesh_face[f0 : f0 + nf].astype(
+        np.int64
+    )
 
 
-def geom_mesh(model: mujoco.MjModel, geom: int, sections: int = PRIMITIVE_SECTIONS) -> tuple[np.ndarray, np.ndarray]:
+def geom_mesh(
+    model: mujoco.MjModel, geom: int, sections: int = PRIMITIVE_SECTIONS
+) -> tuple[np.ndarray, np.ndarray]:
     """A closed triangle mesh of the geom in its own frame: a mesh geom's own triangles,
     primitives tessellated with ``sections`` around their axis."""
     import trimesh
@@ -87,7 +95,9 @@ def geom_mesh(model: mujoco.MjModel, geom: int, sections: int = PRIMITIVE_SECTIO
     if kind == T.mjGEOM_SPHERE:
         mesh = trimesh.creation.icosphere(subdivisions=_subdivisions(sections), radius=size[0])
     elif kind == T.mjGEOM_CAPSULE:
-        mesh = trimesh.creation.capsule(height=2 * size[1], radius=size[0], count=[sections, max(4, sections // 2)])
+        mesh = trimesh.creation.capsule(
+            height=2 * size[1], radius=size[0], count=[sections, max(4, sections // 2)]
+        )
     elif kind == T.mjGEOM_CYLINDER:
         mesh = trimesh.creation.cylinder(radius=size[0], height=2 * size[1], sections=sections)
     elif kind == T.mjGEOM_BOX:
@@ -123,7 +133,10 @@ class PartShape:
 
     def update(self, data: mujoco.MjData) -> None:
         for geom, obj in zip(self.geoms, self.objects):
-            rotation, origin = data.geom_xmat[geom].reshape(3, 3).copy(), data.geom_xpos[geom].copy()
+            rotation, origin = (
+                data.geom_xmat[geom].reshape(3, 3).copy(),
+                data.geom_xpos[geom].copy(),
+            )
             self._poses[geom] = (rotation, origin)
             obj.setTransform(fcl.Transform(rotation, origin))
 
@@ -136,7 +149,11 @@ class PartShape:
                 result = fcl.DistanceResult()
                 value = max(fcl.distance(a, b, request, result), 0.0)
                 if best is None or value < best[0]:
-                    best = (value, np.array(result.nearest_points[0]), np.array(result.nearest_points[1]))
+                    best = (
+                        value,
+                        np.array(result.nearest_points[0]),
+                        np.array(result.nearest_points[1]),
+                    )
                 if value == 0.0:
                     return best
         assert best is not None, "a PartShape has at least one geom (its body is its first geom's)"
@@ -168,11 +185,15 @@ class PartShape:
             self._solids = []
             for geom in self.geoms:
                 vertices, faces = geom_mesh(self.model, geom)
-                solid = manifold3d.Manifold(manifold3d.Mesh64(vert_properties=vertices, tri_verts=faces.astype(np.uint32)))
+                solid = manifold3d.Manifold(
+                    manifold3d.Mesh64(vert_properties=vertices, tri_verts=faces.astype(np.uint32))
+                )
                 if solid.status() != manifold3d.Error.NoError:
                     name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, geom)
-                    warnings.warn(f"part {self.name!r}: the mesh of geom {name!r} is not a closed solid "
-                                  f"({solid.status().name}); its interferences get no depth")
+                    warnings.warn(
+                        f"part {self.name!r}: the mesh of geom {name!r} is not a closed solid "
+                        f"({solid.status().name}); its interferences get no depth"
+                    )
                     self._solids = False
                     break
                 self._solids.append(solid)
@@ -180,9 +201,15 @@ class PartShape:
             return None
         posed = []
         for geom, solid in zip(self.geoms, self._solids):
-            transform = np.hstack([data.geom_xmat[geom].reshape(3, 3), data.geom_xpos[geom].reshape(3, 1)])
+            transform = np.hstack(
+                [data.geom_xmat[geom].reshape(3, 3), data.geom_xpos[geom].reshape(3, 1)]
+            )
             posed.append(solid.transform(transform))
-        return manifold3d.Manifold.batch_boolean(posed, manifold3d.OpType.Add) if len(posed) > 1 else posed[0]
+        return (
+            manifold3d.Manifold.batch_boolean(posed, manifold3d.OpType.Add)
+            if len(posed) > 1
+            else posed[0]
+        )
 
 
 @dataclass

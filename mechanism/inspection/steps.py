@@ -27,7 +27,9 @@ def demo_probes(out: Path, machine) -> list[Path]:
     specs = _inspect(machine).get("probes", [])
     if not specs:
         return []
-    probes = [Probe(name, quantity) for name, _, quantity in (spec.rpartition(":") for spec in specs)]
+    probes = [
+        Probe(name, quantity) for name, _, quantity in (spec.rpartition(":") for spec in specs)
+    ]
     speed = _inspect(machine).get("probe_speed_rpm", DEFAULT_PROBE_SPEED_RPM)
     result = run_probes(probes, machine.model_path, speed_rpm=speed, driver=machine.shaft_joint)
     csv, png = out / "probes.csv", out / "probes.png"
@@ -59,10 +61,16 @@ def demo_clearance(out: Path, machine) -> list[Path]:
         try:
             value = float(offset)
         except ValueError:
-            raise UserError(f"[inspect] mistimed_variant {inspect['mistimed_variant']!r}: expected 'parameter=offset'") from None
+            raise UserError(
+                f"[inspect] mistimed_variant {inspect['mistimed_variant']!r}: expected 'parameter=offset'"
+            ) from None
         param = parameter(name.strip(), presets=machine.description.variant_presets)
-        variants = VariantSet([param], ["nominal", f"{name.strip()} {value:+g}"], np.array([[0.0], [value]]))
-        batch = run_variants(model, variants, pairs[:1], required, machine.shaft_joint, progress=False)
+        variants = VariantSet(
+            [param], ["nominal", f"{name.strip()} {value:+g}"], np.array([[0.0], [value]])
+        )
+        batch = run_variants(
+            model, variants, pairs[:1], required, machine.shaft_joint, progress=False
+        )
         variants_csv = out / "variants.csv"
         write_rows(variants_csv, batch.table())
         written.append(variants_csv)
@@ -76,8 +84,15 @@ def demo_view(out: Path, machine, frames: int = 120) -> list[Path]:
     inspect = _inspect(machine)
     markers = [machine.tool_site] if machine.tool_site else []
     pairs = inspect.get("clearance_pairs", [])[:1]
-    view(html, machine.model_path, frames=frames, probe_names=markers, pairs=pairs or None,
-         driver=machine.shaft_joint, description=machine.description)
+    view(
+        html,
+        machine.model_path,
+        frames=frames,
+        probe_names=markers,
+        pairs=pairs or None,
+        driver=machine.shaft_joint,
+        description=machine.description,
+    )
     return [html]
 
 

@@ -39,19 +39,40 @@ from mechanism.errors import UserError, close_matches
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_derivative
 from mechanism.machine import parts
 from mechanism.machine.description import FRICTION_KEYS, SCHEMA, MachineDescription, check_value
-from mechanism.machine.machine import (Machine, MachineConfig, duty_map_from, fabric_from_description,
-                                       motor_from_description, supply_limit)
+from mechanism.machine.machine import (
+    Machine,
+    MachineConfig,
+    duty_map_from,
+    fabric_from_description,
+    motor_from_description,
+    supply_limit,
+)
 from mechanism.physics.friction import FrictionSet
-from mechanism.inspection.sweep_journal import journal_write_error, open_journal, read_journal, sweep_fingerprint
+from mechanism.inspection.sweep_journal import (
+    journal_write_error,
+    open_journal,
+    read_journal,
+    sweep_fingerprint,
+)
 from mechanism.inspection.sweep_metrics import METRICS, bearing_loads, variant_metrics
-from mechanism.inspection.variants import (OPERATING_POINT, Parameter, VariantSet, _parse_target, apply_parameter,
-                                           linear_coupling)
+from mechanism.inspection.variants import (
+    OPERATING_POINT,
+    Parameter,
+    VariantSet,
+    _parse_target,
+    apply_parameter,
+    linear_coupling,
+)
 
 DESCRIPTION_SECTIONS = ("motor", "supply", "tool")  # description sections a sweep may offset
 Values = Sequence[float] | np.ndarray  # one variant's parameter values, in the variants' order
-REPLACED_IN_CODE = ("this machine's motor or fabric was replaced in code (MachineConfig): description offsets (motor:, "
-                    "tool:) would not reach it; describe it instead")
-POINT_MASS_INERTIA_KGM2 = 1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
+REPLACED_IN_CODE = (
+    "this machine's motor or fabric was replaced in code (MachineConfig): description offsets (motor:, "
+    "tool:) would not reach it; describe it instead"
+)
+POINT_MASS_INERTIA_KGM2 = (
+    1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
+)
 
 
 @dataclass(frozen=True)
@@ -79,17 +100,43 @@ class SweepBase:
     options: SweepOptions
 
     @classmethod
-    def of(cls, machine: Machine, parameters: Sequence[Parameter], options: SweepOptions) -> "SweepBase":
-        state = {name: getattr(machine, name) for name in (
-            "motor_joint", "shaft_joint", "tool_site", "plate_part", "frame", "plate_top_z", "timestep_s")}
-        return cls(machine.description, machine.config, machine.model, machine.tables, state, list(parameters), options)
+    def of(
+        cls, machine: Machine, parameters: Sequence[Parameter], options: SweepOptions
+    ) -> "SweepBase":
+        state = {
+            name: getattr(machine, name)
+            for name in (
+                "motor_joint",
+                "shaft_joint",
+                "tool_site",
+                "plate_part",
+                "frame",
+                "plate_top_z",
+                "timestep_s",
+            )
+        }
+        return cls(
+            machine.description,
+            machine.config,
+            machine.model,
+            machine.tables,
+            state,
+            list(parameters),
+            options,
+        )
 
 
 class _VariantMachine:
     """The parts of a Machine the reduced model reads, with a variant's replacements."""
 
-    def __init__(self, base: SweepBase, model: mujoco.MjModel, tables: LinkageTables, description: MachineDescription,
-                 layers: int):
+    def __init__(
+        self,
+        base: SweepBase,
+        model: mujoco.MjModel,
+        tables: LinkageTables,
+        description: MachineDescription,
+        layers: int,
+    ):
         self.__dict__.update(base.machine_state)
         self.model, self.tables, self.description = model, tables, description
         self.config = config = replace(base.config, layers=layers)
@@ -147,19 +194,27 @@ def check_parameters(base: SweepBase, variants: VariantSet) -> None:
         if kind == "inertia":
             _flywheel_joint(model, name, where)
             _non_negative(values, variants, where, "added inertia")
-        elif kind == "mass":  # a part, a named frame, a body or a geom: wherever the point mass sits
+        elif (
+            kind == "mass"
+        ):  # a part, a named frame, a body or a geom: wherever the point mass sits
             if name not in parts.frame_names(model):
-                raise UserError(f"{where}: no part, frame or body named {name!r}; close matches: "
-                                f"{close_matches(name, parts.frame_names(model))}")
+                raise UserError(
+                    f"{where}: no part, frame or body named {name!r}; close matches: "
+                    f"{close_matches(name, parts.frame_names(model))}"
+                )
             _non_negative(values, variants, where, "added mass")
         elif kind == "ratio":
             eq = linear_coupling(model, name, where, "its ratio cannot be offset")
             ratios = model.eq_data[eq, 1] + values
             if np.any(ratios * model.eq_data[eq, 1] <= 0):
-                raise UserError(f"{where}: the ratio must keep its sign and stay non-zero (nominal {model.eq_data[eq, 1]:g})")
+                raise UserError(
+                    f"{where}: the ratio must keep its sign and stay non-zero (nominal {model.eq_data[eq, 1]:g})"
+                )
         elif kind == "friction":
             if name not in joints:
-                raise UserError(f"{where}: no joint named {name!r}; close matches: {close_matches(name, joints)}")
+                raise UserError(
+                    f"{where}: no joint named {name!r}; close matches: {close_matches(name, joints)}"
+                )
             _numeric_key(key, FRICTION_KEYS, where)
         elif kind in DESCRIPTION_SECTIONS:
             _numeric_key(name, SCHEMA[kind], where)
@@ -170,8 +225,12 @@ def check_parameters(base: SweepBase, variants: VariantSet) -> None:
             if np.any(values != np.round(values)):
                 raise UserError(f"{where}: layers must be whole numbers")
             _within(values, variants, where, 0.0, 20.0)
-            if np.any(values > 0) and not (base.machine_state["tool_site"] and base.machine_state["plate_part"]):
-                raise UserError(f"{where}: fabric layers need a tool site and a plate in the machine description")
+            if np.any(values > 0) and not (
+                base.machine_state["tool_site"] and base.machine_state["plate_part"]
+            ):
+                raise UserError(
+                    f"{where}: fabric layers need a tool site and a plate in the machine description"
+                )
         else:
             _within(values, variants, where, -1000.0, 1000.0)
     _check_description_offsets(base.description, variants)
@@ -184,7 +243,9 @@ def _check_description_offsets(description: MachineDescription, variants: Varian
     for column, param in enumerate(variants.parameters):
         kind, name, key = _split(param.target) if param.dynamic else ("geometry", "", "")
         if kind == "friction" or kind in DESCRIPTION_SECTIONS:
-            totals[(kind, name, key)] = totals.get((kind, name, key), 0.0) + variants.values[:, column]
+            totals[(kind, name, key)] = (
+                totals.get((kind, name, key), 0.0) + variants.values[:, column]
+            )
     for (kind, name, key), offsets in totals.items():
         if kind == "friction":
             table, spec, field_name = description.friction.get(name, {}), FRICTION_KEYS[key], key
@@ -193,53 +254,79 @@ def _check_description_offsets(description: MachineDescription, variants: Varian
             table = description.motor if kind == "motor" else description.section(kind)
             spec, field_name = SCHEMA[kind][name], name
             if name not in table:
-                raise UserError(f"{variants.source}: {description.where(kind, name)} is not in the description; an "
-                                "offset needs a value to start from")
+                raise UserError(
+                    f"{variants.source}: {description.where(kind, name)} is not in the description; an "
+                    "offset needs a value to start from"
+                )
             start = table[name]
         values = start + offsets
-        low = values < spec.low if spec.low is not None and not spec.open_low else values <= spec.low if spec.low is not None else np.zeros(len(values), bool)
+        low = (
+            values < spec.low
+            if spec.low is not None and not spec.open_low
+            else values <= spec.low
+            if spec.low is not None
+            else np.zeros(len(values), bool)
+        )
         bad = np.flatnonzero(low | ((values > spec.high) if spec.high is not None else False))
         if bad.size:
             i = int(bad[0])
-            raise UserError(f"{variants.source}: variant {variants.names[i]!r} makes {kind} {field_name} "
-                            f"{'of ' + name + ' ' if kind == 'friction' else ''}{values[i]:g}, outside its range ({spec.doc})")
+            raise UserError(
+                f"{variants.source}: variant {variants.names[i]!r} makes {kind} {field_name} "
+                f"{'of ' + name + ' ' if kind == 'friction' else ''}{values[i]:g}, outside its range ({spec.doc})"
+            )
 
 
 def _numeric_key(key: str, keys: dict, where: str) -> None:
     numeric = [k for k, spec in keys.items() if spec.kind in (float, int)]
     if key not in numeric:
-        raise UserError(f"{where}: {key!r} is not a numeric key of the description; close matches: {close_matches(key, numeric)}")
+        raise UserError(
+            f"{where}: {key!r} is not a numeric key of the description; close matches: {close_matches(key, numeric)}"
+        )
 
 
 def _non_negative(values: np.ndarray, variants: VariantSet, where: str, what: str) -> None:
     bad = np.flatnonzero(values < 0)
     if bad.size:
-        raise UserError(f"{where}: {what} must be >= 0, variant {variants.names[bad[0]]!r} has {values[bad[0]]:g}")
+        raise UserError(
+            f"{where}: {what} must be >= 0, variant {variants.names[bad[0]]!r} has {values[bad[0]]:g}"
+        )
 
 
 def _within(values: np.ndarray, variants: VariantSet, where: str, low: float, high: float) -> None:
     bad = np.flatnonzero((values < low) | (values > high))
     if bad.size:
-        raise UserError(f"{where}: values must lie in [{low:g}, {high:g}], variant {variants.names[bad[0]]!r} has {values[bad[0]]:g}")
+        raise UserError(
+            f"{where}: values must lie in [{low:g}, {high:g}], variant {variants.names[bad[0]]!r} has {values[bad[0]]:g}"
+        )
 
 
 def _flywheel_joint(model: mujoco.MjModel, joint: str, where: str) -> int:
     jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
     if jid < 0 or model.jnt_type[jid] != mujoco.mjtJoint.mjJNT_HINGE:
-        hinges = [n for n in parts.joint_names(model)
-                  if model.jnt_type[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] == mujoco.mjtJoint.mjJNT_HINGE]
-        raise UserError(f"{where}: no hinge joint named {joint!r}; close matches: {close_matches(joint, hinges)}")
+        hinges = [
+            n
+            for n in parts.joint_names(model)
+            if model.jnt_type[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)]
+            == mujoco.mjtJoint.mjJNT_HINGE
+        ]
+        raise UserError(
+            f"{where}: no hinge joint named {joint!r}; close matches: {close_matches(joint, hinges)}"
+        )
     parent = int(model.body_parentid[model.jnt_bodyid[jid]])
     if model.body_weldid[parent] != 0:
-        raise UserError(f"{where}: joint {joint!r} sits on a moving body; inertia about its axis is exact only for a "
-                        "shaft in the frame: add a mass:<part>_kg instead")
+        raise UserError(
+            f"{where}: joint {joint!r} sits on a moving body; inertia about its axis is exact only for a "
+            "shaft in the frame: add a mass:<part>_kg instead"
+        )
     return jid
 
 
 # -- one variant ----------------------------------------------------------------------------
 
 
-def edited_description(description: MachineDescription, changes: dict[tuple[str, str, str], float]) -> MachineDescription:
+def edited_description(
+    description: MachineDescription, changes: dict[tuple[str, str, str], float]
+) -> MachineDescription:
     """The description with offsets added to numeric values (each checked against the schema)."""
     sections = {name: dict(values) for name, values in description.sections.items()}
     motor = dict(description.motor)
@@ -250,14 +337,22 @@ def edited_description(description: MachineDescription, changes: dict[tuple[str,
             table = friction.setdefault(name, {})
             spec, value = FRICTION_KEYS[key], table.get(key, _default(key, table)) + offset
             table[key] = check_value(source, f"friction.{name}", key, spec, _typed(spec, value))
-            if key == "coulomb_Nm" and "static_Nm" in table and table["static_Nm"] < table["coulomb_Nm"]:
+            if (
+                key == "coulomb_Nm"
+                and "static_Nm" in table
+                and table["static_Nm"] < table["coulomb_Nm"]
+            ):
                 table["static_Nm"] = table["coulomb_Nm"]
         else:
             table = motor if kind == "motor" else sections.setdefault(kind, {})
             spec = SCHEMA[kind][name]
             if name not in table and kind != "motor":
-                raise UserError(f"{description.where(kind, name)}: not in the description; an offset needs a value to start from")
-            table[name] = check_value(source, kind, name, spec, _typed(spec, table.get(name, 0.0) + offset))
+                raise UserError(
+                    f"{description.where(kind, name)}: not in the description; an offset needs a value to start from"
+                )
+            table[name] = check_value(
+                source, kind, name, spec, _typed(spec, table.get(name, 0.0) + offset)
+            )
     if "motor" in sections:
         sections["motor"] = motor
     return replace(description, motor=motor, friction=friction, sections=sections)
@@ -301,7 +396,9 @@ def _sort(parameters: Sequence[Parameter], values: Values) -> _Variant:
             if not math.isnan(value):  # NaN: the run's default
                 variant.operating[name] = value
         elif value:
-            variant.description[(kind, name, key)] = variant.description.get((kind, name, key), 0.0) + value
+            variant.description[(kind, name, key)] = (
+                variant.description.get((kind, name, key), 0.0) + value
+            )
     return variant
 
 
@@ -311,7 +408,12 @@ def _voltage(base: SweepBase, variant: _Variant) -> float:
     return variant.operating.get("voltage_V", base.options.voltage_V)
 
 
-def _mass_point(model: mujoco.MjModel, nominal: mujoco.MjModel, part: str, geometry: list[tuple[Parameter, float]]) -> tuple[int, np.ndarray]:
+def _mass_point(
+    model: mujoco.MjModel,
+    nominal: mujoco.MjModel,
+    part: str,
+    geometry: list[tuple[Parameter, float]],
+) -> tuple[int, np.ndarray]:
     """Body and body-frame position [m] of a part's frame, moved by the variant's part offsets."""
     frame = parts.find_frame(nominal, part)
     position = np.array(frame.pos, dtype=float)
@@ -330,10 +432,14 @@ def change_ratios(model: mujoco.MjModel, offsets: dict[str, float]) -> None:
     """Add to the ratio (``polycoef``'s linear term) of linear joint couplings, in place."""
     for name, offset in offsets.items():
         if offset:
-            model.eq_data[linear_coupling(model, name, f"ratio:{name}", "its ratio cannot be offset"), 1] += offset
+            model.eq_data[
+                linear_coupling(model, name, f"ratio:{name}", "its ratio cannot be offset"), 1
+            ] += offset
 
 
-def add_point_mass(model: mujoco.MjModel, body: int, position_m: np.ndarray, mass_kg: float) -> None:
+def add_point_mass(
+    model: mujoco.MjModel, body: int, position_m: np.ndarray, mass_kg: float
+) -> None:
     """Merge a point mass into a body's mass, centre of mass and principal inertia (parallel axes)."""
     if mass_kg == 0.0:
         return
@@ -368,7 +474,16 @@ class VariantRunner:
         model, tables = base.model, base.tables
         if variant.mass or variant.geometry or any(variant.ratio.values()):
             model = self.model
-            for name in ("body_pos", "eq_data", "geom_pos", "site_pos", "body_mass", "body_ipos", "body_inertia", "body_iquat"):
+            for name in (
+                "body_pos",
+                "eq_data",
+                "geom_pos",
+                "site_pos",
+                "body_mass",
+                "body_ipos",
+                "body_inertia",
+                "body_iquat",
+            ):
                 getattr(model, name)[:] = getattr(base.model, name)
             for param, value in variant.geometry:
                 apply_parameter(model, base.model, param, value)
@@ -376,17 +491,31 @@ class VariantRunner:
             for part, mass in variant.mass.items():
                 body, position = _mass_point(model, base.model, part, variant.geometry)
                 add_point_mass(model, body, position, mass)
-            tables = compute_tables(model, state["shaft_joint"], state["tool_site"], len(base.tables.angle_rad),
-                                    state["frame"].zero_rad, state["frame"].direction)
+            tables = compute_tables(
+                model,
+                state["shaft_joint"],
+                state["tool_site"],
+                len(base.tables.angle_rad),
+                state["frame"].zero_rad,
+                state["frame"].direction,
+            )
         if any(variant.inertia.values()):
-            inertia = tables.inertia_kgm2 + sum(added * tables.ratios[joint] ** 2 for joint, added in variant.inertia.items())
-            tables = replace(tables, inertia_kgm2=inertia, dinertia_drad=periodic_derivative(inertia))
+            inertia = tables.inertia_kgm2 + sum(
+                added * tables.ratios[joint] ** 2 for joint, added in variant.inertia.items()
+            )
+            tables = replace(
+                tables, inertia_kgm2=inertia, dinertia_drad=periodic_derivative(inertia)
+            )
         return model, tables
 
     def reduced(self, values: Values) -> tuple[ReducedModel, float]:
         variant = _sort(self.base.parameters, values)
         model, tables = self.tables(variant)
-        description = edited_description(self.base.description, variant.description) if variant.description else self.base.description
+        description = (
+            edited_description(self.base.description, variant.description)
+            if variant.description
+            else self.base.description
+        )
         layers = int(variant.operating.get("layers", self.base.options.layers))
         machine = _VariantMachine(self.base, model, tables, description, layers)
         return ReducedModel(machine, len(tables.angle_rad)), _voltage(self.base, variant)  # type: ignore[arg-type]
@@ -395,7 +524,9 @@ class VariantRunner:
         try:
             reduced, voltage = self.reduced(values)
             options = self.base.options
-            result = reduced.simulate(voltage, options.duration_s, sample_rate_hz=options.sample_rate_hz)
+            result = reduced.simulate(
+                voltage, options.duration_s, sample_rate_hz=options.sample_rate_hz
+            )
         except UserError as exc:  # this variant cannot be built or run: say so in its row
             return {**{name: math.nan for name in METRICS}, "note": str(exc)}
         return variant_metrics(result, reduced)
@@ -430,20 +561,33 @@ class FullRunner:
         from mechanism.dynamics.simulation import simulate_batch
 
         base, options = self.shared.base, self.shared.base.options
-        built = [variant_machine(self.machine, base.parameters, values, options.bearings, options.voltage_V)
-                 for values in group]
+        built = [
+            variant_machine(
+                self.machine, base.parameters, values, options.bearings, options.voltage_V
+            )
+            for values in group
+        ]
         reduced = [self.reduced_runner.reduced(values)[0] for values in group]
         for (variant, _), tables in zip(built, reduced):
-            variant.tables = tables.tables  # the same geometry: no second tabulation (~0.1 s) for the tool height
-        results = simulate_batch([m for m, _ in built], [v for _, v in built], options.duration_s,
-                                 sample_rate_hz=options.sample_rate_hz, threads=self.shared.threads)
+            variant.tables = (
+                tables.tables
+            )  # the same geometry: no second tabulation (~0.1 s) for the tool height
+        results = simulate_batch(
+            [m for m, _ in built],
+            [v for _, v in built],
+            options.duration_s,
+            sample_rate_hz=options.sample_rate_hz,
+            threads=self.shared.threads,
+        )
         rows = []
         for model, result in zip(reduced, results):
             if isinstance(result, UserError):
                 rows.append({**{name: math.nan for name in METRICS}, "note": str(result)})
                 continue
             row = variant_metrics(result, model)  # break-away from the same tables
-            if not self.shared.one_dof:  # the tables are the 1-DOF equation's: no break-away, no tool timing
+            if (
+                not self.shared.one_dof
+            ):  # the tables are the 1-DOF equation's: no break-away, no tool timing
                 row["breakaway_V"] = row["tool_above_plate_ms"] = math.nan
             row.update(bearing_loads(result, options.bearings))
             rows.append(row)
@@ -464,7 +608,9 @@ class SweepResult:
     options: SweepOptions
     seconds: float = 0.0
     resumed: int = 0  # rows kept from an interrupted run
-    degrees_of_freedom: int = 1  # of the machine: other than 1, the full model ran (the reduced one is 1-DOF)
+    degrees_of_freedom: int = (
+        1  # of the machine: other than 1, the full model ran (the reduced one is 1-DOF)
+    )
 
     @property
     def model(self) -> str:
@@ -478,16 +624,27 @@ class SweepResult:
             entry: dict[str, Any] = {"variant": name}
             entry.update({p.name: float(v) for p, v in zip(self.variants.parameters, values)})
             entry.update({key: row.get(key, math.nan) for key in METRICS})
-            entry.update({key: value for key, value in row.items() if key not in METRICS and key != "note"})
+            entry.update(
+                {key: value for key, value in row.items() if key not in METRICS and key != "note"}
+            )
             entry["note"] = row.get("note", "")
             out.append(entry)
         return out
 
 
-def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = SweepOptions(), *, workers: int = 1,
-              backend: str = "local", ray_address: str | None = None, progress: bool = True,
-              journal: str | os.PathLike | None = None, resume: bool = False,
-              on_row: Callable[[int, dict[str, Any]], None] | None = None) -> SweepResult:
+def run_sweep(
+    machine: Machine,
+    variants: VariantSet,
+    options: SweepOptions = SweepOptions(),
+    *,
+    workers: int = 1,
+    backend: str = "local",
+    ray_address: str | None = None,
+    progress: bool = True,
+    journal: str | os.PathLike | None = None,
+    resume: bool = False,
+    on_row: Callable[[int, dict[str, Any]], None] | None = None,
+) -> SweepResult:
     """Every variant's metrics, in file order. With ``journal``, each row is appended to that
     file as it completes; ``resume=True`` keeps the rows an interrupted run of the same sweep
     left there and runs only the others. ``on_row(index, row)`` sees each new row."""
@@ -500,24 +657,41 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
     from mechanism.kinematics.pose import degrees_of_freedom
 
     mobility = degrees_of_freedom(machine.model, machine.reset(0.0))
-    if (mobility != 1 or not machine.rotates) and not options.full:  # the reduced model is the 1-DOF equation of a
-        options = replace(options, full=True)                          # shaft that turns: not this machine's
+    if (
+        mobility != 1 or not machine.rotates
+    ) and not options.full:  # the reduced model is the 1-DOF equation of a
+        options = replace(options, full=True)  # shaft that turns: not this machine's
     base = SweepBase.of(machine, variants.parameters, options)
     variants = with_defaults(variants, options)
     check_parameters(base, variants)
     fingerprint = sweep_fingerprint(machine, variants, options)
     start = time.perf_counter()
     with contextlib.ExitStack() as stack:
-        if journal is not None:  # one sweep at a time writes a journal: a second one would mix rows in
+        if (
+            journal is not None
+        ):  # one sweep at a time writes a journal: a second one would mix rows in
             from mechanism.files.outputs import output_lock
 
-            Path(journal).parent.mkdir(parents=True, exist_ok=True)  # as the journal's own first write does
-            stack.enter_context(output_lock([journal], wait_s=0, busy=(
-                "sweep journal {path}: another sweep{holder} is writing it (the same --csv); wait for it to "
-                "finish or choose another --csv")))
+            Path(journal).parent.mkdir(
+                parents=True, exist_ok=True
+            )  # as the journal's own first write does
+            stack.enter_context(
+                output_lock(
+                    [journal],
+                    wait_s=0,
+                    busy=(
+                        "sweep journal {path}: another sweep{holder} is writing it (the same --csv); wait for it to "
+                        "finish or choose another --csv"
+                    ),
+                )
+            )
         done = read_journal(journal, fingerprint) if journal is not None and resume else {}
         todo = [i for i in range(len(variants)) if i not in done]
-        log = stack.enter_context(open_journal(journal, fingerprint, fresh=not done)) if journal is not None else None
+        log = (
+            stack.enter_context(open_journal(journal, fingerprint, fresh=not done))
+            if journal is not None
+            else None
+        )
 
         def keep(position: int, row: dict[str, Any]) -> None:
             if log is not None:
@@ -532,33 +706,76 @@ def run_sweep(machine: Machine, variants: VariantSet, options: SweepOptions = Sw
 
         try:
             if options.full:
-                rows = _run_full(base, variants, todo, keep, workers, backend, ray_address, progress, mobility == 1)
+                rows = _run_full(
+                    base,
+                    variants,
+                    todo,
+                    keep,
+                    workers,
+                    backend,
+                    ray_address,
+                    progress,
+                    mobility == 1,
+                )
             else:
-                rows = run_batch(_run_variant, [variants.values[i] for i in todo], shared=base, setup=VariantRunner,
-                                 workers=workers, backend=backend, ray_address=ray_address, on_result=keep,
-                                 progress=progress, desc="variants", unit="variant")
+                rows = run_batch(
+                    _run_variant,
+                    [variants.values[i] for i in todo],
+                    shared=base,
+                    setup=VariantRunner,
+                    workers=workers,
+                    backend=backend,
+                    ray_address=ray_address,
+                    on_result=keep,
+                    progress=progress,
+                    desc="variants",
+                    unit="variant",
+                )
         except BatchLost as exc:  # name the variants (rows of the table), and say how to go on
             lost = [todo[i] for i in exc.unfinished if i < len(todo)]
-            kept = f"; the finished rows are kept in {journal}: run it again with --resume to continue" if journal else ""
-            raise UserError(f"the Ray cluster was lost mid-sweep ({exc.cause}): {len(lost)} of {len(variants)} variants "
-                            f"did not run (variants {item_ranges(lost)}, numbered from 0 as in the file){kept}") from None
+            kept = (
+                f"; the finished rows are kept in {journal}: run it again with --resume to continue"
+                if journal
+                else ""
+            )
+            raise UserError(
+                f"the Ray cluster was lost mid-sweep ({exc.cause}): {len(lost)} of {len(variants)} variants "
+                f"did not run (variants {item_ranges(lost)}, numbered from 0 as in the file){kept}"
+            ) from None
     done.update(zip(todo, rows))
-    return SweepResult(variants, [done[i] for i in range(len(variants))], options, time.perf_counter() - start,
-                       resumed=len(variants) - len(todo), degrees_of_freedom=mobility)
+    return SweepResult(
+        variants,
+        [done[i] for i in range(len(variants))],
+        options,
+        time.perf_counter() - start,
+        resumed=len(variants) - len(todo),
+        degrees_of_freedom=mobility,
+    )
 
 
 def with_defaults(variants: VariantSet, options: SweepOptions) -> VariantSet:
     """Operating points a row leaves out (NaN) filled with the run's: the table shows what ran."""
     values = variants.values.copy()
     for column, param in enumerate(variants.parameters):
-        default = {"voltage_V": options.voltage_V, "layers": float(options.layers)}.get(param.target)
+        default = {"voltage_V": options.voltage_V, "layers": float(options.layers)}.get(
+            param.target
+        )
         if default is not None:
             values[np.isnan(values[:, column]), column] = default
     return replace(variants, values=values)
 
 
-def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Callable[[int, dict[str, Any]], None],
-              workers: int, backend: str, ray_address: str | None, progress: bool, one_dof: bool) -> list[dict[str, Any]]:
+def _run_full(
+    base: SweepBase,
+    variants: VariantSet,
+    todo: list[int],
+    keep: Callable[[int, dict[str, Any]], None],
+    workers: int,
+    backend: str,
+    ray_address: str | None,
+    progress: bool,
+    one_dof: bool,
+) -> list[dict[str, Any]]:
     """Groups of variants through ``mujoco.rollout``: locally one process whose rollout pool
     has ``workers`` threads; on Ray one thread per task, the cluster's tasks in parallel."""
     from mechanism.batch import BatchLost, run_batch
@@ -574,16 +791,28 @@ def _run_full(base: SweepBase, variants: VariantSet, todo: list[int], keep: Call
 
     shared = _FullShared(base, workers if local else 1, one_dof)
     try:
-        results = run_batch(_run_group, [[variants.values[i] for i in group] for group in groups], shared=shared,
-                            setup=FullRunner, workers=1 if local else workers, backend=backend, ray_address=ray_address,
-                            on_result=keep_group, progress=progress, desc=f"groups of {size} variants", unit="group")
+        results = run_batch(
+            _run_group,
+            [[variants.values[i] for i in group] for group in groups],
+            shared=shared,
+            setup=FullRunner,
+            workers=1 if local else workers,
+            backend=backend,
+            ray_address=ray_address,
+            on_result=keep_group,
+            progress=progress,
+            desc=f"groups of {size} variants",
+            unit="group",
+        )
     except BatchLost as exc:  # groups lost: the positions (in todo) of their variants
         positions = [int(starts[g]) + k for g in exc.unfinished for k in range(len(groups[g]))]
         raise BatchLost(str(exc), positions, exc.cause) from None
     return [row for rows in results for row in rows]
 
 
-def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = None, group: str | None = None) -> Path:
+def plot_sweep(
+    result: SweepResult, path: str | os.PathLike, x: str | None = None, group: str | None = None
+) -> Path:
     """Speed, ripple, settling time and peak current against one parameter (``x``: default the
     first that varies), one line per value of another (``group``: default the next that varies)."""
     from mechanism.files.plotting import plt, save_figure
@@ -593,21 +822,36 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = Non
     varying = [n for i, n in enumerate(names) if len(np.unique(variants.values[:, i])) > 1]
     for given in (x, group):
         if given is not None and given not in names:
-            raise UserError(f"--plot parameter {given!r} is not in the variants file; close matches: {close_matches(given, names)}")
+            raise UserError(
+                f"--plot parameter {given!r} is not in the variants file; close matches: {close_matches(given, names)}"
+            )
     x = x or (varying[0] if varying else names[0])
     group = group or next((n for n in varying if n != x), None)
     table = result.table()
-    panels = [("mean_speed_rpm", "mean speed [rpm]"), ("ripple_pp_rad_s", "speed ripple p-p [rad/s]"),
-              ("settling_s", "settling time [s]"), ("peak_current_A", "peak current [A]")]
+    panels = [
+        ("mean_speed_rpm", "mean speed [rpm]"),
+        ("ripple_pp_rad_s", "speed ripple p-p [rad/s]"),
+        ("settling_s", "settling time [s]"),
+        ("peak_current_A", "peak current [A]"),
+    ]
     figure, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
     groups = sorted({row[group] for row in table}) if group else [None]
     many = len(groups) > 12 or len({row[x] for row in table}) > 200
     for axis, (key, label) in zip(axes.ravel(), panels):
         for value in groups:
-            rows = sorted((row for row in table if group is None or row[group] == value), key=lambda row: row[x])
+            rows = sorted(
+                (row for row in table if group is None or row[group] == value),
+                key=lambda row: row[x],
+            )
             xs, ys = [row[x] for row in rows], [row[key] for row in rows]
-            style = dict(marker=".", linestyle="none", markersize=3) if many else dict(marker="o", markersize=3)
-            axis.plot(xs, ys, label=None if group is None or many else f"{group} = {value:g}", **style)
+            style = (
+                dict(marker=".", linestyle="none", markersize=3)
+                if many
+                else dict(marker="o", markersize=3)
+            )
+            axis.plot(
+                xs, ys, label=None if group is None or many else f"{group} = {value:g}", **style
+            )
         axis.set_ylabel(label)
         axis.grid(True, alpha=0.3)
     for axis in axes[1]:
@@ -623,8 +867,13 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike, x: str | None = Non
 # -- the independent way: a real Machine per variant ------------------------------------------
 
 
-def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: Values,
-                    bearings: Sequence[str] = (), voltage_V: float = SweepOptions.voltage_V) -> tuple[Machine, float]:
+def variant_machine(
+    machine: Machine,
+    parameters: Sequence[Parameter],
+    values: Values,
+    bearings: Sequence[str] = (),
+    voltage_V: float = SweepOptions.voltage_V,
+) -> tuple[Machine, float]:
     """The variant as a full :class:`Machine` (edited description, the flywheel or mass compiled
     as a welded child body, geometry edited in the compiled model) and its motor voltage:
     slow, independent of the sweep's shortcuts, for checks, for ``--full`` and for a closer look
@@ -635,13 +884,21 @@ def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: V
     voltage when the variant sets none."""
     base = SweepBase.of(machine, parameters, SweepOptions(voltage_V=voltage_V))
     variant = _sort(parameters, values)
-    if variant.description and (machine.config.motor is not None or machine.config.fabric is not None):
+    if variant.description and (
+        machine.config.motor is not None or machine.config.fabric is not None
+    ):
         raise UserError(REPLACED_IN_CODE)
-    description = edited_description(machine.description, variant.description) if variant.description else machine.description
+    description = (
+        edited_description(machine.description, variant.description)
+        if variant.description
+        else machine.description
+    )
     nominal = machine.model
     # every inertia and mass target adds its body, zero or not: one size signature for the whole sweep
     targets = [_split(p.target) for p in parameters if p.dynamic]
-    inertias = {name: variant.inertia.get(name, 0.0) for kind, name, _ in targets if kind == "inertia"}
+    inertias = {
+        name: variant.inertia.get(name, 0.0) for kind, name, _ in targets if kind == "inertia"
+    }
     masses = {name: variant.mass.get(name, 0.0) for kind, name, _ in targets if kind == "mass"}
 
     def extend(spec: mujoco.MjSpec) -> None:
@@ -653,19 +910,36 @@ def variant_machine(machine: Machine, parameters: Sequence[Parameter], values: V
             turn = np.zeros(4)  # the disc's own z along the joint axis
             mujoco.mju_quatZ2Vec(turn, np.array(nominal.jnt_axis[jid], dtype=float))
             # a thin disc: the added inertia about the axis, half of it across (only the axial part moves)
-            holder.add_body(name=f"flywheel:{joint}", pos=nominal.jnt_pos[jid], ipos=[0.0, 0.0, 0.0], quat=turn,
-                            mass=POINT_MASS_INERTIA_KGM2, inertia=[inertia / 2, inertia / 2, inertia], explicitinertial=True)
+            holder.add_body(
+                name=f"flywheel:{joint}",
+                pos=nominal.jnt_pos[jid],
+                ipos=[0.0, 0.0, 0.0],
+                quat=turn,
+                mass=POINT_MASS_INERTIA_KGM2,
+                inertia=[inertia / 2, inertia / 2, inertia],
+                explicitinertial=True,
+            )
         for part, mass in masses.items():
             body, position = _mass_point(nominal, nominal, part, variant.geometry)
             holder = spec.body(nominal.body(body).name)
-            holder.add_body(name=f"mass:{part}", pos=position, ipos=[0.0, 0.0, 0.0], mass=mass,
-                            inertia=[POINT_MASS_INERTIA_KGM2] * 3, explicitinertial=True)
+            holder.add_body(
+                name=f"mass:{part}",
+                pos=position,
+                ipos=[0.0, 0.0, 0.0],
+                mass=mass,
+                inertia=[POINT_MASS_INERTIA_KGM2] * 3,
+                explicitinertial=True,
+            )
         for joint in bearings:
             jid = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, joint)
             child = spec.body(nominal.body(int(nominal.jnt_bodyid[jid])).name)
             site = child.add_site(name=f"bearing:{joint}", pos=nominal.jnt_pos[jid])
-            spec.add_sensor(name=f"bearing:{joint}", type=mujoco.mjtSensor.mjSENS_FORCE,
-                            objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site.name)
+            spec.add_sensor(
+                name=f"bearing:{joint}",
+                type=mujoco.mjtSensor.mjSENS_FORCE,
+                objtype=mujoco.mjtObj.mjOBJ_SITE,
+                objname=site.name,
+            )
 
     layers = int(variant.operating.get("layers", machine.config.layers))
     built = Machine(description, replace(machine.config, layers=layers), extend)
@@ -681,4 +955,6 @@ def check_bearings(model: mujoco.MjModel, bearings: Sequence[str]) -> None:
     joints = parts.joint_names(model)
     for joint in bearings:
         if joint not in joints:
-            raise UserError(f"--bearings: no joint named {joint!r}; close matches: {close_matches(joint, joints)}")
+            raise UserError(
+                f"--bearings: no joint named {joint!r}; close matches: {close_matches(joint, joints)}"
+            )

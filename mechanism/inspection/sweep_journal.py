@@ -45,7 +45,9 @@ def read_journal(path: str | os.PathLike, fingerprint: str) -> dict[int, dict[st
         return {}
     from mechanism.files.limits import read_bounded
 
-    lines = read_bounded(path, "sweep journal", 1 << 30).decode("utf-8", errors="replace").split("\n")
+    lines = (
+        read_bounded(path, "sweep journal", 1 << 30).decode("utf-8", errors="replace").split("\n")
+    )
     try:
         header = json.loads(lines[0])
     except json.JSONDecodeError:
@@ -53,8 +55,10 @@ def read_journal(path: str | os.PathLike, fingerprint: str) -> dict[int, dict[st
     if not isinstance(header, dict) or header.get("format") != JOURNAL_FORMAT:
         raise UserError(f"{path}: not a sweep journal; delete it or choose another --csv")
     if header.get("fingerprint") != fingerprint:
-        raise UserError(f"{path}: left by a different sweep (other machine, variants or run options); delete it to start "
-                        "over, or resume with the same inputs")
+        raise UserError(
+            f"{path}: left by a different sweep (other machine, variants or run options); delete it to start "
+            "over, or resume with the same inputs"
+        )
     done = {}
     for line in lines[1:]:
         try:
@@ -70,8 +74,10 @@ def journal_write_error(path: str | os.PathLike, exc: OSError) -> UserError:
     from mechanism.files.outputs import disk_problem
 
     cause = disk_problem(exc) or exc.strerror or str(exc)
-    return UserError(f"sweep journal {path}: cannot write it, {cause}; the rows done so far are kept there, "
-                     "and --resume continues the sweep once the cause is fixed")
+    return UserError(
+        f"sweep journal {path}: cannot write it, {cause}; the rows done so far are kept there, "
+        "and --resume continues the sweep once the cause is fixed"
+    )
 
 
 @contextlib.contextmanager

@@ -29,7 +29,6 @@ METRICS = {
 }
 
 
-
 def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str, Any]:
     """:data:`METRICS` of one run from rest (a voltage step at t = 0), plus a ``note`` when the
     run did not reach a steady state."""
@@ -43,7 +42,9 @@ def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str
         window = slice(int(len(t) * 0.75), None)
         row["mean_speed_rpm"] = float(np.mean(speed[window]) * 60 / TWO_PI)
         row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[window] ** 2)))
-        row["note"] = "no steady running: under one revolution in the second half of the run (stalled or too slow)"
+        row["note"] = (
+            "no steady running: under one revolution in the second half of the run (stalled or too slow)"
+        )
         return row
     start = int(last[-1]) + 1
     steady = slice(start, None)
@@ -52,15 +53,21 @@ def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str
     row["mean_speed_rpm"] = float(mean * 60 / TWO_PI)
     low, high = float(np.min(speed[steady])), float(np.max(speed[steady]))
     row["ripple_pp_rad_s"] = high - low
-    row["ripple_min_angle_deg"] = float(np.degrees(np.mod(angle[start + int(np.argmin(speed[steady]))], TWO_PI)))
+    row["ripple_min_angle_deg"] = float(
+        np.degrees(np.mod(angle[start + int(np.argmin(speed[steady]))], TWO_PI))
+    )
     row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[steady] ** 2)))
     if np.isfinite(result.needle_z_mm).all():
-        row["tool_above_plate_ms"] = _time_above(t[start - 1 :], result.needle_z_mm[start - 1 :]) * 1e3
+        row["tool_above_plate_ms"] = (
+            _time_above(t[start - 1 :], result.needle_z_mm[start - 1 :]) * 1e3
+        )
     previous = np.flatnonzero(angle <= angle[-1] - 2 * TWO_PI)
     if previous.size:
-        before = t[start - 1] - np.interp(angle[start - 1] - TWO_PI, angle[: start], t[: start])
+        before = t[start - 1] - np.interp(angle[start - 1] - TWO_PI, angle[:start], t[:start])
         if abs(before - period) > STEADY_CHANGE * period:
-            notes.append(f"not steady: the last two revolutions differ by {abs(before - period) / period:.1%}")
+            notes.append(
+                f"not steady: the last two revolutions differ by {abs(before - period) / period:.1%}"
+            )
     band = SETTLING_BAND * mean
     outside = np.flatnonzero((speed[:start] < low - band) | (speed[:start] > high + band))
     if notes:
@@ -76,7 +83,9 @@ def _time_above(t: np.ndarray, height: np.ndarray) -> float:
     dt, low, high = np.diff(t), height[:-1], height[1:]
     both = (low > 0) & (high > 0)
     crossing = (low > 0) != (high > 0)
-    share = np.where(crossing, np.maximum(low, high) / np.maximum(np.abs(low) + np.abs(high), 1e-300), 0.0)
+    share = np.where(
+        crossing, np.maximum(low, high) / np.maximum(np.abs(low) + np.abs(high), 1e-300), 0.0
+    )
     return float(np.sum(dt[both]) + np.sum((dt * share)[crossing]))
 
 
@@ -106,7 +115,6 @@ def breakaway_voltage(reduced: ReducedModel) -> float:
     # linear in the voltage until the supply limits the current: check the answer
     reached = reduced.generalized_force(angles, rest, rest + needed)
     return needed if np.all(reached - static >= -1e-9 * np.maximum(static, 1e-9)) else math.nan
-
 
 
 def bearing_loads(result: SimulationResult, bearings: Sequence[str]) -> dict[str, float]:

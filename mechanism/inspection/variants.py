@@ -72,8 +72,10 @@ EDITED_FIELDS = ("body_pos", "eq_data", "geom_pos", "site_pos")
 
 
 _TARGET = re.compile(r"(coupling|joint|body|part):([^:]+):([A-Za-z0-9_.-]+?)_(deg|mm)")
-_DYNAMIC = re.compile(r"inertia:.+_kgm2|mass:.+_kg|ratio:[^:]+|(motor|supply|tool):[A-Za-z0-9_]+"
-                      r"|friction:[^:]+:[A-Za-z0-9_]+|voltage_V|duty_percent|layers")
+_DYNAMIC = re.compile(
+    r"inertia:.+_kgm2|mass:.+_kg|ratio:[^:]+|(motor|supply|tool):[A-Za-z0-9_]+"
+    r"|friction:[^:]+:[A-Za-z0-9_]+|voltage_V|duty_percent|layers"
+)
 OPERATING_POINT = ("voltage_V", "duty_percent", "layers")  # absolute values, not offsets
 
 
@@ -87,8 +89,10 @@ class Parameter:
     def check(self, model: mujoco.MjModel) -> None:
         """Raise UserError if the target does not exist in ``model``."""
         if self.dynamic:
-            raise UserError(f"parameter {self.name}: {self.target!r} is a dynamic target (mass, inertia, a "
-                            "description value, the operating point): `mechanism sweep` takes it, geometric checks do not")
+            raise UserError(
+                f"parameter {self.name}: {self.target!r} is a dynamic target (mass, inertia, a "
+                "description value, the operating point): `mechanism sweep` takes it, geometric checks do not"
+            )
         apply_parameter(model, model, self, 0.0, check_only=True)
 
     @property
@@ -110,7 +114,9 @@ def _parse_target(target: str) -> tuple[str, str, str, str]:
     return match.group(1), match.group(2), match.group(3), match.group(4)
 
 
-def parameter(name: str, target: str | None = None, presets: dict[str, str] | None = None) -> Parameter:
+def parameter(
+    name: str, target: str | None = None, presets: dict[str, str] | None = None
+) -> Parameter:
     """A parameter from a target string (several joined by ``+`` change together) or a
     preset name."""
     target = (target or (presets or {}).get(name, name)).strip()
@@ -118,8 +124,10 @@ def parameter(name: str, target: str | None = None, presets: dict[str, str] | No
         return Parameter(name, target)
     if ":" not in target and presets is not None:  # a bare name: a preset, perhaps misspelt
         known = [*presets, *OPERATING_POINT]
-        raise UserError(f"parameter {target!r} is neither a preset of the machine's description nor a target; "
-                        f"close matches: {close_matches(target, known)}")
+        raise UserError(
+            f"parameter {target!r} is neither a preset of the machine's description nor a target; "
+            f"close matches: {close_matches(target, known)}"
+        )
     for single in target.split("+"):
         _parse_target(single)
     return Parameter(name, target)
@@ -142,7 +150,13 @@ def _rotate(quat, vector) -> np.ndarray:
     return out
 
 
-def apply_parameter(model: mujoco.MjModel, nominal: mujoco.MjModel, param: Parameter, value: float, check_only: bool = False) -> None:
+def apply_parameter(
+    model: mujoco.MjModel,
+    nominal: mujoco.MjModel,
+    param: Parameter,
+    value: float,
+    check_only: bool = False,
+) -> None:
     """Add ``value`` (deg or mm) of ``param`` to ``model``, starting from ``nominal``'s fields."""
     for target in param.target.split("+"):
         _apply_target(model, nominal, param.name, target, value, check_only)
@@ -152,18 +166,27 @@ def _apply_target(model, nominal, label: str, target: str, value: float, check_o
     kind, name, detail, unit = _parse_target(target)
     if kind == "coupling":
         eq = linear_coupling(nominal, name, f"parameter {label}", "its offset cannot be shifted")
-        joints = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj1id[eq]), mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj2id[eq])]
+        joints = [
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj1id[eq]),
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.eq_obj2id[eq]),
+        ]
         if detail not in joints:
-            raise UserError(f"parameter {label}: coupling {name!r} joins {joints[0]} and {joints[1]}, not {detail!r}")
+            raise UserError(
+                f"parameter {label}: coupling {name!r} joins {joints[0]} and {joints[1]}, not {detail!r}"
+            )
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, detail)
         slide = model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE
         if unit != ("mm" if slide else "deg"):
-            raise UserError(f"parameter {label}: joint {detail!r} is a {'slide' if slide else 'hinge'}: use _{'mm' if slide else 'deg'}")
+            raise UserError(
+                f"parameter {label}: joint {detail!r} is a {'slide' if slide else 'hinge'}: use _{'mm' if slide else 'deg'}"
+            )
         if check_only:
             return
         delta = value / 1000.0 if slide else np.radians(value)
         # q1 = c0 + c1 q2: advancing joint1 adds to c0; advancing joint2 by d needs c0 - c1 d
-        model.eq_data[eq, 0] = nominal.eq_data[eq, 0] + (delta if detail == joints[0] else -nominal.eq_data[eq, 1] * delta)
+        model.eq_data[eq, 0] = nominal.eq_data[eq, 0] + (
+            delta if detail == joints[0] else -nominal.eq_data[eq, 1] * delta
+        )
         return
     if unit != "mm":
         raise UserError(f"parameter {label}: {kind} offsets are lengths: use _mm")
@@ -182,8 +205,13 @@ def _apply_target(model, nominal, label: str, target: str, value: float, check_o
     if kind == "body":
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         if body <= 0:
-            names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) or "" for i in range(1, model.nbody)]
-            raise UserError(f"parameter {label}: no body named {name!r}; close matches: {close_matches(name, names)}")
+            names = [
+                mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) or ""
+                for i in range(1, model.nbody)
+            ]
+            raise UserError(
+                f"parameter {label}: no body named {name!r}; close matches: {close_matches(name, names)}"
+            )
         direction = _body_direction(model, body, detail)
         if not check_only:
             model.body_pos[body] = nominal.body_pos[body] + meters * direction
@@ -199,9 +227,13 @@ def _apply_target(model, nominal, label: str, target: str, value: float, check_o
     loops = parts.loop_equalities(model, name)
     if not loops:
         candidates = parts.joint_names(model) + parts.loop_joint_names(model)
-        raise UserError(f"parameter {label}: no joint named {name!r}; close matches: {close_matches(name, candidates)}")
+        raise UserError(
+            f"parameter {label}: no joint named {name!r}; close matches: {close_matches(name, candidates)}"
+        )
     if detail == "radial":
-        raise UserError(f"parameter {label}: radial offsets need a tree joint; {name!r} closes a loop: use x, y or z of its base body")
+        raise UserError(
+            f"parameter {label}: radial offsets need a tree joint; {name!r} closes a loop: use x, y or z of its base body"
+        )
     direction = _axis(detail, "xyz")
     if check_only:
         return
@@ -214,9 +246,17 @@ def linear_coupling(model: mujoco.MjModel, name: str, where: str, why: str) -> i
     what a polynomial one would prevent)."""
     eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"coupling:{name}")
     if eq < 0 or model.eq_type[eq] != mujoco.mjtEq.mjEQ_JOINT:
-        names = [n[len("coupling:"):] for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or ""
-                                               for i in range(model.neq)) if n.startswith("coupling:")]
-        raise UserError(f"{where}: no coupling named {name!r}; close matches: {close_matches(name, names)}")
+        names = [
+            n[len("coupling:") :]
+            for n in (
+                mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or ""
+                for i in range(model.neq)
+            )
+            if n.startswith("coupling:")
+        ]
+        raise UserError(
+            f"{where}: no coupling named {name!r}; close matches: {close_matches(name, names)}"
+        )
     if np.any(model.eq_data[eq, 2:5]):
         raise UserError(f"{where}: coupling {name!r} is not linear; {why}")
     return eq
@@ -228,11 +268,19 @@ def _body_direction(model, body: int, axis: str, joint: int | None = None) -> np
     if axis != "radial":
         return _axis(axis, "xyz")
     parent = int(model.body_parentid[body])
-    hinges = [j for j in range(model.njnt) if model.jnt_bodyid[j] == parent and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    hinges = [
+        j
+        for j in range(model.njnt)
+        if model.jnt_bodyid[j] == parent and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    ]
     if not hinges:
-        raise UserError(f"radial offset: the parent of body {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} does not rotate on a hinge")
+        raise UserError(
+            f"radial offset: the parent of body {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} does not rotate on a hinge"
+        )
     axis_vec, origin = model.jnt_axis[hinges[0]], model.jnt_pos[hinges[0]]
-    anchor = model.body_pos[body] + _rotate(model.body_quat[body], model.jnt_pos[joint] if joint is not None else np.zeros(3))
+    anchor = model.body_pos[body] + _rotate(
+        model.body_quat[body], model.jnt_pos[joint] if joint is not None else np.zeros(3)
+    )
     radial = anchor - origin
     radial -= np.dot(radial, axis_vec) * axis_vec
     length = np.linalg.norm(radial)
@@ -247,7 +295,10 @@ def _part_sites(model, part: str, body: int) -> list[int]:
     that membership does not depend on edits already made."""
     geoms = parts.part_geoms(model, part)
     own = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, part)
-    boxes = [(model.geom_pos[g] - model.geom_rbound[g], model.geom_pos[g] + model.geom_rbound[g]) for g in geoms]
+    boxes = [
+        (model.geom_pos[g] - model.geom_rbound[g], model.geom_pos[g] + model.geom_rbound[g])
+        for g in geoms
+    ]
     found = [own] if own >= 0 else []
     for s in range(model.nsite):
         if s == own or model.site_bodyid[s] != body:
@@ -255,7 +306,10 @@ def _part_sites(model, part: str, body: int) -> list[int]:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or ""
         if name in parts.part_names(model) or name.startswith("probe:"):
             continue
-        if any(np.all(model.site_pos[s] >= lo - 1e-6) and np.all(model.site_pos[s] <= hi + 1e-6) for lo, hi in boxes):
+        if any(
+            np.all(model.site_pos[s] >= lo - 1e-6) and np.all(model.site_pos[s] <= hi + 1e-6)
+            for lo, hi in boxes
+        ):
             found.append(s)
     return found
 
@@ -281,7 +335,9 @@ class VariantSet:
                 raise UserError(f"{self.source}: {exc}") from None
 
 
-def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None, confirmed: bool = True) -> VariantSet:
+def read_variants(
+    path: str | os.PathLike, presets: dict[str, str] | None = None, confirmed: bool = True
+) -> VariantSet:
     """A variants file.
 
     JSON::
@@ -318,7 +374,9 @@ def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None
             document = json.loads(text)
         except json.JSONDecodeError as exc:
             raise UserError(f"{label}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-        variants = _from_json(document, label, presets, MAX_VARIANTS if confirmed else CONFIRM_VARIANTS)
+        variants = _from_json(
+            document, label, presets, MAX_VARIANTS if confirmed else CONFIRM_VARIANTS
+        )
     else:
         variants = _from_csv(text, label, presets)
     variants.source = label
@@ -326,8 +384,12 @@ def read_variants(path: str | os.PathLike, presets: dict[str, str] | None = None
     return variants
 
 
-def variants_from_document(document: dict, presets: dict[str, str] | None = None, confirmed: bool = True,
-                           label: str = "variants") -> VariantSet:
+def variants_from_document(
+    document: dict,
+    presets: dict[str, str] | None = None,
+    confirmed: bool = True,
+    label: str = "variants",
+) -> VariantSet:
     """A variants document already in memory (the JSON form of :func:`read_variants`)."""
     variants = _from_json(document, label, presets, MAX_VARIANTS if confirmed else CONFIRM_VARIANTS)
     variants.source = label
@@ -338,7 +400,9 @@ def _check_count(count: int, label: str, allowed: int) -> None:
     if count > MAX_VARIANTS:
         raise UserError(f"{label}: {count} variants requested, at most {MAX_VARIANTS} allowed")
     if count > allowed:
-        raise UserError(f"{label}: {count} variants requested; more than {allowed} need --yes to confirm")
+        raise UserError(
+            f"{label}: {count} variants requested; more than {allowed} need --yes to confirm"
+        )
 
 
 def _number(value, where: str) -> float:
@@ -347,12 +411,21 @@ def _number(value, where: str) -> float:
     return float(value)
 
 
-def _from_json(document, label: str, presets: dict[str, str] | None = None, allowed: int = MAX_VARIANTS) -> VariantSet:
+def _from_json(
+    document, label: str, presets: dict[str, str] | None = None, allowed: int = MAX_VARIANTS
+) -> VariantSet:
     if not isinstance(document, dict):
         raise UserError(f"{label}: expected a JSON object")
     if document.get("format", FORMAT) != FORMAT:
         raise UserError(f"{label}: format {document.get('format')!r} is not {FORMAT!r}")
-    unknown = set(document) - {"format", "parameters", "sweep", "samples", "variants", "description"}
+    unknown = set(document) - {
+        "format",
+        "parameters",
+        "sweep",
+        "samples",
+        "variants",
+        "description",
+    }
     if unknown:
         raise UserError(f"{label}: unknown key(s) {', '.join(sorted(unknown))}")
     declared = document.get("parameters") or {}
@@ -399,11 +472,24 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None, allo
                 param(key, where)
                 values[key] = _number(value, f"{where}.{key}")
         rows.append((name, values))
-    count = len(rows) + math.prod(len(v) for _, v in grid_axes) * max(len(draws), 1) if grid_axes else len(rows) + len(draws)
+    count = (
+        len(rows) + math.prod(len(v) for _, v in grid_axes) * max(len(draws), 1)
+        if grid_axes
+        else len(rows) + len(draws)
+    )
     _check_count(count, label, allowed)  # from the request, before the grid is built
-    grid = [dict(zip([n for n, _ in grid_axes], combo)) for combo in itertools.product(*[v for _, v in grid_axes])] if grid_axes else []
+    grid = (
+        [
+            dict(zip([n for n, _ in grid_axes], combo))
+            for combo in itertools.product(*[v for _, v in grid_axes])
+        ]
+        if grid_axes
+        else []
+    )
     if grid and draws:
-        combined = [({**g, **{k: g.get(k, 0.0) + v for k, v in d.items()}}) for g in grid for d in draws]
+        combined = [
+            ({**g, **{k: g.get(k, 0.0) + v for k, v in d.items()}}) for g in grid for d in draws
+        ]
     else:
         combined = grid or draws
     for i, values in enumerate(combined):
@@ -414,7 +500,9 @@ def _from_json(document, label: str, presets: dict[str, str] | None = None, allo
         raise UserError(f"{label}: no parameters")
     # an operating point left out of a row is the run's default (NaN), not an offset of 0
     missing = [math.nan if params[n].target in OPERATING_POINT else 0.0 for n in names]
-    table = np.array([[row.get(n, gap) for n, gap in zip(names, missing)] for _, row in rows], dtype=float)
+    table = np.array(
+        [[row.get(n, gap) for n, gap in zip(names, missing)] for _, row in rows], dtype=float
+    )
     return VariantSet([params[n] for n in names], [r[0] for r in rows], table)
 
 
@@ -439,7 +527,9 @@ def _draw_samples(samples, where: str, param) -> list[dict[str, float]]:
         raise UserError(f"{where}: count must be an integer between 1 and {MAX_VARIANTS}")
     method = samples.get("method", "random")
     if method not in ("random", "lhs"):
-        raise UserError(f"{where}: method must be 'random' (independent draws) or 'lhs' (Latin hypercube)")
+        raise UserError(
+            f"{where}: method must be 'random' (independent draws) or 'lhs' (Latin hypercube)"
+        )
     tolerances = samples.get("tolerances")
     if not isinstance(tolerances, dict) or not tolerances:
         raise UserError(f"{where}: 'tolerances' must map parameter names to distributions")
@@ -449,7 +539,9 @@ def _draw_samples(samples, where: str, param) -> list[dict[str, float]]:
         laws[name] = _distribution(dist, f"{where}: {name}")
     seed = samples.get("seed")
     if seed is None:
-        raise UserError(f"{where}: a seed is required (\"seed\": 1, say), so that the same file gives the same variants")
+        raise UserError(
+            f'{where}: a seed is required ("seed": 1, say), so that the same file gives the same variants'
+        )
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise UserError(f"{where}: seed must be a non-negative integer")
     rng = np.random.default_rng(seed)
@@ -466,7 +558,9 @@ def _draw_samples(samples, where: str, param) -> list[dict[str, float]]:
 def _distribution(dist, at: str) -> Callable[[np.ndarray], np.ndarray]:
     """The inverse cumulative distribution of a tolerance: uniform [0, 1) draws -> values."""
     if not isinstance(dist, dict) or dist.get("dist") not in ("normal", "uniform"):
-        raise UserError(f"{at}: expected {{\"dist\": \"normal\", \"std\": ...}} or {{\"dist\": \"uniform\", \"low\": ..., \"high\": ...}}")
+        raise UserError(
+            f'{at}: expected {{"dist": "normal", "std": ...}} or {{"dist": "uniform", "low": ..., "high": ...}}'
+        )
     if dist["dist"] == "normal":
         if set(dist) - {"dist", "mean", "std"} or "std" not in dist:
             raise UserError(f"{at}: a normal distribution takes mean (default 0) and std")
@@ -490,7 +584,9 @@ def _from_csv(text: str, label: str, presets: dict[str, str] | None = None) -> V
 
     from mechanism.files.tables import parse_table
 
-    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    lines = [
+        line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")
+    ]
     if not lines:
         raise UserError(f"{label}: empty (no header line)")
     header = [h.strip() for h in next(csv.reader(io.StringIO(lines[0])))]
@@ -508,7 +604,11 @@ def _from_csv(text: str, label: str, presets: dict[str, str] | None = None) -> V
     labels = [f"row {i + 1}" for i in range(rows)]
     if "name" in header:
         column = header.index("name")
-        body = [row for row in csv.reader(io.StringIO("\n".join(lines[1:]))) if any(c.strip() for c in row)]
+        body = [
+            row
+            for row in csv.reader(io.StringIO("\n".join(lines[1:])))
+            if any(c.strip() for c in row)
+        ]
         labels = [row[column].strip() or labels[i] for i, row in enumerate(body)]
     values = np.column_stack([table[n] for n in names])
     nominal = [math.nan if p.target in OPERATING_POINT else 0.0 for p in params]
@@ -542,8 +642,15 @@ class VariantChecker:
         self.config = config
         self.nominal = config.model
         self.model = _copy_model(config.model)
-        self.sweep = ClearanceSweep(self.model, config.pairs, config.driver, config.revolutions, config.resolution_deg,
-                                    config.travel, config.frame)
+        self.sweep = ClearanceSweep(
+            self.model,
+            config.pairs,
+            config.driver,
+            config.revolutions,
+            config.resolution_deg,
+            config.travel,
+            config.frame,
+        )
 
     def __call__(self, values: Sequence[float] | np.ndarray) -> dict:
         for name in EDITED_FIELDS:
@@ -556,7 +663,13 @@ class VariantChecker:
             results = self.sweep.run()
         except UserError as exc:  # this variant cannot be assembled over the cycle
             for pair in self.config.pairs:
-                row.update({f"{pair.column}_min_mm": float("nan"), f"{pair.column}_angle_deg": float("nan"), f"{pair.column}_pass": 0})
+                row.update(
+                    {
+                        f"{pair.column}_min_mm": float("nan"),
+                        f"{pair.column}_angle_deg": float("nan"),
+                        f"{pair.column}_pass": 0,
+                    }
+                )
             row["pass"] = 0
             row["note"] = str(exc)
             return row
@@ -635,9 +748,31 @@ def run_variants(
     if driver is None:
         raise UserError("clearance variants need the joint that drives the cycle (driver)")
     travel = inspection_travel(model, driver, description)
-    config = BatchConfig(model, list(pairs), variants.parameters, driver, revolutions, resolution_deg, required_mm,
-                         None if travel.rotates else travel, inspection_frame(model, driver, description, travel))
+    config = BatchConfig(
+        model,
+        list(pairs),
+        variants.parameters,
+        driver,
+        revolutions,
+        resolution_deg,
+        required_mm,
+        None if travel.rotates else travel,
+        inspection_frame(model, driver, description, travel),
+    )
     start = time.perf_counter()
-    rows = run_batch(_check, list(variants.values), shared=config, setup=VariantChecker, workers=workers, backend=backend,
-                     ray_address=ray_address, on_result=on_row, progress=progress, desc="variants", unit="variant")
-    return BatchResult(variants, rows, list(pairs), required_mm, workers, backend, time.perf_counter() - start)
+    rows = run_batch(
+        _check,
+        list(variants.values),
+        shared=config,
+        setup=VariantChecker,
+        workers=workers,
+        backend=backend,
+        ray_address=ray_address,
+        on_result=on_row,
+        progress=progress,
+        desc="variants",
+        unit="variant",
+    )
+    return BatchResult(
+        variants, rows, list(pairs), required_mm, workers, backend, time.perf_counter() - start
+    )

@@ -35,7 +35,9 @@ from mechanism.errors import UserError
 
 DEFAULT_FRAMES = 120
 VIEW_SECTIONS = 32  # tessellation of primitive geoms in the viewer
-TARGET_SIZE = 1.5  # the model is scaled to about this size [viewer units] to suit meshcat's default camera
+TARGET_SIZE = (
+    1.5  # the model is scaled to about this size [viewer units] to suit meshcat's default camera
+)
 FRAME_OPACITY = 0.3  # parts fixed to the world are drawn translucent
 MARKER_COLORS = (0xE6194B, 0x3CB44B, 0x4363D8, 0xF58231, 0x911EB4, 0x42D4F4)
 
@@ -55,7 +57,9 @@ def _check_frames(frames: int) -> None:
         raise UserError(f"frames must be between 2 and 20000, got {frames}")
 
 
-def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str | None = None, description=None) -> Motion:
+def cycle_motion(
+    model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: str | None = None, description=None
+) -> Motion:
     """One revolution of ``driver`` in ``frames`` frames (the last one back at the start); a
     driver that rocks goes from the lower end of its travel to the upper and back."""
     from mechanism.kinematics.pose import approach, named_joint, sweep
@@ -66,16 +70,29 @@ def cycle_motion(model: mujoco.MjModel, frames: int = DEFAULT_FRAMES, driver: st
     travel = inspection_travel(model, driver, description)
     if travel.rotates:
         angles = np.linspace(0.0, 2 * np.pi, frames)
-        return Motion(angles / (2 * np.pi), sweep(model, angles, driver), f"one {driver} revolution", realtime=False)
+        return Motion(
+            angles / (2 * np.pi),
+            sweep(model, angles, driver),
+            f"one {driver} revolution",
+            realtime=False,
+        )
     phase = np.linspace(0.0, 1.0, frames)
     angles = travel.lower + (travel.upper - travel.lower) * (1.0 - np.cos(2 * np.pi * phase)) / 2
     data = mujoco.MjData(model)
     approach(model, data, driver, float(angles[0]))
-    return Motion(phase, sweep(model, angles, driver, data), f"{travel.text()} and back", realtime=False)
+    return Motion(
+        phase, sweep(model, angles, driver, data), f"{travel.text()} and back", realtime=False
+    )
 
 
-def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int = DEFAULT_FRAMES, driver: str | None = None,
-                     zero_rad: float = 0.0, direction: float = 1.0) -> Motion:
+def recording_motion(
+    model: mujoco.MjModel,
+    path: str | os.PathLike,
+    frames: int = DEFAULT_FRAMES,
+    driver: str | None = None,
+    zero_rad: float = 0.0,
+    direction: float = 1.0,
+) -> Motion:
     """A bench recording (``time``, ``voltage``, ``shaft_angle`` or ``arm_angle`` [rad, from the
     shaft's zero]) replayed kinematically at ``frames`` evenly spaced times; the driver joint's
     position is ``zero_rad + direction * angle``."""
@@ -83,10 +100,18 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
     from mechanism.files.tables import check_increasing, read_table
 
     _check_frames(frames)
-    table = read_table(path, required=["time", "arm_angle"], optional=["voltage"],
-                       aliases={"time": ["time_s"], "arm_angle": ["arm_angle_rad", "shaft_angle", "shaft_angle_rad"],
-                                "voltage": ["voltage_V"]},
-                       min_rows=2, what="recording")
+    table = read_table(
+        path,
+        required=["time", "arm_angle"],
+        optional=["voltage"],
+        aliases={
+            "time": ["time_s"],
+            "arm_angle": ["arm_angle_rad", "shaft_angle", "shaft_angle_rad"],
+            "voltage": ["voltage_V"],
+        },
+        min_rows=2,
+        what="recording",
+    )
     time, angle = table["time"], table["arm_angle"]
     check_increasing(time, table.source)
     times = np.linspace(time[0], time[-1], frames)
@@ -97,14 +122,18 @@ def recording_motion(model: mujoco.MjModel, path: str | os.PathLike, frames: int
     # walk from angle 0 in small steps so that the assembly stays on its branch
     previous = zero_rad
     for target in angles:
-        for step in np.linspace(previous, target, max(2, int(abs(target - previous) / 0.1) + 2))[1:]:
+        for step in np.linspace(previous, target, max(2, int(abs(target - previous) / 0.1) + 2))[
+            1:
+        ]:
             solve_pose(model, data, {driver: float(step)})
         previous = float(target)
         qpos.append(data.qpos.copy())
     return Motion(times - times[0], np.asarray(qpos), f"recording {os.path.basename(str(path))}")
 
 
-def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_FRAMES, description=None) -> tuple[mujoco.MjModel, Motion]:
+def simulation_motion(
+    voltage: float, duration_s: float, frames: int = DEFAULT_FRAMES, description=None
+) -> tuple[mujoco.MjModel, Motion]:
     """A dynamic simulation from rest under ``voltage`` (the main motor's, or joint -> input): its
     joint positions at ``frames`` times."""
     from mechanism.machine.machine import input_unit
@@ -118,9 +147,16 @@ def simulation_motion(voltage: float, duration_s: float, frames: int = DEFAULT_F
     picks = np.linspace(0, len(result.time_s) - 1, frames).round().astype(int)
     assert result.state is not None  # the full model's simulate() keeps every sample's state
     qpos = result.state[picks, 1 : 1 + machine.model.nq]
-    how = (f"{voltage:g} V" if not isinstance(voltage, dict)
-           else ", ".join(f"{joint} {value:g} {unit}" for joint, value, unit in
-                          ((j, v, input_unit(machine.description, j)) for j, v in voltage.items())))
+    how = (
+        f"{voltage:g} V"
+        if not isinstance(voltage, dict)
+        else ", ".join(
+            f"{joint} {value:g} {unit}"
+            for joint, value, unit in (
+                (j, v, input_unit(machine.description, j)) for j, v in voltage.items()
+            )
+        )
+    )
     return machine.model, Motion(result.time_s[picks], qpos, f"simulation at {how}")
 
 
@@ -138,7 +174,6 @@ def _meshcat():
     return meshcat
 
 
-
 class _Recorder:
     """Stands in for meshcat's ZMQ window: keeps every command, packed as the server would."""
 
@@ -154,7 +189,9 @@ class _Recorder:
 def _color(model: mujoco.MjModel, geom: int) -> tuple[int, float]:
     rgba = model.geom_rgba[geom]
     material = model.geom_matid[geom]
-    if material >= 0 and np.allclose(rgba, [0.5, 0.5, 0.5, 1.0]):  # MuJoCo's default: the material decides
+    if material >= 0 and np.allclose(
+        rgba, [0.5, 0.5, 0.5, 1.0]
+    ):  # MuJoCo's default: the material decides
         rgba = model.mat_rgba[material]
     r, g, b = (int(round(255 * float(np.clip(c, 0, 1)))) for c in rgba[:3])
     return (r << 16) | (g << 8) | b, float(rgba[3])
@@ -171,7 +208,16 @@ def _shown_geoms(model: mujoco.MjModel) -> list[int]:
     visual = [g for g in range(model.ngeom) if model.geom_group[g] == parts.VISUAL_GROUP]
     if not visual:
         visual = [g for g in range(model.ngeom) if model.geom_group[g] < 3]
-    return [g for g in visual if model.geom_type[g] not in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD, mujoco.mjtGeom.mjGEOM_SDF)]
+    return [
+        g
+        for g in visual
+        if model.geom_type[g]
+        not in (
+            mujoco.mjtGeom.mjGEOM_PLANE,
+            mujoco.mjtGeom.mjGEOM_HFIELD,
+            mujoco.mjtGeom.mjGEOM_SDF,
+        )
+    ]
 
 
 @dataclass
@@ -187,11 +233,15 @@ class Marker:
 @dataclass
 class Overlays:
     markers: list[Marker] = field(default_factory=list)
-    lines: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)  # name, world points [m]
+    lines: list[tuple[str, np.ndarray, np.ndarray]] = field(
+        default_factory=list
+    )  # name, world points [m]
     notes: list[str] = field(default_factory=list)
 
 
-def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None = None, visualizer=None):
+def build_scene(
+    model: mujoco.MjModel, motion: Motion, overlays: Overlays | None = None, visualizer=None
+):
     """Send the scene and its animation to a meshcat ``visualizer`` (a recorder by default);
     returns the visualizer."""
     meshcat = _meshcat()
@@ -213,7 +263,9 @@ def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None
     placed_vertices = []
     for geom in shown:
         vertices, _ = geom_mesh(model, geom, VIEW_SECTIONS)
-        placed_vertices.append(vertices @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom])
+        placed_vertices.append(
+            vertices @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+        )
     points = np.vstack(placed_vertices)
     low, high = points.min(axis=0), points.max(axis=0)
     scale = TARGET_SIZE / max(float(np.max(high - low)), 1e-9)
@@ -221,16 +273,22 @@ def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None
     root[:3, 3] = -scale * 0.5 * (low + high)
     vis["/Grid"].set_property("visible", False)
     vis["/Axes"].set_property("visible", False)
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.6, 1.9])  # from the operator's side (-y), a little above
+    vis["/Cameras/default/rotated/<object>"].set_property(
+        "position", [0.0, 0.6, 1.9]
+    )  # from the operator's side (-y), a little above
     scene = vis["mechanism"]
     scene.set_transform(root)
 
-    bodies = sorted({int(model.geom_bodyid[geom]) for geom in shown} | {m.body for m in overlays.markers})
+    bodies = sorted(
+        {int(model.geom_bodyid[geom]) for geom in shown} | {m.body for m in overlays.markers}
+    )
     for geom in shown:
         body = int(model.geom_bodyid[geom])
         vertices, faces = geom_mesh(model, geom, VIEW_SECTIONS)
         color, opacity = _color(model, geom)
-        if model.body_weldid[body] == 0:  # the fixed frame (casting, plates): see the mechanism through it
+        if (
+            model.body_weldid[body] == 0
+        ):  # the fixed frame (casting, plates): see the mechanism through it
             opacity = min(opacity, FRAME_OPACITY)
         material = g.MeshLambertMaterial(color=color, opacity=opacity, transparent=opacity < 1)
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or f"geom{geom}"
@@ -246,7 +304,9 @@ def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None
         node.set_transform(_transform(marker.point, np.eye(3)))
     for name, start, end in overlays.lines:
         vertices = np.column_stack([start, end]).astype(np.float32)
-        scene[f"line:{name}"].set_object(g.Line(g.PointsGeometry(vertices), g.LineBasicMaterial(color=0xFF0000, linewidth=3)))
+        scene[f"line:{name}"].set_object(
+            g.Line(g.PointsGeometry(vertices), g.LineBasicMaterial(color=0xFF0000, linewidth=3))
+        )
 
     animation = Animation(default_framerate=_framerate(motion))
     for frame, qpos in enumerate(motion.qpos):
@@ -254,7 +314,9 @@ def build_scene(model: mujoco.MjModel, motion: Motion, overlays: Overlays | None
         mujoco.mj_kinematics(model, data)
         with animation.at_frame(scene, frame) as at:
             for body in bodies:
-                at[_body_path(model, body)].set_transform(_transform(data.xpos[body], data.xmat[body]))
+                at[_body_path(model, body)].set_transform(
+                    _transform(data.xpos[body], data.xmat[body])
+                )
     vis.set_animation(animation, play=True, repetitions=1_000_000)
     return vis
 
@@ -277,7 +339,9 @@ def static_html(vis, title: str, frames: int, notes: Sequence[str] = ()) -> str:
 
     ``document.body.dataset`` carries ``frames`` (keyframes of the longest animation
     track, as loaded by the viewer) and ``ready`` once every command has been handled."""
-    bundle = resources.files("meshcat").joinpath("viewer/dist/main.min.js").read_text(encoding="utf-8")
+    bundle = (
+        resources.files("meshcat").joinpath("viewer/dist/main.min.js").read_text(encoding="utf-8")
+    )
     commands = json.dumps([base64.b64encode(c).decode("ascii") for c in vis.window.commands])
     caption = "<br>".join(_escape(n) for n in [title, *notes])
     return f"""<!DOCTYPE html>
@@ -325,13 +389,22 @@ def _escape(text: str) -> str:
 # -- overlays ------------------------------------------------------------------------------
 
 
-def probe_markers(model: mujoco.MjModel, names: Sequence[str], points_mm: Sequence | None = None) -> list[Marker]:
+def probe_markers(
+    model: mujoco.MjModel, names: Sequence[str], points_mm: Sequence | None = None
+) -> list[Marker]:
     """Markers at probe points (part/frame names, optional points [mm] in their frames)."""
     markers = []
     for i, name in enumerate(names):
         frame = parts.find_frame(model, name)
         point = np.asarray(points_mm[i] if points_mm else (0, 0, 0), dtype=float) / 1000.0
-        markers.append(Marker(f"probe:{name}", frame.body, frame.point_in_body(point), MARKER_COLORS[i % len(MARKER_COLORS)]))
+        markers.append(
+            Marker(
+                f"probe:{name}",
+                frame.body,
+                frame.point_in_body(point),
+                MARKER_COLORS[i % len(MARKER_COLORS)],
+            )
+        )
     return markers
 
 
@@ -343,16 +416,30 @@ def clearance_overlays(model: mujoco.MjModel, results, driver: str) -> Overlays:
     overlays = Overlays()
     data = mujoco.MjData(model)
     for k, result in enumerate(results):
-        angle = np.radians(result.angle_deg if result.driver_angle_deg is None else result.driver_angle_deg)
-        data.qpos[:] = sweep(model, np.linspace(0, angle, max(2, int(abs(angle) / 0.1) + 2)), driver)[-1]
+        angle = np.radians(
+            result.angle_deg if result.driver_angle_deg is None else result.driver_angle_deg
+        )
+        data.qpos[:] = sweep(
+            model, np.linspace(0, angle, max(2, int(abs(angle) / 0.1) + 2)), driver
+        )[-1]
         mujoco.mj_kinematics(model, data)
         color = MARKER_COLORS[(k + 3) % len(MARKER_COLORS)]
         for part, point in ((result.pair.a, result.point_a_mm), (result.pair.b, result.point_b_mm)):
             body = int(model.geom_bodyid[parts.shape_geoms(model, part)[0]])
             local = data.xmat[body].reshape(3, 3).T @ (np.asarray(point) / 1000.0 - data.xpos[body])
-            overlays.markers.append(Marker(f"closest:{result.pair.label}:{part}", body, local, color))
-        overlays.lines.append((result.pair.label, np.asarray(result.point_a_mm) / 1000.0, np.asarray(result.point_b_mm) / 1000.0))
-        overlays.notes.append(f"{result.pair.label}: min {result.min_distance_mm:.3f} mm at {result.angle_deg:.1f} deg")
+            overlays.markers.append(
+                Marker(f"closest:{result.pair.label}:{part}", body, local, color)
+            )
+        overlays.lines.append(
+            (
+                result.pair.label,
+                np.asarray(result.point_a_mm) / 1000.0,
+                np.asarray(result.point_b_mm) / 1000.0,
+            )
+        )
+        overlays.notes.append(
+            f"{result.pair.label}: min {result.min_distance_mm:.3f} mm at {result.angle_deg:.1f} deg"
+        )
     return overlays
 
 
@@ -390,7 +477,14 @@ def view(
 
         machine = Machine(description)
         model = machine.model
-        motion = recording_motion(model, recording, frames, machine.shaft_joint, machine.frame.zero_rad, machine.frame.direction)
+        motion = recording_motion(
+            model,
+            recording,
+            frames,
+            machine.shaft_joint,
+            machine.frame.zero_rad,
+            machine.frame.direction,
+        )
     else:
         model = load_model(model_path)
         motion = cycle_motion(model, frames, driver, description)
@@ -398,7 +492,9 @@ def view(
     if pairs:
         from mechanism.inspection.clearance import check_clearance, parse_pairs
 
-        report = check_clearance(model, parse_pairs(pairs, model), driver=driver, description=description)
+        report = check_clearance(
+            model, parse_pairs(pairs, model), driver=driver, description=description
+        )
         extra = clearance_overlays(model, report.results, report.driver)
         overlays.markers += extra.markers
         overlays.lines += extra.lines

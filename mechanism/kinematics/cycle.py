@@ -35,10 +35,14 @@ from mechanism.kinematics.pose import position_only, joint_dof, solve_pose, velo
 
 DEFAULT_SPEED_RPM = 600.0  # a mid-range household sewing speed (10 stitches per second)
 DEFAULT_RESOLUTION_DEG = 0.5
-DERIVATIVE_STEP_RAD = 1e-5  # central difference of dq/dθ: truncation ~1e-10, round-off ~1e-8 (relative)
+DERIVATIVE_STEP_RAD = (
+    1e-5  # central difference of dq/dθ: truncation ~1e-10, round-off ~1e-8 (relative)
+)
 
 
-def cycle_angles(revolutions: float = 1.0, resolution_deg: float = DEFAULT_RESOLUTION_DEG, start_deg: float = 0.0) -> np.ndarray:
+def cycle_angles(
+    revolutions: float = 1.0, resolution_deg: float = DEFAULT_RESOLUTION_DEG, start_deg: float = 0.0
+) -> np.ndarray:
     """Driver angles [rad] covering ``revolutions`` turns at ``resolution_deg`` steps (end excluded)."""
     count = max(1, int(round(360.0 * revolutions / resolution_deg)))
     return np.radians(start_deg + resolution_deg * np.arange(count))

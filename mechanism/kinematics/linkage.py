@@ -87,9 +87,15 @@ def up_axis(model: mujoco.MjModel) -> np.ndarray:
     return -g / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
 
 
-def compute_tables(model: mujoco.MjModel, driver: str, tool_site: str | None = None, n: int = 720,
-                   zero_rad: float = 0.0, direction: float = 1.0,
-                   span: tuple[float, float] | None = None) -> LinkageTables:
+def compute_tables(
+    model: mujoco.MjModel,
+    driver: str,
+    tool_site: str | None = None,
+    n: int = 720,
+    zero_rad: float = 0.0,
+    direction: float = 1.0,
+    span: tuple[float, float] | None = None,
+) -> LinkageTables:
     """Tabulate J, J', G, joint ratios and positions over one revolution of ``driver``.
 
     Sample i is at shaft angle θ_i = 2πi/n, i.e. joint position ``zero_rad + direction θ_i``;
@@ -100,8 +106,12 @@ def compute_tables(model: mujoco.MjModel, driver: str, tool_site: str | None = N
         raise UserError("at least 16 table samples per revolution are needed")
     data = mujoco.MjData(model)
     angles = np.arange(n) * TWO_PI / n if span is None else np.linspace(span[0], span[1], n)
-    one_dof = [j for j in range(model.njnt)
-               if int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))]
+    one_dof = [
+        j
+        for j in range(model.njnt)
+        if int(model.jnt_type[j])
+        in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    ]
     names = [model.joint(j).name for j in one_dof]
     inertia, gravity = np.zeros(n), np.zeros(n)
     ratios = {name: np.zeros(n) for name in names}
@@ -131,7 +141,9 @@ def compute_tables(model: mujoco.MjModel, driver: str, tool_site: str | None = N
     return LinkageTables(
         angle_rad=angles,
         inertia_kgm2=inertia,
-        dinertia_drad=periodic_derivative(inertia) if span is None else np.gradient(inertia, angles),
+        dinertia_drad=periodic_derivative(inertia)
+        if span is None
+        else np.gradient(inertia, angles),
         gravity_torque_Nm=gravity,
         ratios=ratios,
         positions=positions,

@@ -22,8 +22,11 @@ import mujoco
 import numpy as np
 
 from mechanism.errors import UserError, close_matches
-from mechanism.tolerances import JOINT_RANK_TOLERANCE, POSITION_TOLERANCE, RELATIVE_POSITION_TOLERANCE
-
+from mechanism.tolerances import (
+    JOINT_RANK_TOLERANCE,
+    POSITION_TOLERANCE,
+    RELATIVE_POSITION_TOLERANCE,
+)
 
 
 def position_tolerance(model: mujoco.MjModel) -> float:
@@ -40,8 +43,10 @@ class PoseError(UserError):
 def named_joint(joint: str | None) -> str:
     """``joint``, where one is named: the driver a caller may leave out (None) until it is needed."""
     if not joint:
-        raise UserError("no joint given: name the joint that drives the mechanism (a machine description's "
-                        "shaft_joint, or --driver)")
+        raise UserError(
+            "no joint given: name the joint that drives the mechanism (a machine description's "
+            "shaft_joint, or --driver)"
+        )
     return joint
 
 
@@ -51,8 +56,13 @@ def joint_dof(model: mujoco.MjModel, joint: str) -> tuple[int, int]:
     jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
     if jid < 0:
         names = [model.joint(i).name for i in range(model.njnt)]
-        raise UserError(f"no joint named {joint!r} in the model; close matches: {close_matches(joint, names)}")
-    if int(model.jnt_type[jid]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        raise UserError(
+            f"no joint named {joint!r} in the model; close matches: {close_matches(joint, names)}"
+        )
+    if int(model.jnt_type[jid]) not in (
+        int(mujoco.mjtJoint.mjJNT_HINGE),
+        int(mujoco.mjtJoint.mjJNT_SLIDE),
+    ):
         raise UserError(f"joint {joint!r} is not a hinge or slide joint")
     return int(model.jnt_qposadr[jid]), int(model.jnt_dofadr[jid])
 
@@ -64,12 +74,18 @@ def is_slide(model: mujoco.MjModel, joint: str) -> bool:
 
 def joint_value_text(model: mujoco.MjModel, joint: str, value: float) -> str:
     """A joint coordinate in the user's units: degrees for a hinge, mm for a slide."""
-    return f"{float(value) * 1e3:.4g} mm" if is_slide(model, joint) else f"{np.degrees(float(value)):.4g} deg"
+    return (
+        f"{float(value) * 1e3:.4g} mm"
+        if is_slide(model, joint)
+        else f"{np.degrees(float(value)):.4g} deg"
+    )
 
 
 def describe_positions(model: mujoco.MjModel, fixed: Mapping[str, float]) -> str:
     """'JOINT at 80 deg, SLIDE at 3 mm' (joint coordinates: 0 at the export's assembly pose)."""
-    return ", ".join(f"{name} at {joint_value_text(model, name, value)}" for name, value in fixed.items())
+    return ", ".join(
+        f"{name} at {joint_value_text(model, name, value)}" for name, value in fixed.items()
+    )
 
 
 @contextlib.contextmanager
@@ -146,7 +162,9 @@ def solve_pose(
     return norm
 
 
-APPROACH_STEP_RAD = np.radians(5.0)  # a rocker walks from the export's pose to where a sweep starts in 5 deg steps
+APPROACH_STEP_RAD = np.radians(
+    5.0
+)  # a rocker walks from the export's pose to where a sweep starts in 5 deg steps
 APPROACH_STEP_M = 2e-3
 
 
@@ -192,7 +210,11 @@ def passive_joints(model: mujoco.MjModel, data: mujoco.MjData, driven: Iterable[
         return []
     if jac.size:
         _, singular, vt = np.linalg.svd(jac[:, free])
-        rank = int(np.sum(singular > JOINT_RANK_TOLERANCE * max(singular[0] if singular.size else 0.0, 1e-300)))
+        rank = int(
+            np.sum(
+                singular > JOINT_RANK_TOLERANCE * max(singular[0] if singular.size else 0.0, 1e-300)
+            )
+        )
         null = vt[rank:].T
     else:
         null = np.eye(free.size)
@@ -203,7 +225,9 @@ def passive_joints(model: mujoco.MjModel, data: mujoco.MjData, driven: Iterable[
     out = []
     for j in range(model.njnt):
         name = model.joint(j).name
-        width = {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(int(model.jnt_type[j]), 1)
+        width = {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(
+            int(model.jnt_type[j]), 1
+        )
         dof = int(model.jnt_dofadr[j])
         if name and np.max(motion[dof : dof + width]) > 1e-6:
             out.append(name)

@@ -56,7 +56,11 @@ class Travel:
     def text(self, model: mujoco.MjModel | None = None) -> str:
         if self.rotates:
             return f"{self.joint} turning whole revolutions"
-        unit = (lambda v: f"{v * 1e3:.4g} mm") if self.slide else (lambda v: f"{math.degrees(v):.4g} deg")
+        unit = (
+            (lambda v: f"{v * 1e3:.4g} mm")
+            if self.slide
+            else (lambda v: f"{math.degrees(v):.4g} deg")
+        )
         return f"{self.joint} between {unit(self.lower)} and {unit(self.upper)}"
 
 
@@ -119,15 +123,23 @@ def assembling_range(model: mujoco.MjModel, joint: str) -> tuple[float, float]:
     return low + (margin if low > -limit else 0.0), high - (margin if high < limit else 0.0)
 
 
-def find_travel(model: mujoco.MjModel, joint: str, limits: tuple[float, float] | None = None,
-                source: str = "") -> Travel:
+def find_travel(
+    model: mujoco.MjModel, joint: str, limits: tuple[float, float] | None = None, source: str = ""
+) -> Travel:
     """The travel of ``joint``: ``limits`` when given (a description's), else the model's joint
     range, else whole revolutions where the mechanism assembles over one, else the range it
     assembles in (found by search)."""
     joint_dof(model, joint)  # a hinge or slide of the model
     slide = is_slide(model, joint)
     if limits is not None:
-        return Travel(joint, float(limits[0]), float(limits[1]), False, slide, source or "the description's limits")
+        return Travel(
+            joint,
+            float(limits[0]),
+            float(limits[1]),
+            False,
+            slide,
+            source or "the description's limits",
+        )
     ranged = model_limits(model, joint)
     if ranged is not None:
         return Travel(joint, *ranged, rotates=False, slide=slide, source="the model's joint range")
@@ -135,6 +147,8 @@ def find_travel(model: mujoco.MjModel, joint: str, limits: tuple[float, float] |
         return Travel(joint, 0.0, TWO_PI, True, False, "whole revolutions")
     low, high = assembling_range(model, joint)
     if not high > low:
-        raise UserError(f"the mechanism does not move when {joint} moves: it assembles only at "
-                        f"{joint_value_text(model, joint, 0.0)}")
+        raise UserError(
+            f"the mechanism does not move when {joint} moves: it assembles only at "
+            f"{joint_value_text(model, joint, 0.0)}"
+        )
     return Travel(joint, low, high, False, slide, "the range the mechanism assembles in")

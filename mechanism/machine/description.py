@@ -71,15 +71,32 @@ def _name(doc: str, required: bool = False) -> Key:
 
 FRICTION_KEYS = {
     "coulomb_Nm": _non_negative("kinetic Coulomb level [N m] (N on a slide)", 1e4),
-    "viscous_Nm_s_per_rad": _non_negative("viscous coefficient [N m s/rad] (N s/m on a slide)", 1e4),
+    "viscous_Nm_s_per_rad": _non_negative(
+        "viscous coefficient [N m s/rad] (N s/m on a slide)", 1e4
+    ),
     "static_Nm": _non_negative("break-away level [N m], at least coulomb_Nm (default: equal)", 1e4),
-    "stribeck": Key(str, "decay from static to Coulomb level with speed", choices=("none", "tustin", "hess-soom")),
+    "stribeck": Key(
+        str,
+        "decay from static to Coulomb level with speed",
+        choices=("none", "tustin", "hess-soom"),
+    ),
     "stribeck_velocity_rad_s": _non_negative("Stribeck decay speed [rad/s]", 1e4),
     "tustin_exponent": Key(float, "Tustin exponent", low=0.1, high=5.0),
-    "position_amplitude": Key(float, "running level varies as 1 + a cos(k q - phase) over the position joint", low=0.0, high=0.99),
-    "static_position_amplitude": Key(float, "the same for the break-away level (default: position_amplitude)", low=0.0, high=0.99),
-    "position_phase_deg": Key(float, "phase of the position dependence [deg]", low=-360.0, high=360.0),
-    "position_harmonic": Key(float, "k: cycles per turn of the position joint", low=0.0, high=100.0),
+    "position_amplitude": Key(
+        float,
+        "running level varies as 1 + a cos(k q - phase) over the position joint",
+        low=0.0,
+        high=0.99,
+    ),
+    "static_position_amplitude": Key(
+        float, "the same for the break-away level (default: position_amplitude)", low=0.0, high=0.99
+    ),
+    "position_phase_deg": Key(
+        float, "phase of the position dependence [deg]", low=-360.0, high=360.0
+    ),
+    "position_harmonic": Key(
+        float, "k: cycles per turn of the position joint", low=0.0, high=100.0
+    ),
     "position_joint": _name("joint whose angle sets the position dependence (default: its own)"),
 }
 
@@ -87,15 +104,31 @@ MOTOR_TYPES = ("dc", "servo", "current")
 # keys each drive kind needs (besides type), and the input its command is in
 MOTOR_REQUIRED = {
     "dc": ("resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad"),
-    "servo": ("resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad", "supply_V", "kp_V_per_rad"),
+    "servo": (
+        "resistance_ohm",
+        "torque_constant_Nm_per_A",
+        "back_emf_V_s_per_rad",
+        "supply_V",
+        "kp_V_per_rad",
+    ),
     "current": ("torque_constant_Nm_per_A",),
 }
 MOTOR_INPUT_UNIT = {"dc": "V", "servo": "rad", "current": "A"}
 
 LIMIT_KEYS = {
-    "lower_deg": Key(float, "a hinge's lower hard stop [deg], its own coordinate (0 at the export's pose)", low=-3600.0, high=3600.0),
+    "lower_deg": Key(
+        float,
+        "a hinge's lower hard stop [deg], its own coordinate (0 at the export's pose)",
+        low=-3600.0,
+        high=3600.0,
+    ),
     "upper_deg": Key(float, "a hinge's upper hard stop [deg]", low=-3600.0, high=3600.0),
-    "lower_mm": Key(float, "a slide's lower hard stop [mm], its own coordinate (0 at the export's pose)", low=-1e5, high=1e5),
+    "lower_mm": Key(
+        float,
+        "a slide's lower hard stop [mm], its own coordinate (0 at the export's pose)",
+        low=-1e5,
+        high=1e5,
+    ),
     "upper_mm": Key(float, "a slide's upper hard stop [mm]", low=-1e5, high=1e5),
 }
 
@@ -103,54 +136,106 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "machine": {
         "name": _name("a name for reports", required=True),
         "model": _name("converted MJCF or CAD export, relative to this file", required=True),
-        "timestep_ms": Key(float, "simulation time step [ms]; loops and belts stiffen with it", low=0.01, high=2.0),
-        "ground": _name("the part fixed to the world (default: the export's ground, else its heaviest part)"),
-        "up": Key(str, "the export's axis that points up, for a CAD export (default: its gravity vector, else z)",
-                  choices=("x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z")),
+        "timestep_ms": Key(
+            float, "simulation time step [ms]; loops and belts stiffen with it", low=0.01, high=2.0
+        ),
+        "ground": _name(
+            "the part fixed to the world (default: the export's ground, else its heaviest part)"
+        ),
+        "up": Key(
+            str,
+            "the export's axis that points up, for a CAD export (default: its gravity vector, else z)",
+            choices=("x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z"),
+        ),
     },
     "drive": {
-        "motor_joint": _name("the joint the motor turns (with [motor]; optional with [motor.\"JOINT\"] tables: "
-                             "the first is the main motor)"),
-        "shaft_joint": _name("the main shaft: recordings' angle and the cycle's driver", required=True),
-        "zero_site": _name("the shaft angle is 0 where this site is highest against gravity (or zero_angle_deg)"),
-        "zero_angle_deg": Key(float, "the shaft angle's 0 as the shaft joint's own coordinate [deg], where no site "
-                                     "rises and falls (a vertical shaft)", low=-3600.0, high=3600.0),
-        "range_deg": Key(list, "[lower, upper] shaft joint coordinates [deg] inspected for a drive that rocks "
-                               "(default: its limits)", item=float),
+        "motor_joint": _name(
+            'the joint the motor turns (with [motor]; optional with [motor."JOINT"] tables: '
+            "the first is the main motor)"
+        ),
+        "shaft_joint": _name(
+            "the main shaft: recordings' angle and the cycle's driver", required=True
+        ),
+        "zero_site": _name(
+            "the shaft angle is 0 where this site is highest against gravity (or zero_angle_deg)"
+        ),
+        "zero_angle_deg": Key(
+            float,
+            "the shaft angle's 0 as the shaft joint's own coordinate [deg], where no site "
+            "rises and falls (a vertical shaft)",
+            low=-3600.0,
+            high=3600.0,
+        ),
+        "range_deg": Key(
+            list,
+            "[lower, upper] shaft joint coordinates [deg] inspected for a drive that rocks "
+            "(default: its limits)",
+            item=float,
+        ),
     },
     "motor": {
-        "type": Key(str, "drive kind: a DC motor (input: voltage), a servo (a DC motor behind a position loop; input: "
-                         "the goal angle) or a current drive (input: the current command)", required=True,
-                    choices=MOTOR_TYPES),
+        "type": Key(
+            str,
+            "drive kind: a DC motor (input: voltage), a servo (a DC motor behind a position loop; input: "
+            "the goal angle) or a current drive (input: the current command)",
+            required=True,
+            choices=MOTOR_TYPES,
+        ),
         "resistance_ohm": _positive("armature resistance [ohm] (dc, servo)", high=1e4),
-        "torque_constant_Nm_per_A": _positive("torque constant Kt [N m/A]", required=True, high=100.0),
+        "torque_constant_Nm_per_A": _positive(
+            "torque constant Kt [N m/A]", required=True, high=100.0
+        ),
         "back_emf_V_s_per_rad": _positive("back-EMF constant Ke [V s/rad] (dc, servo)", high=100.0),
         "supply_V": _positive("servo: the supply voltage its driver switches [V]", high=1e3),
         "kp_V_per_rad": _non_negative("servo: proportional gain of the position loop [V/rad]", 1e6),
-        "kd_V_s_per_rad": _non_negative("servo: derivative gain of the position loop [V s/rad] (default 0)", 1e4),
-        "duty_limit": Key(float, "servo: the largest duty its driver puts out, a fraction of supply_V (default 1)",
-                          low=0.0, open_low=True, high=1.0),
-        "max_current_A": _positive("current drive: the amplifier's current limit [A] (default: none)", high=1e4),
+        "kd_V_s_per_rad": _non_negative(
+            "servo: derivative gain of the position loop [V s/rad] (default 0)", 1e4
+        ),
+        "duty_limit": Key(
+            float,
+            "servo: the largest duty its driver puts out, a fraction of supply_V (default 1)",
+            low=0.0,
+            open_low=True,
+            high=1.0,
+        ),
+        "max_current_A": _positive(
+            "current drive: the amplifier's current limit [A] (default: none)", high=1e4
+        ),
         "inductance_H": _non_negative("winding inductance [H] (0: quasi-static current)", 10.0),
-        "rated_voltage_V": _positive("the highest terminal voltage a run may apply [V] (default 30)", high=1e3),
+        "rated_voltage_V": _positive(
+            "the highest terminal voltage a run may apply [V] (default 30)", high=1e3
+        ),
         "cogging_Nm": _non_negative("cogging torque amplitude [N m]", 100.0),
         "cogging_per_rev": Key(int, "cogging periods per motor turn", low=1, high=1000),
-        "thermal_resistance_K_per_W": _positive("winding-to-ambient thermal resistance [K/W]", high=1e3),
+        "thermal_resistance_K_per_W": _positive(
+            "winding-to-ambient thermal resistance [K/W]", high=1e3
+        ),
         "thermal_time_constant_s": _positive("winding thermal time constant [s]", high=1e6),
     },
     "supply": {
         "voltage_V": _positive("supply voltage of the PWM switch [V]", high=1e3),
-        "series_resistance_ohm": _non_negative("switch on-resistance and wiring: the motor sees at most "
-                                               "voltage_V minus this times the current", 1e3),
-        "duty_percent": Key(list, "PWM duty points [%] of the measured duty -> motor voltage map", item=float),
+        "series_resistance_ohm": _non_negative(
+            "switch on-resistance and wiring: the motor sees at most "
+            "voltage_V minus this times the current",
+            1e3,
+        ),
+        "duty_percent": Key(
+            list, "PWM duty points [%] of the measured duty -> motor voltage map", item=float
+        ),
         "motor_voltage_V": Key(list, "motor terminal voltage [V] at each duty point", item=float),
     },
     "warm": {
-        "time_constant_s": _positive("warming time constant [s]: level(t) = warm + (cold - warm) exp(-t/tau)", high=1e6),
+        "time_constant_s": _positive(
+            "warming time constant [s]: level(t) = warm + (cold - warm) exp(-t/tau)", high=1e6
+        ),
     },
     "loads": {
-        "belt_tension_low_Nm": Key(float, "extra shaft Coulomb friction at low belt tension [N m]", low=-1e3, high=1e3),
-        "belt_tension_hard_Nm": Key(float, "extra shaft Coulomb friction at hard belt tension [N m]", low=-1e3, high=1e3),
+        "belt_tension_low_Nm": Key(
+            float, "extra shaft Coulomb friction at low belt tension [N m]", low=-1e3, high=1e3
+        ),
+        "belt_tension_hard_Nm": Key(
+            float, "extra shaft Coulomb friction at hard belt tension [N m]", low=-1e3, high=1e3
+        ),
         "feeding_joint": _name("joint the feed mechanism loads when engaged"),
         "feeding_coulomb_Nm": _non_negative("extra Coulomb friction on feeding_joint [N m]", 1e3),
     },
@@ -161,51 +246,109 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "part": _name("the tool's own part, for clearance to the hook"),
         "layer_thickness_mm": _positive("fabric layer thickness [mm]", high=50.0),
         "piercing_force_per_layer_N": _non_negative("force to pierce one layer [N]", 1e3),
-        "drag_fraction": Key(float, "withdrawal drag as a fraction of the piercing force", low=0.0, high=1.0),
-        "point_taper_mm": _positive("length over which the piercing force builds up [mm]", high=50.0),
+        "drag_fraction": Key(
+            float, "withdrawal drag as a fraction of the piercing force", low=0.0, high=1.0
+        ),
+        "point_taper_mm": _positive(
+            "length over which the piercing force builds up [mm]", high=50.0
+        ),
     },
     "stepper": {
         "type": _name("the stepper motors' type, for reports"),
-        "step_angle_deg": _positive("full-step angle [deg] (two-phase: 360 / (4 pole_pairs))", required=True, high=90.0),
-        "pole_pairs": Key(int, "pole pairs p of the torque equation", required=True, low=1, high=1000),
-        "holding_torque_Nm": _positive("holding torque, two phases on at the rated current [N m]", required=True, high=100.0),
-        "detent_torque_Nm": _non_negative("detent (unpowered cogging) torque amplitude [N m]", 100.0, required=True),
-        "rated_current_A": _positive("chopper (peak) current per phase [A]", required=True, high=100.0),
+        "step_angle_deg": _positive(
+            "full-step angle [deg] (two-phase: 360 / (4 pole_pairs))", required=True, high=90.0
+        ),
+        "pole_pairs": Key(
+            int, "pole pairs p of the torque equation", required=True, low=1, high=1000
+        ),
+        "holding_torque_Nm": _positive(
+            "holding torque, two phases on at the rated current [N m]", required=True, high=100.0
+        ),
+        "detent_torque_Nm": _non_negative(
+            "detent (unpowered cogging) torque amplitude [N m]", 100.0, required=True
+        ),
+        "rated_current_A": _positive(
+            "chopper (peak) current per phase [A]", required=True, high=100.0
+        ),
         "resistance_ohm": _positive("phase resistance [ohm]", required=True, high=1e4),
         "inductance_H": _positive("phase inductance [H]", required=True, high=10.0),
         "supply_V": _positive("chopper supply voltage [V]", required=True, high=1e3),
         "chopper_hz": _positive("chopper oscillator frequency [Hz]", required=True, high=1e7),
         "rotor_inertia_kg_m2": _positive("rotor inertia [kg m^2]", required=True, high=1.0),
         "damping_Nm_s_rad": _non_negative("viscous damping c [N m s/rad]", 10.0, required=True),
-        "step_rate_steps_s": _positive("the drive's usual slew rate [full steps/s] (default --rate)", high=1e5),
+        "step_rate_steps_s": _positive(
+            "the drive's usual slew rate [full steps/s] (default --rate)", high=1e5
+        ),
     },
     "thread_cut": {
-        "forward_s": _positive("the cutter's stroke out: time at the step rate [s]", required=True, high=60.0),
-        "back_s": _positive("back to the start: time at the step rate [s]", required=True, high=60.0),
+        "forward_s": _positive(
+            "the cutter's stroke out: time at the step rate [s]", required=True, high=60.0
+        ),
+        "back_s": _positive(
+            "back to the start: time at the step rate [s]", required=True, high=60.0
+        ),
     },
     "hook": {
         "joint": _name("the rotary hook's joint"),
         "site": _name("the hook's point"),
     },
     "lumped": {
-        "inertia_motor_side_kgm2": _positive("the whole machine's inertia seen at the motor, as a lumped model identified it", high=1e3),
-        "coulomb_shaft_Nm": _non_negative("the whole machine's kinetic Coulomb friction at the shaft [N m]", 1e4),
-        "viscous_motor_side_Nm_s_per_rad": _non_negative("the whole machine's viscous coefficient at the motor [N m s/rad]", 1e4),
+        "inertia_motor_side_kgm2": _positive(
+            "the whole machine's inertia seen at the motor, as a lumped model identified it",
+            high=1e3,
+        ),
+        "coulomb_shaft_Nm": _non_negative(
+            "the whole machine's kinetic Coulomb friction at the shaft [N m]", 1e4
+        ),
+        "viscous_motor_side_Nm_s_per_rad": _non_negative(
+            "the whole machine's viscous coefficient at the motor [N m s/rad]", 1e4
+        ),
     },
     "recording": {
-        "records": _name("JSON recordings: the key holding the list of records (dotted for nested objects; default: the top level)"),
-        "time": _name("time column, or a product/quotient of columns and numbers (default: time, time_s, t)"),
-        "time_unit": Key(str, "unit of time after the expression (default s)", choices=("s", "ms", "us")),
-        "signed_bits": Key(dict, "registers logged unsigned that hold two's-complement values, column = bits (65535 -> -1 at 16)",
-                           item=int),
+        "records": _name(
+            "JSON recordings: the key holding the list of records (dotted for nested objects; default: the top level)"
+        ),
+        "time": _name(
+            "time column, or a product/quotient of columns and numbers (default: time, time_s, t)"
+        ),
+        "time_unit": Key(
+            str, "unit of time after the expression (default s)", choices=("s", "ms", "us")
+        ),
+        "signed_bits": Key(
+            dict,
+            "registers logged unsigned that hold two's-complement values, column = bits (65535 -> -1 at 16)",
+            item=int,
+        ),
         "voltage": _name("motor voltage [V] after the expression (default: voltage, voltage_V)"),
-        "shaft_angle": _name("the described shaft's angle, a column or expression (default: shaft_angle, arm_angle, ..._rad)"),
-        "shaft_angle_unit": Key(str, "unit of shaft_angle (default rad)", choices=("rad", "deg", "rev", "counts", "m", "mm")),
-        "counts_per_rev": Key(int, "encoder counts per shaft turn: the unit of counts, and the encoder resolution", low=4, high=1e9),
-        "travel_per_rev_mm": _positive("with m or mm: travel per shaft turn [mm] (a screw's lead, a pulley's circumference)", high=1e6),
-        "direction": Key(int, "+1, or -1 to flip the sign: shaft_angle = direction * angle + offset_rad", low=-1, high=1),
+        "shaft_angle": _name(
+            "the described shaft's angle, a column or expression (default: shaft_angle, arm_angle, ..._rad)"
+        ),
+        "shaft_angle_unit": Key(
+            str,
+            "unit of shaft_angle (default rad)",
+            choices=("rad", "deg", "rev", "counts", "m", "mm"),
+        ),
+        "counts_per_rev": Key(
+            int,
+            "encoder counts per shaft turn: the unit of counts, and the encoder resolution",
+            low=4,
+            high=1e9,
+        ),
+        "travel_per_rev_mm": _positive(
+            "with m or mm: travel per shaft turn [mm] (a screw's lead, a pulley's circumference)",
+            high=1e6,
+        ),
+        "direction": Key(
+            int,
+            "+1, or -1 to flip the sign: shaft_angle = direction * angle + offset_rad",
+            low=-1,
+            high=1,
+        ),
         "offset_rad": Key(float, "added after the direction [rad]", low=-1e6, high=1e6),
-        "unwrap": Key(bool, "unwrap jumps of more than half a turn (default: only when the angle is found wrapped, with a warning)"),
+        "unwrap": Key(
+            bool,
+            "unwrap jumps of more than half a turn (default: only when the angle is found wrapped, with a warning)",
+        ),
         "current": _name("motor current [A], a column or expression (default: current, current_A)"),
     },
     "inspect": {
@@ -214,7 +357,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "required_clearance_mm": _non_negative("smallest acceptable clearance [mm]", 1e3),
         "probe_speed_rpm": _positive("shaft speed of the demo's probe cycle [rpm]", high=1e5),
         "mistimed_variant": _name("the demo's faulty design variant, 'parameter=offset'"),
-        "flywheel_voltages_V": Key(list, "motor voltages of the demo's flywheel sweep (inertia added on the shaft)", item=float),
+        "flywheel_voltages_V": Key(
+            list,
+            "motor voltages of the demo's flywheel sweep (inertia added on the shaft)",
+            item=float,
+        ),
     },
 }
 # Sections keyed by joint name; their keys are FRICTION_KEYS.
@@ -234,11 +381,19 @@ class MachineDescription:
     zero_site: str | None
     motor: dict[str, Any]  # the main motor's table (motor_joint's)
     friction: dict[str, dict[str, Any]] = field(default_factory=dict)
-    motors: dict[str, dict[str, Any]] = field(default_factory=dict)  # joint -> its motor table, the main one first
-    limits: dict[str, tuple[float, float]] = field(default_factory=dict)  # joint -> (lower, upper) [rad or m]
-    limit_units: dict[str, str] = field(default_factory=dict)  # joint -> "deg" (a hinge's) or "mm" (a slide's)
+    motors: dict[str, dict[str, Any]] = field(
+        default_factory=dict
+    )  # joint -> its motor table, the main one first
+    limits: dict[str, tuple[float, float]] = field(
+        default_factory=dict
+    )  # joint -> (lower, upper) [rad or m]
+    limit_units: dict[str, str] = field(
+        default_factory=dict
+    )  # joint -> "deg" (a hinge's) or "mm" (a slide's)
     warm_friction: dict[str, dict[str, Any]] = field(default_factory=dict)
-    sections: dict[str, dict[str, Any]] = field(default_factory=dict)  # the optional sections as written
+    sections: dict[str, dict[str, Any]] = field(
+        default_factory=dict
+    )  # the optional sections as written
     variant_presets: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
 
@@ -252,7 +407,10 @@ class MachineDescription:
     @property
     def drive_tables(self) -> dict[str, dict[str, Any]]:
         """joint -> motor table, the main motor first (its table is ``motor``, which edits replace)."""
-        return {self.motor_joint: self.motor, **{j: t for j, t in self.motors.items() if j != self.motor_joint}}
+        return {
+            self.motor_joint: self.motor,
+            **{j: t for j, t in self.motors.items() if j != self.motor_joint},
+        }
 
     @property
     def zero_angle_rad(self) -> float | None:
@@ -289,7 +447,12 @@ def check_value(source: str, section: str, name: str, key: Key, value: Any) -> A
     if key.kind is dict:
         if not isinstance(value, dict):
             raise bad(f"expected a table such as {{ name = 16 }}, got {type(value).__name__}")
-        item = Key(key.item or str, key.doc, low=2 if key.item is int else None, high=64 if key.item is int else None)
+        item = Key(
+            key.item or str,
+            key.doc,
+            low=2 if key.item is int else None,
+            high=64 if key.item is int else None,
+        )
         return {k: check_value(source, section, f"{name}.{k}", item, v) for k, v in value.items()}
     if key.kind is bool:
         if not isinstance(value, bool):
@@ -298,7 +461,10 @@ def check_value(source: str, section: str, name: str, key: Key, value: Any) -> A
     if key.kind is list:
         if not isinstance(value, list):
             raise bad(f"expected a list, got {type(value).__name__}")
-        return [check_value(source, section, f"{name}[{i}]", Key(key.item or str, key.doc), v) for i, v in enumerate(value)]
+        return [
+            check_value(source, section, f"{name}[{i}]", Key(key.item or str, key.doc), v)
+            for i, v in enumerate(value)
+        ]
     if not isinstance(value, key.kind) or isinstance(value, bool):
         raise bad(f"expected {'a number' if key.kind in (float, int) else 'text'}, got {value!r}")
     if isinstance(value, float) and not math.isfinite(value):
@@ -309,7 +475,9 @@ def check_value(source: str, section: str, name: str, key: Key, value: Any) -> A
         raise bad("must not be empty")
     if isinstance(value, (int, float)):
         if key.low is not None and (value <= key.low if key.open_low else value < key.low):
-            raise bad(f"{value:g} is out of range: must be {'>' if key.open_low else '>='} {key.low:g} ({key.doc})")
+            raise bad(
+                f"{value:g} is out of range: must be {'>' if key.open_low else '>='} {key.low:g} ({key.doc})"
+            )
         if key.high is not None and value > key.high:
             raise bad(f"{value:g} is out of range: must be <= {key.high:g} ({key.doc})")
     return value
@@ -321,7 +489,9 @@ def _check_table(source: str, section: str, table: Any, keys: dict[str, Key]) ->
     out = {}
     for name, value in table.items():
         if name not in keys:
-            raise _fail(source, section, name, f"unknown key; did you mean {close_matches(name, keys)}?")
+            raise _fail(
+                source, section, name, f"unknown key; did you mean {close_matches(name, keys)}?"
+            )
         out[name] = check_value(source, section, name, keys[name], value)
     for name, key in keys.items():
         if key.required and name not in out:
@@ -334,12 +504,19 @@ def _check_friction(source: str, section: str, laws: dict[str, Any]) -> dict[str
     for joint, table in laws.items():
         law = _check_table(source, f'{section}."{joint}"', table, FRICTION_KEYS)
         if "static_Nm" in law and law["static_Nm"] < law.get("coulomb_Nm", 0.0):
-            raise _fail(source, f'{section}."{joint}"', "static_Nm", "the break-away level is below the Coulomb level")
+            raise _fail(
+                source,
+                f'{section}."{joint}"',
+                "static_Nm",
+                "the break-away level is below the Coulomb level",
+            )
         out[joint] = law
     return out
 
 
-def _check_limits(source: str, tables: Any) -> tuple[dict[str, tuple[float, float]], dict[str, str]]:
+def _check_limits(
+    source: str, tables: Any
+) -> tuple[dict[str, tuple[float, float]], dict[str, str]]:
     """[limits."JOINT"]: lower and upper, both in degrees (a hinge) or both in mm (a slide), in SI."""
     if not isinstance(tables, dict):
         raise _fail(source, "limits", None, 'expected [limits."JOINT"] tables')
@@ -352,15 +529,30 @@ def _check_limits(source: str, tables: Any) -> tuple[dict[str, tuple[float, floa
             if pair == [None, None]:
                 continue
             if None in pair or len(values) != 2:
-                raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm "
-                                                   "(a slide), one pair")
-            lower, upper = float(pair[0] or 0.0), float(pair[1] or 0.0)  # both given (checked above)
+                raise _fail(
+                    source,
+                    section,
+                    None,
+                    "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm "
+                    "(a slide), one pair",
+                )
+            lower, upper = (
+                float(pair[0] or 0.0),
+                float(pair[1] or 0.0),
+            )  # both given (checked above)
             if not upper > lower:
-                raise _fail(source, section, f"upper_{unit}", f"must be above lower_{unit} ({lower:g})")
+                raise _fail(
+                    source, section, f"upper_{unit}", f"must be above lower_{unit} ({lower:g})"
+                )
             out[joint] = (lower * scale, upper * scale)
             units[joint] = unit
         if joint not in out:
-            raise _fail(source, section, None, "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm (a slide)")
+            raise _fail(
+                source,
+                section,
+                None,
+                "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm (a slide)",
+            )
     return out, units
 
 
@@ -369,49 +561,91 @@ def _check_motor(source: str, section: str, table: Any) -> dict[str, Any]:
     kind = motor["type"]
     for key in MOTOR_REQUIRED[kind]:
         if key not in motor:
-            raise _fail(source, section, key, f"missing ({SCHEMA['motor'][key].doc}; a {kind} drive needs it)")
+            raise _fail(
+                source,
+                section,
+                key,
+                f"missing ({SCHEMA['motor'][key].doc}; a {kind} drive needs it)",
+            )
     allowed = set(MOTOR_REQUIRED[kind]) | {"type", "cogging_Nm", "cogging_per_rev"}
-    allowed |= {"dc": {"inductance_H", "thermal_resistance_K_per_W", "thermal_time_constant_s", "rated_voltage_V"},
-                "servo": {"kd_V_s_per_rad", "duty_limit"}, "current": {"max_current_A"}}[kind]
+    allowed |= {
+        "dc": {
+            "inductance_H",
+            "thermal_resistance_K_per_W",
+            "thermal_time_constant_s",
+            "rated_voltage_V",
+        },
+        "servo": {"kd_V_s_per_rad", "duty_limit"},
+        "current": {"max_current_A"},
+    }[kind]
     for key in motor:
         if key not in allowed:
             raise _fail(source, section, key, f"not a key of a {kind} drive (type = {kind!r})")
     return motor
 
 
-def _check_motors(source: str, data: dict[str, Any], drive: dict[str, Any]) -> tuple[str, dict[str, dict[str, Any]]]:
+def _check_motors(
+    source: str, data: dict[str, Any], drive: dict[str, Any]
+) -> tuple[str, dict[str, dict[str, Any]]]:
     """(the main motor's joint, joint -> motor table): ``[motor]`` with ``[drive] motor_joint``, or
     ``[motor."JOINT"]`` tables (the main one: motor_joint when given, else the first)."""
     raw = data["motor"]
     if not isinstance(raw, dict):
-        raise _fail(source, "motor", None, "expected a table of keys, or [motor.\"JOINT\"] tables")
+        raise _fail(source, "motor", None, 'expected a table of keys, or [motor."JOINT"] tables')
     tables = {k: v for k, v in raw.items() if isinstance(v, dict)}
     if tables and len(tables) != len(raw):
         loose = next(k for k in raw if k not in tables)
-        raise _fail(source, "motor", loose, 'give either [motor] keys (one motor, with [drive] motor_joint) or '
-                                            '[motor."JOINT"] tables, not both')
+        raise _fail(
+            source,
+            "motor",
+            loose,
+            "give either [motor] keys (one motor, with [drive] motor_joint) or "
+            '[motor."JOINT"] tables, not both',
+        )
     if not tables:
         if "motor_joint" not in drive:
-            raise _fail(source, "drive", "motor_joint", "missing (the joint the motor turns; or give [motor.\"JOINT\"] tables)")
+            raise _fail(
+                source,
+                "drive",
+                "motor_joint",
+                'missing (the joint the motor turns; or give [motor."JOINT"] tables)',
+            )
         return drive["motor_joint"], {drive["motor_joint"]: _check_motor(source, "motor", raw)}
-    motors = {joint: _check_motor(source, f'motor."{joint}"', table) for joint, table in tables.items()}
+    motors = {
+        joint: _check_motor(source, f'motor."{joint}"', table) for joint, table in tables.items()
+    }
     main = drive.get("motor_joint", next(iter(motors)))
     if main not in motors:
-        raise _fail(source, "drive", "motor_joint", f"{main!r} has no [motor.\"{main}\"] table; tables: {', '.join(motors)}")
+        raise _fail(
+            source,
+            "drive",
+            "motor_joint",
+            f'{main!r} has no [motor."{main}"] table; tables: {", ".join(motors)}',
+        )
     return main, {main: motors[main], **{j: m for j, m in motors.items() if j != main}}
 
 
-def parse_description(data: dict[str, Any], source: str = "<description>", base: Path | None = None) -> MachineDescription:
+def parse_description(
+    data: dict[str, Any], source: str = "<description>", base: Path | None = None
+) -> MachineDescription:
     """Validate a parsed TOML document. Relative model paths resolve against ``base``."""
     known = [*SCHEMA, *JOINT_TABLES, PRESET_TABLE]
     for section in data:
         if section not in known:
-            raise _fail(source, section, None, f"unknown section; did you mean {close_matches(section, known)}?")
+            raise _fail(
+                source,
+                section,
+                None,
+                f"unknown section; did you mean {close_matches(section, known)}?",
+            )
     for section in ("machine", "drive", "motor"):
         if section not in data:
             raise _fail(source, section, None, "missing section")
-    sections = {name: _check_table(source, name, data[name], keys) for name, keys in SCHEMA.items()
-                if name in data and name != "motor"}
+    sections = {
+        name: _check_table(source, name, data[name], keys)
+        for name, keys in SCHEMA.items()
+        if name in data and name != "motor"
+    }
     motor_joint, motors = _check_motors(source, data, sections["drive"])
     sections["motor"] = motors[motor_joint]
     supply = sections.get("supply", {})
@@ -422,26 +656,46 @@ def parse_description(data: dict[str, Any], source: str = "<description>", base:
         raise _fail(source, "supply", "duty_percent", "points must increase within 0-100 %")
     stepper = sections.get("stepper", {})
     if stepper and not math.isclose(360.0 / stepper["step_angle_deg"], 4 * stepper["pole_pairs"]):
-        raise _fail(source, "stepper", "step_angle_deg",
-                    f"a two-phase motor with {stepper['pole_pairs']} pole pairs steps {90.0 / stepper['pole_pairs']:g} deg, "
-                    f"not {stepper['step_angle_deg']:g}")
+        raise _fail(
+            source,
+            "stepper",
+            "step_angle_deg",
+            f"a two-phase motor with {stepper['pole_pairs']} pole pairs steps {90.0 / stepper['pole_pairs']:g} deg, "
+            f"not {stepper['step_angle_deg']:g}",
+        )
     if "thread_cut" in sections and "step_rate_steps_s" not in stepper:
-        raise _fail(source, "thread_cut", None, "needs [stepper] with step_rate_steps_s (the stroke runs at that rate)")
+        raise _fail(
+            source,
+            "thread_cut",
+            None,
+            "needs [stepper] with step_rate_steps_s (the stroke runs at that rate)",
+        )
     presets = data.get(PRESET_TABLE, {})
     if not isinstance(presets, dict) or not all(isinstance(v, str) for v in presets.values()):
-        raise _fail(source, PRESET_TABLE, None, "expected name = \"target\" pairs")
+        raise _fail(source, PRESET_TABLE, None, 'expected name = "target" pairs')
     model = Path(sections["machine"]["model"])
     if not model.is_absolute():
-        model = Path(os.path.normpath((base or Path.cwd()) / model))  # "../mjcf/x.xml" reads as the folder it is in
+        model = Path(
+            os.path.normpath((base or Path.cwd()) / model)
+        )  # "../mjcf/x.xml" reads as the folder it is in
     drive = sections["drive"]
     limits, limit_units = _check_limits(source, data.get("limits", {}))
     if "zero_site" not in drive and "zero_angle_deg" not in drive:
-        raise _fail(source, "drive", "zero_site", "missing: name the site whose highest point is the shaft angle's 0, "
-                                                  "or give zero_angle_deg (the shaft joint's coordinate of that 0)")
+        raise _fail(
+            source,
+            "drive",
+            "zero_site",
+            "missing: name the site whose highest point is the shaft angle's 0, "
+            "or give zero_angle_deg (the shaft joint's coordinate of that 0)",
+        )
     if "zero_site" in drive and "zero_angle_deg" in drive:
         raise _fail(source, "drive", "zero_angle_deg", "give zero_site or zero_angle_deg, not both")
-    if "range_deg" in drive and (len(drive["range_deg"]) != 2 or not drive["range_deg"][1] > drive["range_deg"][0]):
-        raise _fail(source, "drive", "range_deg", "expected [lower, upper] in degrees, lower below upper")
+    if "range_deg" in drive and (
+        len(drive["range_deg"]) != 2 or not drive["range_deg"][1] > drive["range_deg"][0]
+    ):
+        raise _fail(
+            source, "drive", "range_deg", "expected [lower, upper] in degrees, lower below upper"
+        )
     return MachineDescription(
         name=sections["machine"]["name"],
         model=model,
@@ -466,16 +720,22 @@ def read_description(path: str | os.PathLike) -> MachineDescription:
         with open(path, "rb") as handle:
             raw = handle.read(MAX_DESCRIPTION_BYTES + 1)
     except IsADirectoryError:
-        raise UserError(f"machine description {path}: is a directory, expected a TOML file") from None
+        raise UserError(
+            f"machine description {path}: is a directory, expected a TOML file"
+        ) from None
     except OSError as exc:
         raise UserError(f"machine description {path}: {exc.strerror or exc}") from None
     if len(raw) > MAX_DESCRIPTION_BYTES:
-        raise UserError(f"machine description {path}: larger than {MAX_DESCRIPTION_BYTES >> 10} KiB")
+        raise UserError(
+            f"machine description {path}: larger than {MAX_DESCRIPTION_BYTES >> 10} KiB"
+        )
     try:
         data = tomllib.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise UserError(f"machine description {path}: not valid TOML: {exc}") from None
-    resolved = path.resolve()  # a link to a shipped description resolves its model beside the real file
+    resolved = (
+        path.resolve()
+    )  # a link to a shipped description resolves its model beside the real file
     description = parse_description(data, str(path), resolved.parent)
     return _with_path(description, path)
 
@@ -510,14 +770,33 @@ def _range(key: Key) -> str:
 def schema_markdown() -> str:
     """Every key of the description as Markdown tables (docs/machine.md is this, checked by a test)."""
     lines = []
-    tables = {**SCHEMA, 'friction."JOINT"': FRICTION_KEYS, 'warm_friction."JOINT"': FRICTION_KEYS,
-              'limits."JOINT"': LIMIT_KEYS}
-    tables = {('motor"] or [motor."JOINT' if name == "motor" else name): keys for name, keys in tables.items()}
+    tables = {
+        **SCHEMA,
+        'friction."JOINT"': FRICTION_KEYS,
+        'warm_friction."JOINT"': FRICTION_KEYS,
+        'limits."JOINT"': LIMIT_KEYS,
+    }
+    tables = {
+        ('motor"] or [motor."JOINT' if name == "motor" else name): keys
+        for name, keys in tables.items()
+    }
     for section, keys in tables.items():
-        lines += [f"### `[{section}]`", "", "| key | type | range | required | meaning |", "| --- | --- | --- | --- | --- |"]
-        lines += [f"| `{name}` | {_kind_name(key)} | {_range(key)} | {'yes' if key.required else ''} | {key.doc} |"
-                  for name, key in keys.items()]
+        lines += [
+            f"### `[{section}]`",
+            "",
+            "| key | type | range | required | meaning |",
+            "| --- | --- | --- | --- | --- |",
+        ]
+        lines += [
+            f"| `{name}` | {_kind_name(key)} | {_range(key)} | {'yes' if key.required else ''} | {key.doc} |"
+            for name, key in keys.items()
+        ]
         lines.append("")
-    lines += [f"### `[{PRESET_TABLE}]`", "", "`name = \"target\"` pairs: design-variant parameters in the "
-              "`mechanism-variants/1` target syntax (docs/inspection.md) that variant files may name.", ""]
+    lines += [
+        f"### `[{PRESET_TABLE}]`",
+        "",
+        '`name = "target"` pairs: design-variant parameters in the '
+        "`mechanism-variants/1` target syntax (docs/inspection.md) that variant files may name.",
+        "",
+    ]
     return "\n".join(lines)

@@ -20,7 +20,11 @@ from mechanism.machine import parts
 from mechanism.machine.roles import guess_roles
 
 # A small permanent-magnet DC motor, so that a draft simulates before its datasheet is in.
-PLACEHOLDER_MOTOR = {"resistance_ohm": 2.0, "torque_constant_Nm_per_A": 0.03, "back_emf_V_s_per_rad": 0.03}
+PLACEHOLDER_MOTOR = {
+    "resistance_ohm": 2.0,
+    "torque_constant_Nm_per_A": 0.03,
+    "back_emf_V_s_per_rad": 0.03,
+}
 
 
 def _toml_string(text: str) -> str:
@@ -62,8 +66,13 @@ def _ground_guess(model: mujoco.MjModel) -> str | None:
     return best
 
 
-def draft_description(model_path: str | os.PathLike, model_reference: str, name: str, up: str | None = None,
-                      up_reason: str = "") -> tuple[str, list[str]]:
+def draft_description(
+    model_path: str | os.PathLike,
+    model_reference: str,
+    name: str,
+    up: str | None = None,
+    up_reason: str = "",
+) -> tuple[str, list[str]]:
     """(TOML text, summary lines) of a draft description of the model at ``model_path``;
     ``model_reference`` is what the draft's ``model`` key says (a path relative to it); ``up``, the
     export's up axis the model was converted with (None: an MJCF's own gravity), and why."""
@@ -80,7 +89,9 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
         assert tables.tool_z_m is not None
         travel = float(np.ptp(tables.tool_z_m)) * 1e3
     elif shaft:
-        unknown.append("the zero site: no site rises and falls with the shaft (zero_angle_deg = 0 written: the export's pose)")
+        unknown.append(
+            "the zero site: no site rises and falls with the shaft (zero_angle_deg = 0 written: the export's pose)"
+        )
     slide = shaft is not None and is_slide(model, shaft)
     plate = _plate_guess(model, zero)
     if zero and not plate:
@@ -91,20 +102,26 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     ratio = guess.ratios.get(motor or "", 1.0)
     if guess.travel is not None and shaft:
         low, high = guess.travel
-        travel_text = (f"{low * 1e3:.4g} to {high * 1e3:.4g} mm" if slide else
-                       f"{math.degrees(low):.4g} to {math.degrees(high):.4g} deg")
+        travel_text = (
+            f"{low * 1e3:.4g} to {high * 1e3:.4g} mm"
+            if slide
+            else f"{math.degrees(low):.4g} to {math.degrees(high):.4g} deg"
+        )
         motion = f"travel of the shaft (GUESS): {travel_text} (where the mechanism assembles, 1 % short of its dead points)"
     else:
-        motion = ("joints turning whole revolutions, turns per shaft turn: "
-                  + ", ".join(f"{j} {guess.ratios[j]:+.4g}" for j in guess.revolving))
+        motion = "joints turning whole revolutions, turns per shaft turn: " + ", ".join(
+            f"{j} {guess.ratios[j]:+.4g}" for j in guess.revolving
+        )
     summary = [
         f"model: {model.nbody - 1} bodies, {len(joints)} joints, {model.neq} equality constraints (loops, couplings)",
         f"up axis: {up or 'as the model says'}; {up_reason or 'the MJCF gravity'}",
         f"ground (GUESS): {ground or 'none found'}",
         motion,
         f"shaft (GUESS): {shaft or 'none found'}",
-        f"motor (GUESS): {motor or 'none found'}" + (f" ({abs(ratio):.4g}:1 to the shaft)" if motor else ""),
-        f"zero site (GUESS): {zero or 'none found'}" + (f" (rises and falls {travel:.3f} mm)" if travel else ""),
+        f"motor (GUESS): {motor or 'none found'}"
+        + (f" ({abs(ratio):.4g}:1 to the shaft)" if motor else ""),
+        f"zero site (GUESS): {zero or 'none found'}"
+        + (f" (rises and falls {travel:.3f} mm)" if travel else ""),
         f"plate (GUESS): {plate or 'none found'}",
         *guess.notes,
         *[f"could not guess {item}" for item in unknown],
@@ -118,10 +135,21 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
         "[machine]",
         f"name = {_toml_string(name)}",
         f"model = {_toml_string(model_reference)}",
-        *([f"up = {_toml_string(up)}   # {up_reason}"] if up and up_reason.startswith("given") else
-          [f"# up = {_toml_string(up)}   # {up_reason}"] if up else []),
-        *([f"# ground = {_toml_string(ground)}   # GUESS: the part fixed to the world (the export's ground, else its "
-           "heaviest part); set ground to fix another"] if ground else []),
+        *(
+            [f"up = {_toml_string(up)}   # {up_reason}"]
+            if up and up_reason.startswith("given")
+            else [f"# up = {_toml_string(up)}   # {up_reason}"]
+            if up
+            else []
+        ),
+        *(
+            [
+                f"# ground = {_toml_string(ground)}   # GUESS: the part fixed to the world (the export's ground, else its "
+                "heaviest part); set ground to fix another"
+            ]
+            if ground
+            else []
+        ),
         "",
         "[drive]",
     ]
@@ -136,12 +164,18 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
             f"shaft_joint = {_toml_string(shaft)}   # GUESS: the joint on the frame with the widest travel (it rocks)",
         ]
     else:
-        lines += [f"motor_joint = {_toml_string('TODO')}   # TODO: could not guess: {unknown[0]}",
-                  f"shaft_joint = {_toml_string('TODO')}   # TODO"]
+        lines += [
+            f"motor_joint = {_toml_string('TODO')}   # TODO: could not guess: {unknown[0]}",
+            f"shaft_joint = {_toml_string('TODO')}   # TODO",
+        ]
     if zero:
-        lines.append(f"zero_site = {_toml_string(zero)}   # GUESS: the site that rises and falls most; shaft angle 0 where it is highest")
+        lines.append(
+            f"zero_site = {_toml_string(zero)}   # GUESS: the site that rises and falls most; shaft angle 0 where it is highest"
+        )
     else:
-        lines.append("zero_angle_deg = 0.0   # GUESS: no site rises and falls with the shaft; 0 at the export's pose")
+        lines.append(
+            "zero_angle_deg = 0.0   # GUESS: no site rises and falls with the shaft; 0 at the export's pose"
+        )
     lines += [
         "",
         "[motor]   # TODO: the motor's datasheet (placeholders of a small DC motor)",
@@ -167,7 +201,9 @@ def draft_description(model_path: str | os.PathLike, model_reference: str, name:
     if zero:
         lines += ["", "[tool]", f"site = {_toml_string(zero)}   # GUESS"]
         if plate:
-            lines.append(f"plate = {_toml_string(plate)}   # GUESS: the fixed part nearest under the tool")
+            lines.append(
+                f"plate = {_toml_string(plate)}   # GUESS: the fixed part nearest under the tool"
+            )
         else:
-            lines.append("# plate = \"PART\"   # could not guess the part the tool works against")
+            lines.append('# plate = "PART"   # could not guess the part the tool works against')
     return "\n".join(lines) + "\n", summary

@@ -32,17 +32,43 @@ import numpy as np
 from mechanism import native
 from mechanism.errors import UserError, close_matches
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, up_axis
-from mechanism.kinematics.pose import approach, joint_dof, passive_joints, solve_pose, velocity_ratios
+from mechanism.kinematics.pose import (
+    approach,
+    joint_dof,
+    passive_joints,
+    solve_pose,
+    velocity_ratios,
+)
 from mechanism.kinematics.travel import Travel, find_travel
 from mechanism.machine import parts
 from mechanism.machine.description import MachineDescription, read_description
-from mechanism.machine.models import DEFAULT_DESCRIPTION, load_spec, resolve_model, shipped_description, shipped_machines
+from mechanism.machine.models import (
+    DEFAULT_DESCRIPTION,
+    load_spec,
+    resolve_model,
+    shipped_description,
+    shipped_machines,
+)
 from mechanism.physics.friction import FrictionLaw, FrictionSet, python_friction
-from mechanism.physics.inputs import DEFAULT_RATED_VOLTAGE_V, DutyMap, VoltageProfile, check_rated_voltage
+from mechanism.physics.inputs import (
+    DEFAULT_RATED_VOLTAGE_V,
+    DutyMap,
+    VoltageProfile,
+    check_rated_voltage,
+)
 from mechanism.physics.loads import FabricLoad, python_needle_load
 from mechanism.machine.description import MOTOR_INPUT_UNIT
-from mechanism.physics.motor import (CurrentDrive, DCMotor, ServoDrive, SupplyLimit, Thermal, apply_servos_to_spec,
-                                     bind_servos, python_servo_limit, python_supply_limit)
+from mechanism.physics.motor import (
+    CurrentDrive,
+    DCMotor,
+    ServoDrive,
+    SupplyLimit,
+    Thermal,
+    apply_servos_to_spec,
+    bind_servos,
+    python_servo_limit,
+    python_supply_limit,
+)
 from mechanism.tolerances import ZERO_SNAP_RAD
 
 ACTUATOR = "drive_motor"  # the actuator the machine adds (its own name, not a CAD name)
@@ -50,9 +76,13 @@ TORQUE_SENSOR = "drive_motor_torque"
 DEFAULT_TIMESTEP_S = 0.0005
 ZERO_SEARCH_SAMPLES = 180
 BELT_TENSIONS = ("low", "normal", "hard")
-STALL_VOLTAGE_V = 24.0  # the voltage a hard stop is sized for where the description gives no supply voltage
+STALL_VOLTAGE_V = (
+    24.0  # the voltage a hard stop is sized for where the description gives no supply voltage
+)
 STALL_CURRENT_A = 10.0  # a current drive's stall current where the description gives no limit
-STOP_HOLD_RAD = math.radians(0.5)  # a hard stop holds the stalled motor within half a degree (a slide: 0.5 mm)
+STOP_HOLD_RAD = math.radians(
+    0.5
+)  # a hard stop holds the stalled motor within half a degree (a slide: 0.5 mm)
 STOP_HOLD_M = 0.5e-3
 STOP_IMPEDANCE = (0.95, 0.9999)  # MuJoCo's default dmax up to as stiff as its soft constraints go
 
@@ -73,7 +103,9 @@ class MachineConfig:
 
     def __post_init__(self):
         if self.belt_tension not in BELT_TENSIONS:
-            raise UserError(f"belt tension must be one of {', '.join(BELT_TENSIONS)}, got {self.belt_tension!r}")
+            raise UserError(
+                f"belt tension must be one of {', '.join(BELT_TENSIONS)}, got {self.belt_tension!r}"
+            )
         if self.timestep_s is not None and not 1e-5 <= self.timestep_s <= 2e-3:
             raise UserError("time step must be between 0.01 ms and 2 ms")
         if not (math.isfinite(self.warm_s) and 0 <= self.warm_s <= 1e6):
@@ -87,7 +119,10 @@ def friction_law(values: dict, motor_joint: str | None = None) -> FrictionLaw:
         coulomb=values.get("coulomb_Nm", 0.0),
         static=static,
         viscous=values.get("viscous_Nm_s_per_rad", 0.0),
-        stribeck=values.get("stribeck", "tustin" if static is not None and values.get("stribeck_velocity_rad_s") else "none"),
+        stribeck=values.get(
+            "stribeck",
+            "tustin" if static is not None and values.get("stribeck_velocity_rad_s") else "none",
+        ),
         stribeck_velocity=values.get("stribeck_velocity_rad_s", 0.0),
         tustin_exponent=values.get("tustin_exponent", 1.0),
         position_amplitude=values.get("position_amplitude", 0.0),
@@ -117,19 +152,30 @@ def drive_from_description(motor: dict) -> DCMotor | ServoDrive | CurrentDrive:
     if kind == "current":
         return CurrentDrive(motor["torque_constant_Nm_per_A"], motor.get("max_current_A"))
     if kind == "servo":
-        core = DCMotor(resistance_ohm=motor["resistance_ohm"], torque_constant_Nm_A=motor["torque_constant_Nm_per_A"],
-                       back_emf_V_s_rad=motor["back_emf_V_s_per_rad"], cogging_Nm=motor.get("cogging_Nm", 0.0),
-                       cogging_poles=motor.get("cogging_per_rev", DCMotor.cogging_poles))
-        return ServoDrive(core, motor["supply_V"], motor["kp_V_per_rad"], motor.get("kd_V_s_per_rad", 0.0),
-                          motor.get("duty_limit", 1.0))
+        core = DCMotor(
+            resistance_ohm=motor["resistance_ohm"],
+            torque_constant_Nm_A=motor["torque_constant_Nm_per_A"],
+            back_emf_V_s_rad=motor["back_emf_V_s_per_rad"],
+            cogging_Nm=motor.get("cogging_Nm", 0.0),
+            cogging_poles=motor.get("cogging_per_rev", DCMotor.cogging_poles),
+        )
+        return ServoDrive(
+            core,
+            motor["supply_V"],
+            motor["kp_V_per_rad"],
+            motor.get("kd_V_s_per_rad", 0.0),
+            motor.get("duty_limit", 1.0),
+        )
     return motor_from_description(motor)
 
 
 def motor_from_description(motor: dict) -> DCMotor:
     thermal = None
     if "thermal_resistance_K_per_W" in motor or "thermal_time_constant_s" in motor:
-        thermal = Thermal(resistance_K_W=motor.get("thermal_resistance_K_per_W", Thermal.resistance_K_W),
-                          time_constant_s=motor.get("thermal_time_constant_s", Thermal.time_constant_s))
+        thermal = Thermal(
+            resistance_K_W=motor.get("thermal_resistance_K_per_W", Thermal.resistance_K_W),
+            time_constant_s=motor.get("thermal_time_constant_s", Thermal.time_constant_s),
+        )
     return DCMotor(
         resistance_ohm=motor["resistance_ohm"],
         torque_constant_Nm_A=motor["torque_constant_Nm_per_A"],
@@ -145,8 +191,10 @@ def duty_map_from(description: MachineDescription) -> DutyMap:
     """The described PWM supply's measured duty -> motor voltage map."""
     supply = description.section("supply")
     if "duty_percent" not in supply:
-        raise UserError(f"this machine describes no PWM supply ([supply] duty_percent and motor_voltage_V in "
-                        f"{description.path or 'its description'})")
+        raise UserError(
+            f"this machine describes no PWM supply ([supply] duty_percent and motor_voltage_V in "
+            f"{description.path or 'its description'})"
+        )
     return DutyMap(np.array(supply["duty_percent"]), np.array(supply["motor_voltage_V"]))
 
 
@@ -156,7 +204,9 @@ def supply_limit(description: MachineDescription) -> SupplyLimit | None:
     if "series_resistance_ohm" not in supply:
         return None
     if "voltage_V" not in supply:
-        raise UserError(f"machine description {description.where('supply', 'voltage_V')}: a series resistance needs the supply voltage")
+        raise UserError(
+            f"machine description {description.where('supply', 'voltage_V')}: a series resistance needs the supply voltage"
+        )
     return SupplyLimit(supply["voltage_V"], supply["series_resistance_ohm"])
 
 
@@ -165,10 +215,19 @@ def fabric_from_description(tool: dict, layers: int) -> FabricLoad:
     return FabricLoad(layers=layers, **{k: tool[k] for k in keys if k in tool})
 
 
-def _require(kind: str, name: str, names: list[str], description: MachineDescription, section: str, key: str | None) -> None:
+def _require(
+    kind: str,
+    name: str,
+    names: list[str],
+    description: MachineDescription,
+    section: str,
+    key: str | None,
+) -> None:
     if name not in names:
-        raise UserError(f"machine description {description.where(section, key)}: the model has no {kind} {name!r}; "
-                        f"close matches: {close_matches(name, names)}")
+        raise UserError(
+            f"machine description {description.where(section, key)}: the model has no {kind} {name!r}; "
+            f"close matches: {close_matches(name, names)}"
+        )
 
 
 def _names(spec_items) -> list[str]:
@@ -190,20 +249,40 @@ def check_names(description: MachineDescription, spec: mujoco.MjSpec) -> None:
         _require("joint", joint, joints, description, f'limits."{joint}"', None)
         unit = "mm" if joint in slides else "deg"
         if description.limit_units.get(joint, unit) != unit:
-            raise UserError(f"machine description {description.where(f'limits.{chr(34)}{joint}{chr(34)}')}: "
-                            f"{joint!r} is a {'slide' if unit == 'mm' else 'hinge'}: give lower_{unit} and upper_{unit}")
+            raise UserError(
+                f"machine description {description.where(f'limits.{chr(34)}{joint}{chr(34)}')}: "
+                f"{joint!r} is a {'slide' if unit == 'mm' else 'hinge'}: give lower_{unit} and upper_{unit}"
+            )
     for table in ("friction", "warm_friction"):
         for joint, law in getattr(description, table).items():
             _require("joint", joint, joints, description, f'{table}."{joint}"', None)
             if "position_joint" in law:
-                _require("joint", law["position_joint"], joints, description, f'{table}."{joint}"', "position_joint")
-    tool, hook, loads = description.section("tool"), description.section("hook"), description.section("loads")
+                _require(
+                    "joint",
+                    law["position_joint"],
+                    joints,
+                    description,
+                    f'{table}."{joint}"',
+                    "position_joint",
+                )
+    tool, hook, loads = (
+        description.section("tool"),
+        description.section("hook"),
+        description.section("loads"),
+    )
     for key in ("site", "eye_site"):
         if key in tool:
             _require("site", tool[key], sites, description, "tool", key)
     for key in ("plate", "part"):
         if key in tool and not any(g == tool[key] or g.startswith(tool[key] + "_") for g in geoms):
-            _require("part", tool[key], sorted({g.removesuffix("_visual") for g in geoms}), description, "tool", key)
+            _require(
+                "part",
+                tool[key],
+                sorted({g.removesuffix("_visual") for g in geoms}),
+                description,
+                "tool",
+                key,
+            )
     if "joint" in hook:
         _require("joint", hook["joint"], joints, description, "hook", "joint")
     if "site" in hook:
@@ -214,17 +293,25 @@ def check_names(description: MachineDescription, spec: mujoco.MjSpec) -> None:
     if ground is not None:
         owners = [g for g in [*spec.geoms, *spec.sites] if g.name in (ground, f"{ground}_visual")]
         if not owners:
-            _require("part", ground, sorted({g.removesuffix("_visual") for g in geoms} | set(sites)), description,
-                     "machine", "ground")
+            _require(
+                "part",
+                ground,
+                sorted({g.removesuffix("_visual") for g in geoms} | set(sites)),
+                description,
+                "machine",
+                "ground",
+            )
         body = owners[0].parent
         fixed = True
         while body is not None and body.name != "world":
             fixed = fixed and not list(body.joints)
             body = body.parent
         if not fixed:
-            raise UserError(f"machine description {description.where('machine', 'ground')}: the MJCF does not fix "
-                            f"{ground!r} to the world; [machine] ground acts when the model is a CAD export "
-                            f"(converted with that part fixed): name the export as the model")
+            raise UserError(
+                f"machine description {description.where('machine', 'ground')}: the MJCF does not fix "
+                f"{ground!r} to the world; [machine] ground acts when the model is a CAD export "
+                f"(converted with that part fixed): name the export as the model"
+            )
 
 
 def plate_top(model: mujoco.MjModel, data: mujoco.MjData, part: str) -> float:
@@ -237,7 +324,10 @@ def plate_top(model: mujoco.MjModel, data: mujoco.MjData, part: str) -> float:
             tops.append(float(up @ data.geom_xpos[gid]))
             continue
         start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
-        world = model.mesh_vert[start : start + count] @ data.geom_xmat[gid].reshape(3, 3).T + data.geom_xpos[gid]
+        world = (
+            model.mesh_vert[start : start + count] @ data.geom_xmat[gid].reshape(3, 3).T
+            + data.geom_xpos[gid]
+        )
         tops.append(float((world @ up).max()))
     return max(tops)
 
@@ -254,6 +344,7 @@ def install_callbacks() -> bool:
         if library is not None:
             mujoco.set_mjcb_passive(library.mechanism_passive)
         else:
+
             def passive(model, data):
                 python_friction(model, data)
                 python_needle_load(model, data)
@@ -265,7 +356,9 @@ def install_callbacks() -> bool:
     return library is not None
 
 
-def resolve_description(description: MachineDescription | str | os.PathLike | None) -> MachineDescription:
+def resolve_description(
+    description: MachineDescription | str | os.PathLike | None,
+) -> MachineDescription:
     """A description from itself, a TOML path, a shipped machine's name, or None (the default machine)."""
     if isinstance(description, MachineDescription):
         return description
@@ -284,7 +377,9 @@ class ShaftFrame:
     direction: float
 
 
-def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, travel: Travel | None = None) -> ShaftFrame:
+def find_shaft_frame(
+    model: mujoco.MjModel, description: MachineDescription, travel: Travel | None = None
+) -> ShaftFrame:
     """The shaft's zero (zero site highest against gravity, or the described ``zero_angle_deg``)
     and its forward direction (the way the shaft turns when the motor turns positive). A drive
     that rocks looks for its zero within its travel (at an end of it where the site is highest
@@ -294,13 +389,21 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, tra
     span = (travel.lower, travel.upper) if travel is not None and rocks else None
     coarse = compute_tables(model, shaft, description.zero_site, n=ZERO_SEARCH_SAMPLES, span=span)
     motor_ratio = float(np.mean(coarse.ratios[motor])) if motor in coarse.ratios else 0.0
-    if not abs(motor_ratio) > 1e-9:  # another described motor that turns the shaft sets its direction
-        others = [float(np.mean(coarse.ratios[j])) for j in description.drive_tables if j in coarse.ratios and j != motor]
+    if (
+        not abs(motor_ratio) > 1e-9
+    ):  # another described motor that turns the shaft sets its direction
+        others = [
+            float(np.mean(coarse.ratios[j]))
+            for j in description.drive_tables
+            if j in coarse.ratios and j != motor
+        ]
         motor_ratio = next((r for r in others if abs(r) > 1e-9), 0.0)
     if not abs(motor_ratio) > 1e-9:
         if len(description.drive_tables) == 1:
-            raise UserError(f"machine description {description.where('drive', 'motor_joint')}: the motor joint {motor!r} "
-                            f"does not move when the shaft {shaft!r} turns (no coupling between them)")
+            raise UserError(
+                f"machine description {description.where('drive', 'motor_joint')}: the motor joint {motor!r} "
+                f"does not move when the shaft {shaft!r} turns (no coupling between them)"
+            )
         motor_ratio = 1.0  # no motor turns the shaft: it counts in its joint's own direction
     direction = 1.0 if motor_ratio > 0 else -1.0
     if description.zero_angle_rad is not None:
@@ -308,9 +411,11 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, tra
     height = coarse.tool_z_m
     assert height is not None  # compute_tables was given the zero site
     if np.ptp(height) <= 1e-9 * max(float(model.stat.extent), 1e-3):
-        raise UserError(f"machine description {description.where('drive', 'zero_site')}: the site {description.zero_site!r} "
-                        f"does not rise and fall as the shaft turns, so the shaft has no zero: give [drive] "
-                        f"zero_angle_deg (the shaft joint's coordinate of its zero) instead")
+        raise UserError(
+            f"machine description {description.where('drive', 'zero_site')}: the site {description.zero_site!r} "
+            f"does not rise and fall as the shaft turns, so the shaft has no zero: give [drive] "
+            f"zero_angle_deg (the shaft joint's coordinate of its zero) instead"
+        )
     data = mujoco.MjData(model)
     up = up_axis(model)
     jac = np.zeros((3, model.nv))
@@ -328,10 +433,16 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, tra
     from scipy.optimize import brentq
 
     if rocks and best in (0, len(height) - 1):
-        return ShaftFrame(zero_rad=float(coarse.angle_rad[best]), direction=direction)  # highest at an end of the travel
+        return ShaftFrame(
+            zero_rad=float(coarse.angle_rad[best]), direction=direction
+        )  # highest at an end of the travel
     low, high = coarse.angle_rad[best] - step, coarse.angle_rad[best] + step
     try:
-        zero = brentq(slope, low, high, xtol=1e-13) if slope(low) > 0 > slope(high) else float(coarse.angle_rad[best])
+        zero = (
+            brentq(slope, low, high, xtol=1e-13)
+            if slope(low) > 0 > slope(high)
+            else float(coarse.angle_rad[best])
+        )
     except ValueError:
         zero = float(coarse.angle_rad[best])
     if rocks:
@@ -340,25 +451,35 @@ def find_shaft_frame(model: mujoco.MjModel, description: MachineDescription, tra
     return ShaftFrame(zero_rad=0.0 if abs(zero) < ZERO_SNAP_RAD else zero, direction=direction)
 
 
-def shaft_travel(model: mujoco.MjModel, description: MachineDescription, driver: str | None = None) -> Travel:
+def shaft_travel(
+    model: mujoco.MjModel, description: MachineDescription, driver: str | None = None
+) -> Travel:
     """The travel inspection's cycle covers for ``driver`` (default: the shaft): the described
     ``[drive] range_deg`` (the shaft), the described limits, the model's joint range, else whole
     revolutions where the mechanism assembles over one, else the range it assembles in."""
     joint = driver or description.shaft_joint
     if joint == description.shaft_joint and description.range_rad is not None:
-        return find_travel(model, joint, description.range_rad, "the description's [drive] range_deg")
+        return find_travel(
+            model, joint, description.range_rad, "the description's [drive] range_deg"
+        )
     travel = find_travel(model, joint, description.limits.get(joint))
     if travel.source == "the range the mechanism assembles in":
         import warnings
 
-        warnings.warn(f"{travel.joint} cannot turn a whole revolution: inspecting its travel "
-                      f"{travel.text().removeprefix(travel.joint + ' ')}, where the mechanism assembles (give "
-                      f'[limits."{travel.joint}"] lower_deg and upper_deg to set it and its hard stops)')
+        warnings.warn(
+            f"{travel.joint} cannot turn a whole revolution: inspecting its travel "
+            f"{travel.text().removeprefix(travel.joint + ' ')}, where the mechanism assembles (give "
+            f'[limits."{travel.joint}"] lower_deg and upper_deg to set it and its hard stops)'
+        )
     return travel
 
 
-def warn_passive(model: mujoco.MjModel, data: mujoco.MjData, description: MachineDescription | None,
-                 driven: list[str]) -> list[str]:
+def warn_passive(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    description: MachineDescription | None,
+    driven: list[str],
+) -> list[str]:
     """The passive joints (free to move with the ``driven`` ones held); warns once about each
     with neither a limit nor damping (viscous friction described, or MJCF damping)."""
     import warnings
@@ -369,20 +490,31 @@ def warn_passive(model: mujoco.MjModel, data: mujoco.MjData, description: Machin
     for name in passive:
         joint = model.joint(name).id
         dof = int(model.jnt_dofadr[joint])
-        damped = friction.get(name, {}).get("viscous_Nm_s_per_rad", 0.0) > 0 or model.dof_damping[dof] > 0
+        damped = (
+            friction.get(name, {}).get("viscous_Nm_s_per_rad", 0.0) > 0
+            or model.dof_damping[dof] > 0
+        )
         if not (model.jnt_limited[joint] or name in limits or damped):
-            warnings.warn(f'passive joint {name} has neither a limit nor damping: it swings or slides freely under '
-                          f'gravity (give [limits."{name}"] or [friction."{name}"] viscous_Nm_s_per_rad)')
+            warnings.warn(
+                f"passive joint {name} has neither a limit nor damping: it swings or slides freely under "
+                f'gravity (give [limits."{name}"] or [friction."{name}"] viscous_Nm_s_per_rad)'
+            )
     return passive
 
 
-def inspection_travel(model: mujoco.MjModel, driver: str, description: MachineDescription | None = None) -> Travel:
+def inspection_travel(
+    model: mujoco.MjModel, driver: str, description: MachineDescription | None = None
+) -> Travel:
     """The travel an inspection cycle covers for ``driver``: the described machine's (shaft_travel),
     or for a bare model its joint range, else whole revolutions, else where it assembles."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     names = parts.joint_names(model)
-    motors = [joint for joint in (description.drive_tables if description is not None else ()) if joint in names]
+    motors = [
+        joint
+        for joint in (description.drive_tables if description is not None else ())
+        if joint in names
+    ]
     warn_passive(model, data, description, [driver, *motors])
     if description is not None:
         return shaft_travel(model, description, driver)
@@ -390,22 +522,36 @@ def inspection_travel(model: mujoco.MjModel, driver: str, description: MachineDe
     if travel.source == "the range the mechanism assembles in":
         import warnings
 
-        warnings.warn(f"{driver} cannot turn a whole revolution: inspecting {travel.text()}, where the mechanism assembles")
+        warnings.warn(
+            f"{driver} cannot turn a whole revolution: inspecting {travel.text()}, where the mechanism assembles"
+        )
     return travel
 
 
-def inspection_frame(model: mujoco.MjModel, driver: str, description: MachineDescription | None = None,
-                     travel: Travel | None = None) -> ShaftFrame:
+def inspection_frame(
+    model: mujoco.MjModel,
+    driver: str,
+    description: MachineDescription | None = None,
+    travel: Travel | None = None,
+) -> ShaftFrame:
     """The frame inspection reports ``driver``'s angle in: the described shaft's (0 at its zero,
     counting the way the motor turns it forward) when ``driver`` is the described shaft, else the
     joint's own coordinate."""
-    if description is None or driver != description.shaft_joint or description.motor_joint not in parts.joint_names(model):
+    if (
+        description is None
+        or driver != description.shaft_joint
+        or description.motor_joint not in parts.joint_names(model)
+    ):
         return ShaftFrame(0.0, 1.0)
     return find_shaft_frame(model, description, travel or shaft_travel(model, description))
 
 
-def stop_stiffness(model: mujoco.MjModel, joint: int, motors: list[tuple[float, int]], timestep_s: float,
-                   ) -> tuple[np.ndarray, np.ndarray, float]:
+def stop_stiffness(
+    model: mujoco.MjModel,
+    joint: int,
+    motors: list[tuple[float, int]],
+    timestep_s: float,
+) -> tuple[np.ndarray, np.ndarray, float]:
     """(solref, solimp, predicted steady penetration [rad or m]) of a hard stop on ``joint``
     that holds the strongest motor's stall torque (``motors``: (stall torque, dof) each), as
     reflected to the joint, plus gravity.
@@ -426,7 +572,11 @@ def stop_stiffness(model: mujoco.MjModel, joint: int, motors: list[tuple[float, 
     inertia = float(v @ mass @ v)
     torque = max(abs(stall * v[dof]) for stall, dof in motors) + abs(float(v @ data.qfrc_bias))
     acceleration = torque / inertia if inertia > 0 else 0.0
-    hold = STOP_HOLD_M if int(model.jnt_type[joint]) == int(mujoco.mjtJoint.mjJNT_SLIDE) else STOP_HOLD_RAD
+    hold = (
+        STOP_HOLD_M
+        if int(model.jnt_type[joint]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
+        else STOP_HOLD_RAD
+    )
     tc = 2 * timestep_s
     d = STOP_IMPEDANCE[0] if acceleration <= 0 else 1.0 - hold / (tc * tc * acceleration)
     d = float(np.clip(d, *STOP_IMPEDANCE))
@@ -450,15 +600,21 @@ def input_unit(description: MachineDescription, joint: str) -> str:
 
 def _described(attribute: str) -> Any:
     """A read-only attribute of the Machine that is its description's."""
-    return property(lambda self: getattr(self.description, attribute), doc=f"the description's {attribute}")
+    return property(
+        lambda self: getattr(self.description, attribute), doc=f"the description's {attribute}"
+    )
 
 
 class Machine:
     """A compiled, ready-to-simulate machine. ``machine.model`` / ``machine.data`` are plain
     MuJoCo objects; everything added is visible in ``mujoco.mj_saveLastXML``."""
 
-    def __init__(self, description: MachineDescription | str | os.PathLike | None = None,
-                 config: MachineConfig | None = None, extend=None):
+    def __init__(
+        self,
+        description: MachineDescription | str | os.PathLike | None = None,
+        config: MachineConfig | None = None,
+        extend=None,
+    ):
         """``description``: a description, its TOML path, or None for the shipped machine.
         ``extend(spec)``, if given, adds to the spec before it is compiled (probe sites and
         sensors, mechanism.inspection.probes); it must not add joints or actuators."""
@@ -468,50 +624,79 @@ class Machine:
         self._extend = extend
         spec = load_spec(self.model_path)
         check_names(self.description, spec)
-        self.timestep_s = self.config.timestep_s or self.description.timestep_s or DEFAULT_TIMESTEP_S
+        self.timestep_s = (
+            self.config.timestep_s or self.description.timestep_s or DEFAULT_TIMESTEP_S
+        )
         spec.option.timestep = self.timestep_s  # before friction: its stiffness follows it
         for equality in spec.equalities:  # loops and belts as stiff as the step allows (2 steps)
             equality.solref = [2 * self.timestep_s, 1.0]
-        self.drives = {joint: drive_from_description(table) for joint, table in self.description.drive_tables.items()}
+        self.drives = {
+            joint: drive_from_description(table)
+            for joint, table in self.description.drive_tables.items()
+        }
         if self.config.motor is not None:
             self.drives[self.motor_joint] = self.config.motor
         main = self.drives[self.motor_joint]
         # the main motor's datasheet (a current drive has no R or Ke: a 1 ohm stand-in keeps the formulas defined)
-        self.motor = main if isinstance(main, DCMotor) else main.motor if isinstance(main, ServoDrive) else DCMotor(
-            resistance_ohm=1.0, torque_constant_Nm_A=main.torque_constant_Nm_A, back_emf_V_s_rad=main.torque_constant_Nm_A)
+        self.motor = (
+            main
+            if isinstance(main, DCMotor)
+            else main.motor
+            if isinstance(main, ServoDrive)
+            else DCMotor(
+                resistance_ohm=1.0,
+                torque_constant_Nm_A=main.torque_constant_Nm_A,
+                back_emf_V_s_rad=main.torque_constant_Nm_A,
+            )
+        )
         for joint, drive in self.drives.items():
             drive.add_to_spec(spec, joint=joint, name=actuator_name(self.description, joint))
         servos = [joint for joint, drive in self.drives.items() if isinstance(drive, ServoDrive)]
         if servos:
             apply_servos_to_spec(spec, len(servos))
-        for joint, (lower, upper) in self.description.limits.items():  # hard stops; their stiffness follows compiling
+        for joint, (
+            lower,
+            upper,
+        ) in self.description.limits.items():  # hard stops; their stiffness follows compiling
             item = spec.joint(joint)
             item.limited = mujoco.mjtLimited.mjLIMITED_TRUE
             hinge = item.type == mujoco.mjtJoint.mjJNT_HINGE
-            scale = 180.0 / math.pi if hinge and spec.compiler.degree else 1.0  # an MJCF in degrees compiles the range as such
+            scale = (
+                180.0 / math.pi if hinge and spec.compiler.degree else 1.0
+            )  # an MJCF in degrees compiles the range as such
             item.range = [lower * scale, upper * scale]
         self.friction = FrictionSet(self.friction_laws())
         self.friction.apply_to_spec(spec)
         tool = self.description.section("tool")
-        self.fabric = self.config.fabric or fabric_from_description(tool, self.config.layers if self.config.needle else 0)
+        self.fabric = self.config.fabric or fabric_from_description(
+            tool, self.config.layers if self.config.needle else 0
+        )
         if not self.config.needle:
             self.fabric = FabricLoad(layers=0)
         if self.fabric.layers and not (self.tool_site and self.plate_part):
-            raise UserError(f"fabric layers need a tool site and a plate: set [tool] site and plate in "
-                            f"{self.description.path or 'the machine description'}")
+            raise UserError(
+                f"fabric layers need a tool site and a plate: set [tool] site and plate in "
+                f"{self.description.path or 'the machine description'}"
+            )
         self.fabric.apply_to_spec(spec)
         self.supply = supply_limit(self.description) if isinstance(main, DCMotor) else None
         if self.supply:
             self.supply.apply_to_spec(spec)
         for joint in self.drives:
-            spec.add_sensor(name=torque_sensor_name(self.description, joint), type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator_name(self.description, joint))
+            spec.add_sensor(
+                name=torque_sensor_name(self.description, joint),
+                type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+                objname=actuator_name(self.description, joint),
+            )
         if extend is not None:
             extend(spec)
         try:
             self.model = spec.compile()
         except Exception as exc:
-            raise UserError(f"cannot build the machine model: {' '.join(str(exc).split())}") from None
+            raise UserError(
+                f"cannot build the machine model: {' '.join(str(exc).split())}"
+            ) from None
         self.spec = spec
         self.data = mujoco.MjData(self.model)
         self.friction.bind(self.model)
@@ -521,14 +706,24 @@ class Machine:
         if self.supply:
             self.supply.bind(self.model, self.motor, self.actuator, self.motor_dof)
         if servos:
-            bind_servos(self.model, [cast(ServoDrive, self.drives[j]).fields(self.model.actuator(actuator_name(self.description, j)).id,
-                                                          *reversed(joint_dof(self.model, j))) for j in servos])
+            bind_servos(
+                self.model,
+                [
+                    cast(ServoDrive, self.drives[j]).fields(
+                        self.model.actuator(actuator_name(self.description, j)).id,
+                        *reversed(joint_dof(self.model, j)),
+                    )
+                    for j in servos
+                ],
+            )
         self.stops = self._stiffen_stops(spec)
         self.travel = cached_travel(self.model_path, self.description, self.model)
         self.frame = shaft_frame(self.model_path, self.description, self.model, self.travel)
         self.plate_top_z = None
         self.reset(0.0)
-        self.passive_joints = warn_passive(self.model, self.data, self.description, [*self.drives, self.shaft_joint])
+        self.passive_joints = warn_passive(
+            self.model, self.data, self.description, [*self.drives, self.shaft_joint]
+        )
         if self.plate_part:
             self.plate_top_z = plate_top(self.model, self.data, self.plate_part)
         if self.fabric.layers:
@@ -539,12 +734,22 @@ class Machine:
         """Every limited joint's stop holds the stalled motor (stop_stiffness); returns each one's
         predicted steady penetration [rad or m]."""
         supply = self.description.section("supply")
-        motors = [(drive.stall_torque_Nm(STALL_CURRENT_A if isinstance(drive, CurrentDrive) else
-                                         supply.get("voltage_V", STALL_VOLTAGE_V)), joint_dof(self.model, joint)[1])
-                  for joint, drive in self.drives.items()]
+        motors = [
+            (
+                drive.stall_torque_Nm(
+                    STALL_CURRENT_A
+                    if isinstance(drive, CurrentDrive)
+                    else supply.get("voltage_V", STALL_VOLTAGE_V)
+                ),
+                joint_dof(self.model, joint)[1],
+            )
+            for joint, drive in self.drives.items()
+        ]
         out = {}
         for joint in np.flatnonzero(self.model.jnt_limited):
-            solref, solimp, penetration = stop_stiffness(self.model, int(joint), motors, self.timestep_s)
+            solref, solimp, penetration = stop_stiffness(
+                self.model, int(joint), motors, self.timestep_s
+            )
             self.model.jnt_solref[joint], self.model.jnt_solimp[joint] = solref, solimp
             name = self.model.joint(joint).name
             if name:
@@ -580,22 +785,29 @@ class Machine:
     def friction_laws(self) -> dict[str, FrictionLaw]:
         description, config = self.description, self.config
         tau = description.section("warm").get("time_constant_s")
-        fraction = 0.0 if not config.warm_s else (1.0 if not tau else 1.0 - math.exp(-config.warm_s / tau))
+        fraction = (
+            0.0 if not config.warm_s else (1.0 if not tau else 1.0 - math.exp(-config.warm_s / tau))
+        )
         tables = {joint: dict(values) for joint, values in description.friction.items()}
         for joint, warm in description.warm_friction.items():
             tables[joint] = warmed(tables.get(joint, {}), warm, fraction)
         laws = {joint: friction_law(values) for joint, values in tables.items()}
         laws.update(config.friction or {})
         loads = description.section("loads")
-        extra = {"low": loads.get("belt_tension_low_Nm", 0.0), "normal": 0.0,
-                 "hard": loads.get("belt_tension_hard_Nm", 0.0)}[config.belt_tension]
+        extra = {
+            "low": loads.get("belt_tension_low_Nm", 0.0),
+            "normal": 0.0,
+            "hard": loads.get("belt_tension_hard_Nm", 0.0),
+        }[config.belt_tension]
         if extra:
             laws[self.shaft_joint] = laws.get(self.shaft_joint, FrictionLaw()).add(coulomb=extra)
         if config.feeding:
             if "feeding_joint" not in loads:
                 raise UserError("this machine describes no feed mechanism ([loads] feeding_joint)")
             joint = loads["feeding_joint"]
-            laws[joint] = laws.get(joint, FrictionLaw()).add(coulomb=loads.get("feeding_coulomb_Nm", 0.0))
+            laws[joint] = laws.get(joint, FrictionLaw()).add(
+                coulomb=loads.get("feeding_coulomb_Nm", 0.0)
+            )
         return laws
 
     def duty_map(self) -> DutyMap:
@@ -607,7 +819,9 @@ class Machine:
 
     def check_voltage(self, voltage: VoltageProfile) -> None:
         """Refuse an input above the motor's rated voltage (the description's, else 30 V)."""
-        check_rated_voltage(voltage, self.rated_voltage_V, self.description.where("motor", "rated_voltage_V"))
+        check_rated_voltage(
+            voltage, self.rated_voltage_V, self.description.where("motor", "rated_voltage_V")
+        )
 
     # -- the shaft angle --
     def shaft_angle(self, qpos) -> np.ndarray:
@@ -625,7 +839,9 @@ class Machine:
         """Machine at rest with the shaft at ``shaft_angle_rad`` (0 = the described zero)."""
         mujoco.mj_resetData(self.model, self.data)
         if self.rotates:
-            solve_pose(self.model, self.data, {self.shaft_joint: self.joint_position(shaft_angle_rad)})
+            solve_pose(
+                self.model, self.data, {self.shaft_joint: self.joint_position(shaft_angle_rad)}
+            )
         else:
             approach(self.model, self.data, self.shaft_joint, self.joint_position(shaft_angle_rad))
         self.data.qvel[:] = 0.0
@@ -635,8 +851,15 @@ class Machine:
     @functools.cached_property
     def tables(self) -> LinkageTables:
         """J(θ), J'(θ), G(θ), joint ratios and the tool height over one shaft revolution."""
-        return compute_tables(self.model, self.shaft_joint, self.tool_site, n=720,
-                              zero_rad=self.frame.zero_rad, direction=self.frame.direction, span=self.shaft_span_rad)
+        return compute_tables(
+            self.model,
+            self.shaft_joint,
+            self.tool_site,
+            n=720,
+            zero_rad=self.frame.zero_rad,
+            direction=self.frame.direction,
+            span=self.shaft_span_rad,
+        )
 
     @property
     def rotates(self) -> bool:
@@ -648,13 +871,18 @@ class Machine:
         """(lower, upper) shaft angles [rad] of a drive that rocks; None for one that turns."""
         if self.travel.rotates:
             return None
-        ends = sorted(self.frame.direction * (value - self.frame.zero_rad) for value in (self.travel.lower, self.travel.upper))
+        ends = sorted(
+            self.frame.direction * (value - self.frame.zero_rad)
+            for value in (self.travel.lower, self.travel.upper)
+        )
         return ends[0], ends[1]
 
     def ratio(self, joint: str) -> float:
         """Mean dq_joint/dθ over a revolution (turns of ``joint`` per shaft turn for a coupled shaft)."""
         if joint not in self.tables.ratios:
-            raise UserError(f"no one-degree-of-freedom joint {joint!r}; close matches: {close_matches(joint, self.tables.ratios)}")
+            raise UserError(
+                f"no one-degree-of-freedom joint {joint!r}; close matches: {close_matches(joint, self.tables.ratios)}"
+            )
         return float(np.mean(self.tables.ratios[joint]))
 
     @property
@@ -692,8 +920,12 @@ class Machine:
         with atomic_dir(path.parent / meshes) as folder:
             for mesh in self.spec.meshes:
                 shutil.copy2(source / mesh.file, folder / Path(mesh.file).name)
-        xml = self.spec.to_xml()  # compiles against the original meshes; the folder name is swapped after
-        xml, count = re.subn(r'(<compiler\b[^>]*\bmeshdir=")[^"]*(")', rf"\g<1>{meshes}\g<2>", xml, count=1)
+        xml = (
+            self.spec.to_xml()
+        )  # compiles against the original meshes; the folder name is swapped after
+        xml, count = re.subn(
+            r'(<compiler\b[^>]*\bmeshdir=")[^"]*(")', rf"\g<1>{meshes}\g<2>", xml, count=1
+        )
         if not count:
             xml = re.sub(r"<compiler\b", f'<compiler meshdir="{meshes}"', xml, count=1)
         with atomic_file(path) as handle:
@@ -709,12 +941,22 @@ _TRAVELS: dict[tuple, Travel] = {}
 
 def _model_key(model_path: Path, description: MachineDescription) -> tuple:
     stat = Path(model_path).stat()
-    return (str(Path(model_path).resolve()), stat.st_mtime_ns, stat.st_size, description.shaft_joint,
-            description.motor_joint, description.zero_site, description.zero_angle_rad, description.range_rad,
-            tuple(sorted(description.limits.items())))
+    return (
+        str(Path(model_path).resolve()),
+        stat.st_mtime_ns,
+        stat.st_size,
+        description.shaft_joint,
+        description.motor_joint,
+        description.zero_site,
+        description.zero_angle_rad,
+        description.range_rad,
+        tuple(sorted(description.limits.items())),
+    )
 
 
-def cached_travel(model_path: Path, description: MachineDescription, model: mujoco.MjModel) -> Travel:
+def cached_travel(
+    model_path: Path, description: MachineDescription, model: mujoco.MjModel
+) -> Travel:
     """The shaft's travel, found once per model file and roles (a search costs poses)."""
     key = _model_key(model_path, description)
     if key not in _TRAVELS:
@@ -722,8 +964,12 @@ def cached_travel(model_path: Path, description: MachineDescription, model: mujo
     return _TRAVELS[key]
 
 
-def shaft_frame(model_path: Path, description: MachineDescription, model: mujoco.MjModel,
-                travel: Travel | None = None) -> ShaftFrame:
+def shaft_frame(
+    model_path: Path,
+    description: MachineDescription,
+    model: mujoco.MjModel,
+    travel: Travel | None = None,
+) -> ShaftFrame:
     """The shaft frame, found once per model file and roles (it costs a revolution of poses)."""
     key = _model_key(model_path, description)
     if key not in _FRAMES:

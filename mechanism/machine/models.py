@@ -18,6 +18,7 @@ from pathlib import Path
 
 from mechanism.errors import UserError
 
+
 def _assets_root() -> Path:
     package = Path(__file__).resolve().parent.parent
     installed = package / "assets"  # the wheel maps the top-level assets/ here
@@ -85,7 +86,7 @@ def is_mjcf(path: Path) -> bool:
         end = head.find(b"?>" if head.startswith(b"<?") else b"-->")
         if end < 0:
             break
-        head = head[end + (2 if head.startswith(b"<?") else 3):].lstrip()
+        head = head[end + (2 if head.startswith(b"<?") else 3) :].lstrip()
     return head.startswith(b"<mujoco")
 
 
@@ -96,13 +97,17 @@ def export_digest(export: Path) -> str:
     for path in sorted(p for p in export.parent.rglob("*") if p.is_file()):
         total += path.stat().st_size
         if total > MAX_EXPORT_FOLDER_BYTES:
-            raise UserError(f"CAD export folder {export.parent}: larger than {MAX_EXPORT_FOLDER_BYTES >> 30} GiB")
+            raise UserError(
+                f"CAD export folder {export.parent}: larger than {MAX_EXPORT_FOLDER_BYTES >> 30} GiB"
+            )
         digest.update(str(path.relative_to(export.parent)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:20]
 
 
-def converted_model(export: Path, drivers: tuple[str, ...] = (), ground: str | None = None, up: str | None = None) -> Path:
+def converted_model(
+    export: Path, drivers: tuple[str, ...] = (), ground: str | None = None, up: str | None = None
+) -> Path:
     """The MJCF of a CAD export (``drivers`` kept as tree joints, ``ground`` fixed to the world, ``up``
     the export's up axis, None: its gravity vector, else z), converted once per content and cached
     (mechanism.files.cache: checked against its manifest at each use, rebuilt when damaged)."""
@@ -111,7 +116,9 @@ def converted_model(export: Path, drivers: tuple[str, ...] = (), ground: str | N
     from mechanism.native import cache_root
 
     extra = ([f"ground={ground}"] if ground else []) + ([f"up={up}"] if up else [])
-    key = hashlib.sha256("\0".join([export_digest(export), *drivers, *extra]).encode()).hexdigest()[:20]
+    key = hashlib.sha256("\0".join([export_digest(export), *drivers, *extra]).encode()).hexdigest()[
+        :20
+    ]
     folder = cache_root() / "models" / f"{export.stem}-{key}"
 
     def build(tmp: Path) -> None:
@@ -128,10 +135,20 @@ def resolve_model(description) -> Path:
     """The MJCF behind a description (converting a CAD export when needed)."""
     path = Path(description.model)
     if not path.is_file():
-        raise UserError(f"machine description {description.where('machine', 'model')}: no such file {path}")
+        raise UserError(
+            f"machine description {description.where('machine', 'model')}: no such file {path}"
+        )
     machine = description.section("machine")
-    return path if is_mjcf(path) else converted_model(path, (description.motor_joint, description.shaft_joint),
-                                                      machine.get("ground"), machine.get("up"))
+    return (
+        path
+        if is_mjcf(path)
+        else converted_model(
+            path,
+            (description.motor_joint, description.shaft_joint),
+            machine.get("ground"),
+            machine.get("up"),
+        )
+    )
 
 
 def load_spec(path: str | os.PathLike | None = None):

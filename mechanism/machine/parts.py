@@ -55,16 +55,34 @@ def frame_names(model: mujoco.MjModel) -> list[str]:
 
 def find_frame(model: mujoco.MjModel, name: str) -> Frame:
     """The frame of a part (its site), a user-named frame (site), a body or a geom."""
-    for kind, objtype in (("site", mujoco.mjtObj.mjOBJ_SITE), ("body", mujoco.mjtObj.mjOBJ_BODY), ("geom", mujoco.mjtObj.mjOBJ_GEOM)):
+    for kind, objtype in (
+        ("site", mujoco.mjtObj.mjOBJ_SITE),
+        ("body", mujoco.mjtObj.mjOBJ_BODY),
+        ("geom", mujoco.mjtObj.mjOBJ_GEOM),
+    ):
         index = mujoco.mj_name2id(model, objtype, name)
         if index < 0:
             continue
         if kind == "site":
-            return Frame(name, kind, int(model.site_bodyid[index]), model.site_pos[index].copy(), model.site_quat[index].copy())
+            return Frame(
+                name,
+                kind,
+                int(model.site_bodyid[index]),
+                model.site_pos[index].copy(),
+                model.site_quat[index].copy(),
+            )
         if kind == "body":
             return Frame(name, kind, index, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))
-        return Frame(name, kind, int(model.geom_bodyid[index]), model.geom_pos[index].copy(), model.geom_quat[index].copy())
-    raise UserError(f"no part, frame or body named {name!r} in the model; close matches: {close_matches(name, frame_names(model))}")
+        return Frame(
+            name,
+            kind,
+            int(model.geom_bodyid[index]),
+            model.geom_pos[index].copy(),
+            model.geom_quat[index].copy(),
+        )
+    raise UserError(
+        f"no part, frame or body named {name!r} in the model; close matches: {close_matches(name, frame_names(model))}"
+    )
 
 
 def part_names(model: mujoco.MjModel) -> list[str]:
@@ -93,7 +111,9 @@ def part_geoms(model: mujoco.MjModel, part: str) -> list[int]:
         if name == part or (pattern.fullmatch(name) and name not in sites):
             found.append(index)
     if not found:
-        raise UserError(f"no part named {part!r} with a shape in the model; close matches: {close_matches(part, part_names(model))}")
+        raise UserError(
+            f"no part named {part!r} with a shape in the model; close matches: {close_matches(part, part_names(model))}"
+        )
     return found
 
 
@@ -128,7 +148,11 @@ def loop_equalities(model: mujoco.MjModel, joint: str) -> list[int]:
     """The ``connect``/``weld`` equalities that close a loop at ``joint`` (the converter names
     them ``loop:<joint>``; a revolute joint needs two, suffixed ``_<n>`` or ``:<tag>``)."""
     names = _names(model, mujoco.mjtObj.mjOBJ_EQUALITY, model.neq)
-    return [i for i, name in enumerate(names) if name == f"loop:{joint}" or _loop_joint_of(name) == joint]
+    return [
+        i
+        for i, name in enumerate(names)
+        if name == f"loop:{joint}" or _loop_joint_of(name) == joint
+    ]
 
 
 def loop_joint_names(model: mujoco.MjModel) -> list[str]:

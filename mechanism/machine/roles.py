@@ -28,8 +28,11 @@ RATIO_SAMPLES = 72
 
 
 def _hinges(model: mujoco.MjModel) -> list[str]:
-    return [model.joint(j).name for j in range(model.njnt)
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and model.joint(j).name]
+    return [
+        model.joint(j).name
+        for j in range(model.njnt)
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and model.joint(j).name
+    ]
 
 
 def _tables_from(model: mujoco.MjModel, driver: str, site: str | None = None):
@@ -47,7 +50,9 @@ class RoleGuess:
     ratios: dict[str, float] = field(default_factory=dict)  # mean turns per shaft turn
     revolving: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    travel: tuple[float, float] | None = None  # a shaft that rocks: the range it assembles in (joint coordinate)
+    travel: tuple[float, float] | None = (
+        None  # a shaft that rocks: the range it assembles in (joint coordinate)
+    )
     unknown: list[str] = field(default_factory=list)  # what could not be guessed
 
 
@@ -67,7 +72,11 @@ def guess_driver(model: mujoco.MjModel) -> str:
 
 def _one_dof_joints(model: mujoco.MjModel) -> list[str]:
     kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-    return [model.joint(j).name for j in range(model.njnt) if int(model.jnt_type[j]) in kinds and model.joint(j).name]
+    return [
+        model.joint(j).name
+        for j in range(model.njnt)
+        if int(model.jnt_type[j]) in kinds and model.joint(j).name
+    ]
 
 
 def _rocking_guess(model: mujoco.MjModel) -> RoleGuess:
@@ -78,8 +87,13 @@ def _rocking_guess(model: mujoco.MjModel) -> RoleGuess:
 
     joints = _one_dof_joints(model)
     if not joints:
-        return RoleGuess(None, None, None, notes=["the model has no hinge or slide joint: nothing moves"],
-                         unknown=["the shaft and the motor: the model has no hinge or slide joint"])
+        return RoleGuess(
+            None,
+            None,
+            None,
+            notes=["the model has no hinge or slide joint: nothing moves"],
+            unknown=["the shaft and the motor: the model has no hinge or slide joint"],
+        )
     ranges = {}
     for name in joints:
         try:
@@ -87,17 +101,31 @@ def _rocking_guess(model: mujoco.MjModel) -> RoleGuess:
         except UserError:
             continue
     if not ranges:
-        return RoleGuess(None, None, None, notes=["the mechanism does not move at the export's pose"],
-                         unknown=["the shaft and the motor: no joint moves the mechanism from the export's pose"])
+        return RoleGuess(
+            None,
+            None,
+            None,
+            notes=["the mechanism does not move at the export's pose"],
+            unknown=[
+                "the shaft and the motor: no joint moves the mechanism from the export's pose"
+            ],
+        )
     hinges = set(_hinges(model))
 
     def preference(name: str):
         low, high = ranges[name]
-        return (not _on_frame(model, name), name not in hinges, -round(high - low, 9), joints.index(name))
+        return (
+            not _on_frame(model, name),
+            name not in hinges,
+            -round(high - low, 9),
+            joints.index(name),
+        )
 
     shaft = min(ranges, key=preference)
     guess = RoleGuess(shaft, shaft, None, {shaft: 1.0}, [], travel=ranges[shaft])
-    guess.notes.append(f"no joint turns whole revolutions: the shaft {shaft} rocks (GUESS), the motor is guessed on it")
+    guess.notes.append(
+        f"no joint turns whole revolutions: the shaft {shaft} rocks (GUESS), the motor is guessed on it"
+    )
     guess.zero_site = _moving_site(model, shaft, ranges[shaft])
     return guess
 
@@ -110,8 +138,15 @@ def guess_roles(model: mujoco.MjModel) -> RoleGuess:
             break
     else:
         return _rocking_guess(model)
-    revolving = [name for name in hinges if name in tables.ratios
-                 and (np.all(tables.ratios[name] > REVOLVING_RATIO_TOLERANCE) or np.all(tables.ratios[name] < -REVOLVING_RATIO_TOLERANCE))]
+    revolving = [
+        name
+        for name in hinges
+        if name in tables.ratios
+        and (
+            np.all(tables.ratios[name] > REVOLVING_RATIO_TOLERANCE)
+            or np.all(tables.ratios[name] < -REVOLVING_RATIO_TOLERANCE)
+        )
+    ]
     speeds = {name: float(np.mean(np.abs(tables.ratios[name]))) for name in revolving}
 
     def preference(name: str):
@@ -121,18 +156,25 @@ def guess_roles(model: mujoco.MjModel) -> RoleGuess:
 
     shaft = min(revolving, key=preference)
     scale = speeds[shaft]
-    ratios = {name: float(np.mean(tables.ratios[name])) / float(np.mean(tables.ratios[shaft])) for name in revolving}
+    ratios = {
+        name: float(np.mean(tables.ratios[name])) / float(np.mean(tables.ratios[shaft]))
+        for name in revolving
+    }
     motor = max(revolving, key=lambda name: (round(abs(ratios[name]), 9), -hinges.index(name)))
     guess = RoleGuess(shaft, motor, None, ratios, revolving)
     if motor == shaft:
-        guess.notes.append("no joint turns faster than the shaft: the motor is guessed on the shaft itself")
+        guess.notes.append(
+            "no joint turns faster than the shaft: the motor is guessed on the shaft itself"
+        )
     guess.zero_site = _moving_site(model, shaft)
     if scale == 0:
         guess.notes.append("the shaft does not move")
     return guess
 
 
-def _moving_site(model: mujoco.MjModel, shaft: str, travel: tuple[float, float] | None = None) -> str | None:
+def _moving_site(
+    model: mujoco.MjModel, shaft: str, travel: tuple[float, float] | None = None
+) -> str | None:
     """A tool point: a site that rises and falls once per shaft turn (or moves up and down over
     the ``travel`` of a shaft that rocks), preferring a body that translates without turning (a
     needle bar, a ram), a user-named frame over a part's own site, a larger travel and, among
@@ -143,13 +185,21 @@ def _moving_site(model: mujoco.MjModel, shaft: str, travel: tuple[float, float] 
     data = mujoco.MjData(model)
     geoms = {model.geom(i).name for i in range(model.ngeom)}
     # a first-generation subsystem's massless RootPart frame is an exporter artefact, not a point of the tool
-    sites = [model.site(i).name for i in range(model.nsite) if model.site(i).name and not model.site(i).name.endswith("RootPart")]
+    sites = [
+        model.site(i).name
+        for i in range(model.nsite)
+        if model.site(i).name and not model.site(i).name.endswith("RootPart")
+    ]
     if not sites:
         return None
     heights = np.zeros((RATIO_SAMPLES, len(sites)))
     turn = np.zeros(len(sites))
     first = None
-    angles = np.arange(RATIO_SAMPLES) * 2 * np.pi / RATIO_SAMPLES if travel is None else np.linspace(*travel, RATIO_SAMPLES)
+    angles = (
+        np.arange(RATIO_SAMPLES) * 2 * np.pi / RATIO_SAMPLES
+        if travel is None
+        else np.linspace(*travel, RATIO_SAMPLES)
+    )
     if travel is not None:
         approach(model, data, shaft, float(angles[0]))
     for i, angle in enumerate(angles):
@@ -162,16 +212,25 @@ def _moving_site(model: mujoco.MjModel, shaft: str, travel: tuple[float, float] 
     periodic = travel is None
     travel = np.ptp(heights, axis=0)
     rising = np.diff(np.vstack([heights, heights[:1]]), axis=0) > 0
-    peaks = np.sum(rising & ~np.roll(rising, -1, axis=0), axis=0)  # rising then not: one maximum each
+    peaks = np.sum(
+        rising & ~np.roll(rising, -1, axis=0), axis=0
+    )  # rising then not: one maximum each
     floor = 1e-6 * max(float(model.stat.extent), 1e-3)
-    candidates = [k for k in range(len(sites)) if travel[k] > floor and (peaks[k] == 1 or not periodic)]
+    candidates = [
+        k for k in range(len(sites)) if travel[k] > floor and (peaks[k] == 1 or not periodic)
+    ]
     if not candidates:
         return None
 
     def preference(k: int):
         translating = turn[k] < np.radians(1.0)
         user_named = sites[k] not in geoms and f"{sites[k]}_visual" not in geoms
-        return (not translating, not user_named, -round(float(travel[k]) * 1e6), float(heights[:, k].min()))
+        return (
+            not translating,
+            not user_named,
+            -round(float(travel[k]) * 1e6),
+            float(heights[:, k].min()),
+        )
 
     return sites[min(candidates, key=preference)]
 
@@ -185,7 +244,9 @@ def drive_lines(model_path, degrees_of_freedom: int | None) -> list[str]:
         model = load_model(model_path)
     except Exception as exc:  # noqa: BLE001 - the model is written; a summary extra must not end the command
         return [f"moving mass: not computed ({' '.join(str(exc).split())[:120]})"]
-    moving = float(sum(model.body_mass[b] for b in range(1, model.nbody) if model.body_weldid[b] != 0))
+    moving = float(
+        sum(model.body_mass[b] for b in range(1, model.nbody) if model.body_weldid[b] != 0)
+    )
     lines = [f"moving mass: {moving:.6g} kg"]
     if degrees_of_freedom != 1:
         return lines
@@ -198,9 +259,13 @@ def drive_lines(model_path, degrees_of_freedom: int | None) -> list[str]:
         return lines + [f"reflected inertia: not computed ({' '.join(str(exc).split())[:120]})"]
     inertia = tables.inertia_kgm2
     over = "a revolution" if guess.travel is None else "its travel"
-    lines.append(f"reflected inertia at {guess.shaft_joint}: {inertia.mean():.4g} kg*m^2 mean over {over} "
-                 f"({inertia.min():.4g} to {inertia.max():.4g})")
+    lines.append(
+        f"reflected inertia at {guess.shaft_joint}: {inertia.mean():.4g} kg*m^2 mean over {over} "
+        f"({inertia.min():.4g} to {inertia.max():.4g})"
+    )
     ratio = abs(guess.ratios.get(guess.motor_joint or "", 1.0))
     if guess.motor_joint != guess.shaft_joint and ratio > 1:
-        lines.append(f"  = {inertia.mean() / ratio ** 2:.4g} kg*m^2 referred to {guess.motor_joint} (ratio {ratio:g}:1)")
+        lines.append(
+            f"  = {inertia.mean() / ratio**2:.4g} kg*m^2 referred to {guess.motor_joint} (ratio {ratio:g}:1)"
+        )
     return lines

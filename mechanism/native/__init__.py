@@ -69,18 +69,35 @@ def load(name: str) -> ctypes.CDLL | None:
         tmp = None
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp.so", dir=target.parent)
+            fd, tmp = tempfile.mkstemp(
+                prefix=f".{target.name}.", suffix=".tmp.so", dir=target.parent
+            )
             os.close(fd)
-            cmd = [compiler, "-O2", "-shared", "-fPIC", f"-I{include}", str(source), "-o", tmp, *link, "-lm"]
+            cmd = [
+                compiler,
+                "-O2",
+                "-shared",
+                "-fPIC",
+                f"-I{include}",
+                str(source),
+                "-o",
+                tmp,
+                *link,
+                "-lm",
+            ]
             proc = subprocess.run(cmd, capture_output=True, text=True)
             if proc.returncode != 0:
                 first = (proc.stderr.strip().splitlines() or ["unknown error"])[0]
-                warnings.warn(f"compiling native '{name}' failed ({first}): using the slower Python version")
+                warnings.warn(
+                    f"compiling native '{name}' failed ({first}): using the slower Python version"
+                )
                 return None
             install_file(Path(tmp), target)
         except OSError as exc:  # a full disk or a read-only cache: the run goes on, slower
-            warnings.warn(f"cannot keep the compiled '{name}' in the cache {target.parent} "
-                          f"({exc.strerror or exc}): using the slower Python version")
+            warnings.warn(
+                f"cannot keep the compiled '{name}' in the cache {target.parent} "
+                f"({exc.strerror or exc}): using the slower Python version"
+            )
             return None
         finally:
             if tmp is not None:

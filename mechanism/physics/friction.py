@@ -62,11 +62,17 @@ class FrictionLaw:
 
     def __post_init__(self):
         if self.stribeck not in STRIBECK_LAWS:
-            raise UserError(f"unknown Stribeck law {self.stribeck!r}; choose one of {', '.join(STRIBECK_LAWS)}")
+            raise UserError(
+                f"unknown Stribeck law {self.stribeck!r}; choose one of {', '.join(STRIBECK_LAWS)}"
+            )
         if min(self.coulomb, self.viscous, self.stribeck_velocity) < 0 or (self.static or 0) < 0:
-            raise UserError("friction levels, viscous coefficient and Stribeck velocity must be non-negative")
+            raise UserError(
+                "friction levels, viscous coefficient and Stribeck velocity must be non-negative"
+            )
         if self.static is not None and self.static < self.coulomb:
-            raise UserError(f"static friction {self.static} is below the kinetic level {self.coulomb}")
+            raise UserError(
+                f"static friction {self.static} is below the kinetic level {self.coulomb}"
+            )
         if not 0 <= self.position_amplitude < 1 or not 0 <= self.static_amplitude < 1:
             raise UserError("position-dependent friction amplitudes must be in [0, 1)")
 
@@ -76,14 +82,20 @@ class FrictionLaw:
 
     @property
     def static_amplitude(self) -> float:
-        return self.position_amplitude if self.static_position_amplitude is None else self.static_position_amplitude
+        return (
+            self.position_amplitude
+            if self.static_position_amplitude is None
+            else self.static_position_amplitude
+        )
 
     def position_scale(self, angle, amplitude: float | None = None) -> np.ndarray | float:
         """Scale of the sliding friction level (or, with ``amplitude``, of another level) at ``angle``."""
         amplitude = self.position_amplitude if amplitude is None else amplitude
         if not amplitude:
             return 1.0
-        return 1.0 + amplitude * np.cos(self.position_harmonic * np.asarray(angle) - self.position_phase_rad)
+        return 1.0 + amplitude * np.cos(
+            self.position_harmonic * np.asarray(angle) - self.position_phase_rad
+        )
 
     def stribeck_shape(self, velocity) -> np.ndarray:
         x = np.abs(np.asarray(velocity, dtype=float))
@@ -136,7 +148,9 @@ class FrictionSet:
             if name not in joints:
                 from mechanism.errors import close_matches
 
-                raise UserError(f"friction on unknown joint {name!r}; close matches: {close_matches(name, joints)}")
+                raise UserError(
+                    f"friction on unknown joint {name!r}; close matches: {close_matches(name, joints)}"
+                )
             joint = joints[name]
             joint.damping = [law.viscous, 0.0, 0.0]
             joint.frictionloss = law.static_level

@@ -34,7 +34,9 @@ def check_rated_voltage(voltage: "VoltageProfile", rated_V: float, where: str) -
     bad = np.flatnonzero(~(np.abs(values) <= rated_V))  # NaN fails
     if bad.size:
         span = f"-{rated_V:g} to {rated_V:g}" if np.any(values < 0) else f"0-{rated_V:g}"
-        raise UserError(f"motor voltage (rated {rated_V:g} V by {where}): voltage {values[bad[0]]:g} V is outside {span} V")
+        raise UserError(
+            f"motor voltage (rated {rated_V:g} V by {where}): voltage {values[bad[0]]:g} V is outside {span} V"
+        )
 
 
 @dataclass(frozen=True)
@@ -93,13 +95,20 @@ class VoltageProfile:
 MOTOR_INPUT_RANGES = {"V": (-1e3, 1e3), "rad": (-1e4, 1e4), "A": (-1e4, 1e4)}
 
 
-def read_motor_profiles(path: str | os.PathLike, units: dict[str, str]) -> dict[str, VoltageProfile]:
+def read_motor_profiles(
+    path: str | os.PathLike, units: dict[str, str]
+) -> dict[str, VoltageProfile]:
     """Per-motor inputs from a profile CSV: ``time_s`` (or ``time``) and one column per motor
     named ``JOINT_V`` (dc), ``JOINT_rad`` (servo goal) or ``JOINT_A`` (current command), each
     held until the next time. A motor without a column is left out (its default input holds)."""
     names = {joint: f"{joint}_{unit}" for joint, unit in units.items()}
-    table = read_table(path, required=["time"], optional=list(names.values()), aliases={"time": ["time_s"]},
-                       what="input profile")
+    table = read_table(
+        path,
+        required=["time"],
+        optional=list(names.values()),
+        aliases={"time": ["time_s"]},
+        what="input profile",
+    )
     check_increasing(table["time"], table.source)
     if table["time"][0] < 0:
         raise UserError(f"{table.source}: times must not be negative")
@@ -111,11 +120,15 @@ def read_motor_profiles(path: str | os.PathLike, units: dict[str, str]) -> dict[
         low, high = MOTOR_INPUT_RANGES[units[joint]]
         bad = np.flatnonzero(~((values >= low) & (values <= high)))
         if bad.size:
-            raise UserError(f"{table.source}: {column} {values[bad[0]]:g} {units[joint]} is outside {low:g} to {high:g}")
+            raise UserError(
+                f"{table.source}: {column} {values[bad[0]]:g} {units[joint]} is outside {low:g} to {high:g}"
+            )
         out[joint] = VoltageProfile(np.asarray(table["time"], dtype=float), values)
     if not out:
-        raise UserError(f"{table.source}: missing required column: voltage_V (the main motor) or one input column per "
-                        f"motor ({', '.join(names.values())})")
+        raise UserError(
+            f"{table.source}: missing required column: voltage_V (the main motor) or one input column per "
+            f"motor ({', '.join(names.values())})"
+        )
     return out
 
 
@@ -130,10 +143,14 @@ def parse_joint_values(texts, option: str, unit: str, joints: dict[str, str]) ->
         if not sep or not joint:
             raise UserError(f"{option} {text!r}: expected JOINT=VALUE in {unit}")
         if joint not in joints:
-            raise UserError(f"{option} {text!r}: no motor on joint {joint!r}; close matches: {close_matches(joint, list(joints))}")
+            raise UserError(
+                f"{option} {text!r}: no motor on joint {joint!r}; close matches: {close_matches(joint, list(joints))}"
+            )
         if joints[joint] != unit:
             wanted = {"V": "--voltage", "rad": "--goal", "A": "--current"}[joints[joint]]
-            raise UserError(f"{option} {text!r}: the motor on {joint} takes {joints[joint]} ({wanted} {joint}=...)")
+            raise UserError(
+                f"{option} {text!r}: the motor on {joint} takes {joints[joint]} ({wanted} {joint}=...)"
+            )
         try:
             number = float(value)
         except ValueError:

@@ -55,7 +55,10 @@ class FabricLoad:
         ramp = self.point_taper_mm * 1e-3
         engaged = np.clip(depth / ramp, 0.0, 1.0)
         piercing = (v < 0) & (depth < self.thickness_m + ramp)
-        magnitude = np.where(piercing, self.piercing_force_N, self.drag_fraction * self.piercing_force_N) * engaged
+        magnitude = (
+            np.where(piercing, self.piercing_force_N, self.drag_fraction * self.piercing_force_N)
+            * engaged
+        )
         return np.where(depth > 0, -magnitude * v / np.sqrt(v * v + 1e-6), 0.0)
 
     def apply_to_spec(self, spec: mujoco.MjSpec) -> None:

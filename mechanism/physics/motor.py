@@ -53,17 +53,35 @@ class DCMotor:
         from mechanism.files.limits import check_number
 
         check_number(self.resistance_ohm, "motor resistance_ohm", 1e-6, 1e3, "ohm")
-        check_number(self.torque_constant_Nm_A, "motor torque_constant_Nm_per_A", 1e-6, 100, "N m/A")
+        check_number(
+            self.torque_constant_Nm_A, "motor torque_constant_Nm_per_A", 1e-6, 100, "N m/A"
+        )
         check_number(self.back_emf_V_s_rad, "motor back_emf_V_s_per_rad", 1e-6, 100, "V s/rad")
         check_number(self.inductance_H, "motor inductance_H", 0, 1, "H")
         check_number(self.cogging_Nm, "motor cogging_Nm", 0, 10, "N m")
         check_number(self.cogging_phase_rad, "motor cogging_phase_rad", -1e3, 1e3, "rad")
         poles = check_number(self.cogging_poles, "motor cogging periods per turn", 1, 1000)
         if isinstance(self.cogging_poles, bool) or not poles.is_integer():
-            raise UserError(f"motor cogging periods per turn must be an integer from 1 to 1000, got {self.cogging_poles!r}")
+            raise UserError(
+                f"motor cogging periods per turn must be an integer from 1 to 1000, got {self.cogging_poles!r}"
+            )
         if self.thermal is not None:
-            check_number(self.thermal.resistance_K_W, "motor thermal resistance_K_W", 0, 1e4, "K/W", low_open=True)
-            check_number(self.thermal.time_constant_s, "motor thermal time_constant_s", 0, 1e6, "s", low_open=True)
+            check_number(
+                self.thermal.resistance_K_W,
+                "motor thermal resistance_K_W",
+                0,
+                1e4,
+                "K/W",
+                low_open=True,
+            )
+            check_number(
+                self.thermal.time_constant_s,
+                "motor thermal time_constant_s",
+                0,
+                1e6,
+                "s",
+                low_open=True,
+            )
             check_number(self.thermal.tempcoef_per_K, "motor thermal tempcoef_per_K", 0, 1, "1/K")
             check_number(self.thermal.ambient_C, "motor thermal ambient_C", -50, 100, "degC")
 
@@ -77,13 +95,24 @@ class DCMotor:
         thermal = [0.0] * 6
         if self.thermal:
             t = self.thermal
-            thermal = [t.resistance_K_W * ratio, 0.0, t.time_constant_s, t.tempcoef_per_K, t.ambient_C, t.ambient_C]
+            thermal = [
+                t.resistance_K_W * ratio,
+                0.0,
+                t.time_constant_s,
+                t.tempcoef_per_K,
+                t.ambient_C,
+                t.ambient_C,
+            ]
         actuator = spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         actuator.set_to_dcmotor(
             motorconst=[self.back_emf_V_s_rad, self.back_emf_V_s_rad],
             resistance=self.resistance_ohm * ratio,
             inductance=[self.inductance_H * ratio, 0.0],
-            cogging=[self.cogging_Nm, float(self.cogging_poles) if self.cogging_Nm else 0.0, self.cogging_phase_rad],
+            cogging=[
+                self.cogging_Nm,
+                float(self.cogging_poles) if self.cogging_Nm else 0.0,
+                self.cogging_phase_rad,
+            ],
             thermal=thermal,
         )
 
@@ -95,17 +124,27 @@ class DCMotor:
 
     def torque(self, voltage, motor_velocity, temperature_rise_K=0.0):
         """Quasi-static electromagnetic torque (no inductance): thesis eq. 5."""
-        resistance = self.resistance_ohm * (1 + (self.thermal.tempcoef_per_K if self.thermal else 0) * temperature_rise_K)
-        return self.torque_constant_Nm_A / resistance * (np.asarray(voltage) - self.back_emf_V_s_rad * np.asarray(motor_velocity))
+        resistance = self.resistance_ohm * (
+            1 + (self.thermal.tempcoef_per_K if self.thermal else 0) * temperature_rise_K
+        )
+        return (
+            self.torque_constant_Nm_A
+            / resistance
+            * (np.asarray(voltage) - self.back_emf_V_s_rad * np.asarray(motor_velocity))
+        )
 
 
-def motor_current(model: mujoco.MjModel, data: mujoco.MjData, motor: DCMotor, actuator: str) -> float:
+def motor_current(
+    model: mujoco.MjModel, data: mujoco.MjData, motor: DCMotor, actuator: str
+) -> float:
     """The real armature current [A] (see the module note on the Kt != Ke mapping)."""
     aid = model.actuator(actuator).id
     torque = data.actuator_force[aid]
     if motor.cogging_Nm:
         qadr = model.jnt_qposadr[model.actuator_trnid[aid, 0]]
-        torque -= motor.cogging_Nm * np.sin(motor.cogging_poles * data.qpos[qadr] + motor.cogging_phase_rad)
+        torque -= motor.cogging_Nm * np.sin(
+            motor.cogging_poles * data.qpos[qadr] + motor.cogging_phase_rad
+        )
     return float(torque / motor.torque_constant_Nm_A)
 
 
@@ -142,8 +181,16 @@ class SupplyLimit:
         spec.add_numeric(name=SUPPLY_NUMERIC, data=np.zeros(8))
 
     def bind(self, model: mujoco.MjModel, motor: DCMotor, actuator: int, dof: int) -> None:
-        model.numeric(SUPPLY_NUMERIC).data[:] = [1.0, float(actuator), float(dof), self.supply_V, self.series_ohm,
-                                                 motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad]
+        model.numeric(SUPPLY_NUMERIC).data[:] = [
+            1.0,
+            float(actuator),
+            float(dof),
+            self.supply_V,
+            self.series_ohm,
+            motor.resistance_ohm,
+            motor.torque_constant_Nm_A,
+            motor.back_emf_V_s_rad,
+        ]
 
 
 def python_supply_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -200,12 +247,16 @@ class ServoDrive:
         actuator.biasprm = [0.0, -gain, -damping] + [0.0] * 7
 
     def voltage(self, goal, position, velocity) -> np.ndarray:
-        wanted = self.kp_V_rad * (np.asarray(goal) - np.asarray(position)) - self.kd_V_s_rad * np.asarray(velocity)
+        wanted = self.kp_V_rad * (
+            np.asarray(goal) - np.asarray(position)
+        ) - self.kd_V_s_rad * np.asarray(velocity)
         return np.clip(wanted, -self.limit_V, self.limit_V)
 
     def current(self, goal, position, velocity) -> np.ndarray:
         m = self.motor
-        return (self.voltage(goal, position, velocity) - m.back_emf_V_s_rad * np.asarray(velocity)) / m.resistance_ohm
+        return (
+            self.voltage(goal, position, velocity) - m.back_emf_V_s_rad * np.asarray(velocity)
+        ) / m.resistance_ohm
 
     def stall_torque_Nm(self, default_voltage_V: float) -> float:
         return self.motor.torque_constant_Nm_A * self.limit_V / self.motor.resistance_ohm
@@ -215,8 +266,17 @@ class ServoDrive:
 
     def fields(self, actuator: int, dof: int, qadr: int) -> list[float]:
         m = self.motor
-        return [float(actuator), float(dof), float(qadr), self.limit_V, self.kp_V_rad, self.kd_V_s_rad,
-                m.resistance_ohm, m.torque_constant_Nm_A, m.back_emf_V_s_rad]
+        return [
+            float(actuator),
+            float(dof),
+            float(qadr),
+            self.limit_V,
+            self.kp_V_rad,
+            self.kd_V_s_rad,
+            m.resistance_ohm,
+            m.torque_constant_Nm_A,
+            m.back_emf_V_s_rad,
+        ]
 
 
 @dataclass(frozen=True)
@@ -238,7 +298,11 @@ class CurrentDrive:
 
     def current(self, command) -> np.ndarray:
         command = np.asarray(command, dtype=float)
-        return command if self.max_current_A is None else np.clip(command, -self.max_current_A, self.max_current_A)
+        return (
+            command
+            if self.max_current_A is None
+            else np.clip(command, -self.max_current_A, self.max_current_A)
+        )
 
     def stall_torque_Nm(self, default_current_A: float) -> float:
         return self.torque_constant_Nm_A * (self.max_current_A or default_current_A)
@@ -252,7 +316,9 @@ def apply_servos_to_spec(spec: mujoco.MjSpec, count: int) -> None:
 
 
 def bind_servos(model: mujoco.MjModel, blocks: list[list[float]]) -> None:
-    model.numeric(SERVO_NUMERIC).data[:] = [1.0, float(len(blocks))] + [v for block in blocks for v in block]
+    model.numeric(SERVO_NUMERIC).data[:] = [1.0, float(len(blocks))] + [
+        v for block in blocks for v in block
+    ]
 
 
 def python_servo_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -261,6 +327,8 @@ def python_servo_limit(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     if p is None:
         return
     for k in range(int(p[1])):
-        act, dof, qadr, limit, kp, kd, r, kt, _ = p[2 + SERVO_FIELDS * k : 2 + SERVO_FIELDS * (k + 1)]
+        act, dof, qadr, limit, kp, kd, r, kt, _ = p[
+            2 + SERVO_FIELDS * k : 2 + SERVO_FIELDS * (k + 1)
+        ]
         wanted = kp * (data.ctrl[int(act)] - data.qpos[int(qadr)]) - kd * data.qvel[int(dof)]
         data.qfrc_passive[int(dof)] += kt / r * (min(max(wanted, -limit), limit) - wanted)

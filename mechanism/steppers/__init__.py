@@ -42,24 +42,67 @@ plots). Use the names below; :mod:`mechanism.steppers.step_profiles` (step seque
 from mechanism.steppers._actuator import add_stepper, build_model, default_timestep
 from mechanism.steppers._callbacks import install, python_callbacks
 from mechanism.steppers._drive import (
-    KINDS, DriveMode, drive, drive_mode, linear_stiffness, physical_torque, rest_angle_rad, user_data,
+    KINDS,
+    DriveMode,
+    drive,
+    drive_mode,
+    linear_stiffness,
+    physical_torque,
+    rest_angle_rad,
+    user_data,
 )
-from mechanism.steppers._motor import StepperParams, described_step_rate, described_stepper, pm25s048
+from mechanism.steppers._motor import (
+    StepperParams,
+    described_step_rate,
+    described_stepper,
+    pm25s048,
+)
 from mechanism.steppers._report import StepperRun, analyse, plot_run, plot_sweep, slip_events
 from mechanism.steppers._simulation import (
-    MAX_STEPS, command_array, holding_torque, initial_state, pull_out_rate, run_rollout, simulate, sweep_rates,
+    MAX_STEPS,
+    command_array,
+    holding_torque,
+    initial_state,
+    pull_out_rate,
+    run_rollout,
+    simulate,
+    sweep_rates,
 )
 
 __all__ = [
     # the motor
-    "StepperParams", "pm25s048", "described_stepper", "described_step_rate",
+    "StepperParams",
+    "pm25s048",
+    "described_stepper",
+    "described_step_rate",
     # the driver and the torque laws
-    "KINDS", "DriveMode", "drive_mode", "drive", "physical_torque", "rest_angle_rad", "linear_stiffness", "user_data",
+    "KINDS",
+    "DriveMode",
+    "drive_mode",
+    "drive",
+    "physical_torque",
+    "rest_angle_rad",
+    "linear_stiffness",
+    "user_data",
     # the MuJoCo actuator and its callbacks
-    "add_stepper", "build_model", "default_timestep", "install", "python_callbacks",
+    "add_stepper",
+    "build_model",
+    "default_timestep",
+    "install",
+    "python_callbacks",
     # runs
-    "MAX_STEPS", "simulate", "initial_state", "command_array", "run_rollout", "sweep_rates", "pull_out_rate",
+    "MAX_STEPS",
+    "simulate",
+    "initial_state",
+    "command_array",
+    "run_rollout",
+    "sweep_rates",
+    "pull_out_rate",
     "holding_torque",
     # what a run says
-    "StepperRun", "analyse", "slip_events", "plot_run", "plot_sweep",
+    "StepperRun",
+    "analyse",
+    "slip_events",
+    "plot_run",
+    "plot_sweep",
 ]

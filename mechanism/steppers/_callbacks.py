@@ -11,8 +11,22 @@ import warnings
 
 from mechanism.errors import UserError
 from mechanism.steppers._drive import (
-    CIRCUIT_ACTDIM, KIND_CODES, MARKER, USER_CHOP_HZ, USER_CURRENT, USER_DECAY_MARGIN, USER_FLUX, USER_INDUCTANCE,
-    USER_KIND, USER_MARKER, USER_POLE_PAIRS, USER_RESISTANCE, USER_SIZE, USER_SUPPLY, _circuit_torque, _drive,
+    CIRCUIT_ACTDIM,
+    KIND_CODES,
+    MARKER,
+    USER_CHOP_HZ,
+    USER_CURRENT,
+    USER_DECAY_MARGIN,
+    USER_FLUX,
+    USER_INDUCTANCE,
+    USER_KIND,
+    USER_MARKER,
+    USER_POLE_PAIRS,
+    USER_RESISTANCE,
+    USER_SIZE,
+    USER_SUPPLY,
+    _circuit_torque,
+    _drive,
     _physical_torque,
 )
 
@@ -54,10 +68,19 @@ def install(backend: str = "auto") -> str:
     current_dyn, current_bias = mujoco.get_mjcb_act_dyn(), mujoco.get_mjcb_act_bias()
     if _address(current_dyn) == ours_dyn and _address(current_bias) == ours_bias:
         return "native"
-    if callable(current_dyn) and _address(current_dyn) is None or callable(current_bias) and _address(current_bias) is None:
-        warnings.warn("replacing a Python MuJoCo actuator callback with the compiled stepper callbacks")
+    if (
+        callable(current_dyn)
+        and _address(current_dyn) is None
+        or callable(current_bias)
+        and _address(current_bias) is None
+    ):
+        warnings.warn(
+            "replacing a Python MuJoCo actuator callback with the compiled stepper callbacks"
+        )
     next_dyn, next_bias = _address(current_dyn), _address(current_bias)
-    lib.stepper_set_next(None if next_dyn == ours_dyn else next_dyn, None if next_bias == ours_bias else next_bias)
+    lib.stepper_set_next(
+        None if next_dyn == ours_dyn else next_dyn, None if next_bias == ours_bias else next_bias
+    )
     mujoco.set_mjcb_act_dyn(lib.stepper_act_dyn)
     mujoco.set_mjcb_act_bias(lib.stepper_act_bias)
     return "native"
@@ -113,7 +136,11 @@ def _py_chopper_phase(u, i, ref, emf, tick, h, on):
 
 def _py_act_dyn(m, d, actuator_id):
     u = _py_params(m, actuator_id)
-    if u is None or u[USER_KIND] != KIND_CODES["circuit"] or m.actuator_actnum[actuator_id] != CIRCUIT_ACTDIM:
+    if (
+        u is None
+        or u[USER_KIND] != KIND_CODES["circuit"]
+        or m.actuator_actnum[actuator_id] != CIRCUIT_ACTDIM
+    ):
         return 0.0
     out, adr = m.actuator_outadr[actuator_id], m.actuator_actadr[actuator_id]
     theta, omega = d.actuator_length[out], d.actuator_velocity[out]
@@ -122,11 +149,11 @@ def _py_act_dyn(m, d, actuator_id):
     _, ref_a, ref_b = (float(x) for x in _drive(u, d.ctrl[m.actuator_ctrladr[actuator_id]]))
     emf_a = -p * psi * math.sin(p * theta) * omega
     emf_b = -p * psi * math.sin(p * theta - 0.5 * math.pi) * omega
-    act = d.act[adr:adr + CIRCUIT_ACTDIM].copy()
+    act = d.act[adr : adr + CIRCUIT_ACTDIM].copy()
     on_a, on_b = float(act[2] > 0.5), float(act[3] > 0.5)
     di_a, on_a = _py_chopper_phase(u, act[0], ref_a, emf_a, tick, h, on_a)
     di_b, on_b = _py_chopper_phase(u, act[1], ref_b, emf_b, tick, h, on_b)
-    d.act_dot[adr:adr + CIRCUIT_ACTDIM] = [di_a, di_b, (on_a - act[2]) / h, (on_b - act[3]) / h]
+    d.act_dot[adr : adr + CIRCUIT_ACTDIM] = [di_a, di_b, (on_a - act[2]) / h, (on_b - act[3]) / h]
     return 0.0
 
 

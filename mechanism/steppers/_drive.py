@@ -16,9 +16,22 @@ from mechanism.steppers._motor import StepperParams
 MARKER = 870048.0
 KIND_CODES = {"circuit": 1, "physical": 2}
 (
-    USER_MARKER, USER_KIND, USER_POLE_PAIRS, USER_DIVISIONS, USER_SINE, USER_CURRENT,
-    USER_RESISTANCE, USER_INDUCTANCE, USER_FLUX, USER_DETENT, USER_SUPPLY, USER_CHOP_HZ,
-    USER_DECAY_MARGIN, USER_KT, USER_KW, USER_SIZE,
+    USER_MARKER,
+    USER_KIND,
+    USER_POLE_PAIRS,
+    USER_DIVISIONS,
+    USER_SINE,
+    USER_CURRENT,
+    USER_RESISTANCE,
+    USER_INDUCTANCE,
+    USER_FLUX,
+    USER_DETENT,
+    USER_SUPPLY,
+    USER_CHOP_HZ,
+    USER_DECAY_MARGIN,
+    USER_KT,
+    USER_KW,
+    USER_SIZE,
 ) = range(16)
 CIRCUIT_ACTDIM = 4  # i_a, i_b, chopper_a, chopper_b
 KINDS = tuple(KIND_CODES)
@@ -48,10 +61,12 @@ def drive_mode(name: str) -> DriveMode:
     if text == "half":
         return DriveMode("half", 2, False)
     if text.startswith("micro"):
-        digits = text[len("micro"):]
+        digits = text[len("micro") :]
         if digits.isdigit() and 2 <= int(digits) <= 256:
             return DriveMode(text, int(digits), True)
-    raise UserError(f"unknown drive mode '{name}': use full, half or microN with N = 2..256 (e.g. micro16)")
+    raise UserError(
+        f"unknown drive mode '{name}': use full, half or microN with N = 2..256 (e.g. micro16)"
+    )
 
 
 def _drive(u, command_rad):
@@ -78,8 +93,9 @@ def _physical_current(u, omega):
 def _circuit_torque(u, theta, current_a, current_b):
     """Thesis eq. 17 with the detent term of period one full step."""
     p = u[USER_POLE_PAIRS]
-    return (-p * u[USER_FLUX] * (current_a * np.sin(p * theta) + current_b * np.sin(p * theta - 0.5 * np.pi))
-            - u[USER_DETENT] * np.sin(4 * p * theta))
+    return -p * u[USER_FLUX] * (
+        current_a * np.sin(p * theta) + current_b * np.sin(p * theta - 0.5 * np.pi)
+    ) - u[USER_DETENT] * np.sin(4 * p * theta)
 
 
 def _physical_torque(u, theta, omega, command_rad):
@@ -87,7 +103,12 @@ def _physical_torque(u, theta, omega, command_rad):
     vector (two phases on = 1, one phase or microstepping = 1/sqrt 2)."""
     phi, ref_a, ref_b = _drive(u, command_rad)
     magnitude = np.hypot(ref_a, ref_b) / (math.sqrt(2) * u[USER_CURRENT])
-    return u[USER_KT] * _physical_current(u, omega) * magnitude * np.sin(phi - u[USER_POLE_PAIRS] * np.asarray(theta))
+    return (
+        u[USER_KT]
+        * _physical_current(u, omega)
+        * magnitude
+        * np.sin(phi - u[USER_POLE_PAIRS] * np.asarray(theta))
+    )
 
 
 def drive(params: StepperParams, mode: DriveMode, command_rad):
@@ -106,14 +127,19 @@ def rest_angle_rad(params: StepperParams, mode: DriveMode, steps=0.0):
     return mode.offset_rad_electrical / params.pole_pairs + np.asarray(steps) * params.step_rad
 
 
-def linear_stiffness(params: StepperParams, kind: str, mode: DriveMode, steps: float = 0.0) -> float:
+def linear_stiffness(
+    params: StepperParams, kind: str, mode: DriveMode, steps: float = 0.0
+) -> float:
     """dT/dtheta [N m/rad] at rest at the commanded position (unloaded, standstill):
     the linearised model whose ringing frequency is sqrt(K / J)."""
     phi, ref_a, ref_b = drive(params, mode, rest_angle_rad(params, mode, steps))
     p = params.pole_pairs
     if kind == "circuit":
         current_vector = float(np.hypot(ref_a, ref_b))
-        return p * p * params.flux_linkage_Vs * current_vector + 4 * p * params.detent_torque_Nm * math.cos(4 * float(phi))
+        return (
+            p * p * params.flux_linkage_Vs * current_vector
+            + 4 * p * params.detent_torque_Nm * math.cos(4 * float(phi))
+        )
     magnitude = float(np.hypot(ref_a, ref_b)) / (math.sqrt(2) * params.rated_current_A)
     return p * params.physical_kt_Nm_A * params.supply_V / params.resistance_ohm * magnitude
 

@@ -36,13 +36,30 @@ class StepperParams:
                 f"a two-phase motor with {self.pole_pairs} pole pairs has {4 * self.pole_pairs} steps/rev, "
                 f"not {steps:g} ({self.step_angle_deg:g} degrees per step)"
             )
-        for name in ("holding_torque_Nm", "rated_current_A", "resistance_ohm", "inductance_H", "supply_V",
-                     "chopper_hz", "rotor_inertia_kg_m2"):
+        for name in (
+            "holding_torque_Nm",
+            "rated_current_A",
+            "resistance_ohm",
+            "inductance_H",
+            "supply_V",
+            "chopper_hz",
+            "rotor_inertia_kg_m2",
+        ):
             if not getattr(self, name) > 0:
-                raise UserError(f"stepper parameter {name} must be positive, got {getattr(self, name)}")
-        for name in ("detent_torque_Nm", "damping_Nm_s_rad", "load_inertia_kg_m2", "load_torque_Nm", "decay_margin"):
+                raise UserError(
+                    f"stepper parameter {name} must be positive, got {getattr(self, name)}"
+                )
+        for name in (
+            "detent_torque_Nm",
+            "damping_Nm_s_rad",
+            "load_inertia_kg_m2",
+            "load_torque_Nm",
+            "decay_margin",
+        ):
             if not getattr(self, name) >= 0:
-                raise UserError(f"stepper parameter {name} must not be negative, got {getattr(self, name)}")
+                raise UserError(
+                    f"stepper parameter {name} must not be negative, got {getattr(self, name)}"
+                )
 
     def replace(self, **changes) -> "StepperParams":
         return dataclasses.replace(self, **changes)
@@ -105,8 +122,19 @@ def pm25s048(**overrides) -> StepperParams:
 
 
 # the description's [stepper] keys that are StepperParams fields (the rest: type, step rate)
-PARAMETER_KEYS = ("step_angle_deg", "pole_pairs", "holding_torque_Nm", "detent_torque_Nm", "rated_current_A",
-                  "resistance_ohm", "inductance_H", "supply_V", "chopper_hz", "rotor_inertia_kg_m2", "damping_Nm_s_rad")
+PARAMETER_KEYS = (
+    "step_angle_deg",
+    "pole_pairs",
+    "holding_torque_Nm",
+    "detent_torque_Nm",
+    "rated_current_A",
+    "resistance_ohm",
+    "inductance_H",
+    "supply_V",
+    "chopper_hz",
+    "rotor_inertia_kg_m2",
+    "damping_Nm_s_rad",
+)
 
 
 def described_section(machine, section: str) -> tuple[dict, str]:

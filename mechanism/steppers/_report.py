@@ -39,7 +39,11 @@ class StepperRun:
     @property
     def real_time_factor(self) -> float:
         """Simulated seconds per wall-clock second."""
-        return float(self.time_s[-1] + (self.time_s[1] - self.time_s[0])) / self.wall_s if self.wall_s else math.inf
+        return (
+            float(self.time_s[-1] + (self.time_s[1] - self.time_s[0])) / self.wall_s
+            if self.wall_s
+            else math.inf
+        )
 
     def columns(self, sample_period_s: float | None = None) -> dict[str, np.ndarray]:
         """The CSV columns, every ``sample_period_s`` (all steps when None)."""
@@ -78,7 +82,9 @@ def slip_events(run: StepperRun) -> list[tuple[float, int]]:
         centre, start = new_centre, k
 
 
-def analyse(run: StepperRun, settle_window_s: float = 0.005, reversal_window_s: float = 0.05) -> dict:
+def analyse(
+    run: StepperRun, settle_window_s: float = 0.005, reversal_window_s: float = 0.05
+) -> dict:
     """Peak position, final error, lost steps (rotor more than half a step from the
     command after settling) with slip times, and at each reversal, within
     ``reversal_window_s`` either side: the overshoot (how far the rotor passes the
@@ -105,13 +111,21 @@ def analyse(run: StepperRun, settle_window_s: float = 0.005, reversal_window_s: 
     for t_rev in run.profile.reversal_times_s():
         before = run.profile.rate_steps_s(np.array([max(t_rev - 1e-6, 0.0)]))[0]
         direction = 1.0 if before > 0 else -1.0
-        window = (run.time_s >= t_rev - reversal_window_s) & (run.time_s <= t_rev + reversal_window_s)
+        window = (run.time_s >= t_rev - reversal_window_s) & (
+            run.time_s <= t_rev + reversal_window_s
+        )
         turn = float(np.max(direction * run.command_deg[window]))
         overshoot = float(np.max(direction * run.rotor_deg[window]) - turn)
         commanded_speed = run.profile.rate_steps_s(run.time_s[window]) * run.params.step_rad
         speed_error = float(np.max(np.abs(run.speed_rad_s[window] - commanded_speed)))
-        reversals.append({"time_s": t_rev, "overshoot_deg": overshoot, "peak_speed_error_rad_s": speed_error,
-                          "peak_speed_rad_s": float(np.max(np.abs(run.speed_rad_s[window])))})
+        reversals.append(
+            {
+                "time_s": t_rev,
+                "overshoot_deg": overshoot,
+                "peak_speed_error_rad_s": speed_error,
+                "peak_speed_rad_s": float(np.max(np.abs(run.speed_rad_s[window]))),
+            }
+        )
     summary["reversals"] = reversals
     return summary
 
@@ -125,7 +139,14 @@ def plot_run(run: StepperRun, path) -> None:
     axes[0].plot(t, run.command_deg, "--", color="0.4", lw=1, label="commanded")
     axes[0].plot(t, run.rotor_deg, lw=1.2, label="rotor")
     axes[0].set_ylabel("position [deg]")
-    axes[1].plot(t, run.profile.rate_steps_s(t) * run.params.step_rad, "--", color="0.4", lw=1, label="commanded")
+    axes[1].plot(
+        t,
+        run.profile.rate_steps_s(t) * run.params.step_rad,
+        "--",
+        color="0.4",
+        lw=1,
+        label="commanded",
+    )
     axes[1].plot(t, run.speed_rad_s, lw=0.8, label="rotor")
     axes[1].set_ylabel("speed [rad/s]")
     axes[2].plot(t, run.current_a_A, lw=0.6, label="phase A")
@@ -142,8 +163,11 @@ def plot_run(run: StepperRun, path) -> None:
     for ax in axes:
         ax.grid(alpha=0.3)
     s = run.summary
-    fig.suptitle(f"{run.profile.name}: {run.kind} model, {run.mode.name} step; lost steps {s['lost_steps']}, "
-                 f"final error {s['final_error_deg']:.2f} deg", fontsize=10)
+    fig.suptitle(
+        f"{run.profile.name}: {run.kind} model, {run.mode.name} step; lost steps {s['lost_steps']}, "
+        f"final error {s['final_error_deg']:.2f} deg",
+        fontsize=10,
+    )
     save_figure(fig, path)
 
 
@@ -153,7 +177,9 @@ def plot_sweep(results: dict[str, list[dict]], path) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 4))
     for kind, rows in results.items():
-        ax.plot([r["rate_steps_s"] for r in rows], [r["lost_steps"] for r in rows], "o-", label=kind)
+        ax.plot(
+            [r["rate_steps_s"] for r in rows], [r["lost_steps"] for r in rows], "o-", label=kind
+        )
     ax.set_xlabel("step rate [full steps/s]")
     ax.set_ylabel("lost steps after a ramped move")
     ax.grid(alpha=0.3)

@@ -11,7 +11,14 @@ import numpy as np
 from mechanism.errors import UserError
 from mechanism.steppers._actuator import build_model, default_timestep
 from mechanism.steppers._callbacks import install, python_callbacks
-from mechanism.steppers._drive import DriveMode, _physical_current, drive, drive_mode, rest_angle_rad, user_data
+from mechanism.steppers._drive import (
+    DriveMode,
+    _physical_current,
+    drive,
+    drive_mode,
+    rest_angle_rad,
+    user_data,
+)
 from mechanism.steppers._motor import StepperParams, pm25s048
 from mechanism.steppers._report import StepperRun, analyse
 from mechanism.steppers.step_profiles import StepProfile
@@ -33,8 +40,12 @@ def _state_slices(model):
             offset += n
         bit <<= 1
     s = mujoco.mjtState
-    return (sizes[int(s.mjSTATE_TIME)], sizes[int(s.mjSTATE_QPOS)], sizes[int(s.mjSTATE_QVEL)],
-            sizes[int(s.mjSTATE_ACT)])
+    return (
+        sizes[int(s.mjSTATE_TIME)],
+        sizes[int(s.mjSTATE_QPOS)],
+        sizes[int(s.mjSTATE_QVEL)],
+        sizes[int(s.mjSTATE_ACT)],
+    )
 
 
 def initial_state(model, params: StepperParams, mode: DriveMode, kind: str):
@@ -52,7 +63,9 @@ def initial_state(model, params: StepperParams, mode: DriveMode, kind: str):
     return data, state
 
 
-def command_array(params: StepperParams, mode: DriveMode, profile: StepProfile, time_s: np.ndarray) -> np.ndarray:
+def command_array(
+    params: StepperParams, mode: DriveMode, profile: StepProfile, time_s: np.ndarray
+) -> np.ndarray:
     """The actuator's control (commanded shaft angle, rad) at each step."""
     return rest_angle_rad(params, mode, profile.position_steps(time_s))
 
@@ -85,9 +98,15 @@ def run_rollout(model, states0: np.ndarray, controls: np.ndarray, backend: str =
     return before, sensor, installed
 
 
-def simulate(profile: StepProfile, kind: str = "circuit", mode: str | DriveMode = "full",
-             params: StepperParams | None = None, timestep: float | None = None, settle_s: float = 0.1,
-             backend: str = "auto") -> StepperRun:
+def simulate(
+    profile: StepProfile,
+    kind: str = "circuit",
+    mode: str | DriveMode = "full",
+    params: StepperParams | None = None,
+    timestep: float | None = None,
+    settle_s: float = 0.1,
+    backend: str = "auto",
+) -> StepperRun:
     """Run ``profile`` on the bare motor and analyse it (``run.summary``)."""
     params = params or pm25s048()
     mode = drive_mode(mode) if isinstance(mode, str) else mode
@@ -95,8 +114,10 @@ def simulate(profile: StepProfile, kind: str = "circuit", mode: str | DriveMode 
     h = model.opt.timestep
     nstep = int(math.ceil((profile.duration_s + settle_s) / h))
     if nstep > MAX_STEPS:
-        raise UserError(f"{profile.name}: {profile.duration_s + settle_s:g} s is too long for one run of the {kind} model "
-                        f"(at most {MAX_STEPS * h:g} s, {MAX_STEPS} steps of {h:g} s)")
+        raise UserError(
+            f"{profile.name}: {profile.duration_s + settle_s:g} s is too long for one run of the {kind} model "
+            f"(at most {MAX_STEPS * h:g} s, {MAX_STEPS} steps of {h:g} s)"
+        )
     time_s = np.arange(nstep) * h
     controls = command_array(params, mode, profile, time_s)
     _, state0 = initial_state(model, params, mode, kind)
@@ -119,21 +140,37 @@ def _make_run(model, params, kind, mode, profile, time_s, controls, before, sens
         current_a, current_b = currents[:, 0].copy(), currents[:, 1].copy()
     else:  # the physical model's one current (eq. 25), reported on the driver's phase pattern
         _, ref_a, ref_b = drive(params, mode, controls)
-        scale = _physical_current(user_data(params, kind, mode), before[:, qvel][:, 0]) / params.rated_current_A
+        scale = (
+            _physical_current(user_data(params, kind, mode), before[:, qvel][:, 0])
+            / params.rated_current_A
+        )
         current_a, current_b = ref_a * scale, ref_b * scale
     return StepperRun(
-        kind=kind, mode=mode, params=params, profile=profile, time_s=time_s,
+        kind=kind,
+        mode=mode,
+        params=params,
+        profile=profile,
+        time_s=time_s,
         command_deg=np.degrees(phi / params.pole_pairs - start),
         rotor_deg=np.degrees(rotor - start),
         speed_rad_s=before[:, qvel][:, 0].copy(),
-        current_a_A=current_a, current_b_A=current_b,
+        current_a_A=current_a,
+        current_b_A=current_b,
         torque_Nm=sensor[:, 0].copy(),
     )
 
 
-def sweep_rates(rates, kind: str = "circuit", mode: str | DriveMode = "full", params: StepperParams | None = None,
-                ramp_s: float = 0.1, hold_s: float = 0.05, settle_s: float = 0.05, backend: str = "auto",
-                progress: bool = False) -> list[dict]:
+def sweep_rates(
+    rates,
+    kind: str = "circuit",
+    mode: str | DriveMode = "full",
+    params: StepperParams | None = None,
+    ramp_s: float = 0.1,
+    hold_s: float = 0.05,
+    settle_s: float = 0.05,
+    backend: str = "auto",
+    progress: bool = False,
+) -> list[dict]:
     """Ramp up to each rate, hold, ramp down and settle; report the slips. The rate at
     which slips start is the pull-out rate (the ramps keep pull-in effects out)."""
     from mechanism.steppers.step_profiles import from_rates
@@ -153,21 +190,38 @@ def sweep_rates(rates, kind: str = "circuit", mode: str | DriveMode = "full", pa
         iterator = tqdm(rates, desc=f"{kind} sweep", unit="rate", leave=False)
     for rate in iterator:
         rate = float(rate)
-        profile = from_rates(f"ramp to {rate:g} steps/s", [0, ramp_s, ramp_s + hold_s, 2 * ramp_s + hold_s],
-                             [0, rate, rate, 0])
+        profile = from_rates(
+            f"ramp to {rate:g} steps/s",
+            [0, ramp_s, ramp_s + hold_s, 2 * ramp_s + hold_s],
+            [0, rate, rate, 0],
+        )
         controls = command_array(params, mode, profile, time_s)
         before, sensor, installed = run_rollout(model, state0[None], controls[None], backend)
         run = _make_run(model, params, kind, mode, profile, time_s, controls, before[0], sensor[0])
         summary = analyse(run)
-        results.append({"rate_steps_s": rate, "lost_steps": summary["lost_steps"], "slips": len(summary["slips"]),
-                        "final_error_deg": summary["final_error_deg"]})
+        results.append(
+            {
+                "rate_steps_s": rate,
+                "lost_steps": summary["lost_steps"],
+                "slips": len(summary["slips"]),
+                "final_error_deg": summary["final_error_deg"],
+            }
+        )
     return results
 
 
-def pull_out_rate(kind: str = "circuit", mode: str | DriveMode = "full", params: StepperParams | None = None,
-                  low: float = 250.0, high: float = 6000.0, resolution: float = 25.0, **kwargs) -> float | None:
+def pull_out_rate(
+    kind: str = "circuit",
+    mode: str | DriveMode = "full",
+    params: StepperParams | None = None,
+    low: float = 250.0,
+    high: float = 6000.0,
+    resolution: float = 25.0,
+    **kwargs,
+) -> float | None:
     """The lowest step rate [steps/s] at which the motor loses steps on a ramped move,
     found by bisection between ``low`` (must hold) and ``high``; None if ``high`` holds."""
+
     def loses(rate):
         result = sweep_rates([rate], kind, mode, params, **kwargs)[0]
         return result["lost_steps"] > 0 or result["slips"] > 0
@@ -185,8 +239,14 @@ def pull_out_rate(kind: str = "circuit", mode: str | DriveMode = "full", params:
     return high
 
 
-def holding_torque(displacement_rad, kind: str = "circuit", mode: str | DriveMode = "full",
-                   params: StepperParams | None = None, hold_s: float = 0.004, backend: str = "auto") -> np.ndarray:
+def holding_torque(
+    displacement_rad,
+    kind: str = "circuit",
+    mode: str | DriveMode = "full",
+    params: StepperParams | None = None,
+    hold_s: float = 0.004,
+    backend: str = "auto",
+) -> np.ndarray:
     """Static torque [N m] with the rotor held at ``displacement_rad`` from the rest position
     of step 0, motor energised (the data sheet's torque-displacement curve). The rotor is
     held by giving it a huge inertia; the torque is averaged over the second half of
@@ -204,4 +264,4 @@ def holding_torque(displacement_rad, kind: str = "circuit", mode: str | DriveMod
     states[:, qpos.start] += displacement
     controls = np.full((displacement.size, nstep), float(rest_angle_rad(params, mode)))
     _, sensor, _ = run_rollout(model, states, controls, backend)
-    return sensor[:, nstep // 2:, 0].mean(axis=1)
+    return sensor[:, nstep // 2 :, 0].mean(axis=1)

@@ -123,10 +123,14 @@ def _check_rate(rate: float, what: str = "step rate") -> float:
 
 
 def from_rates(name: str, times_s, rates_steps_s) -> StepProfile:
-    return StepProfile(name, np.asarray(times_s, dtype=float), np.asarray(rates_steps_s, dtype=float))
+    return StepProfile(
+        name, np.asarray(times_s, dtype=float), np.asarray(rates_steps_s, dtype=float)
+    )
 
 
-def move(steps: float, rate: float, ramp_steps: float = 0.0, start_s: float = 0.0, name: str = "move") -> StepProfile:
+def move(
+    steps: float, rate: float, ramp_steps: float = 0.0, start_s: float = 0.0, name: str = "move"
+) -> StepProfile:
     """A move of ``steps`` full steps (sign = direction) at ``rate`` steps/s from rest at
     ``start_s``: abrupt start and stop (``ramp_steps=0``) or linear ramps of
     ``ramp_steps`` steps at both ends."""
@@ -136,7 +140,12 @@ def move(steps: float, rate: float, ramp_steps: float = 0.0, start_s: float = 0.
     ramp = min(max(float(ramp_steps), 0.0), distance / 2)
     t_ramp, t_cruise = 2 * ramp / rate, (distance - 2 * ramp) / rate
     if ramp:
-        times = [start_s, start_s + t_ramp, start_s + t_ramp + t_cruise, start_s + 2 * t_ramp + t_cruise]
+        times = [
+            start_s,
+            start_s + t_ramp,
+            start_s + t_ramp + t_cruise,
+            start_s + 2 * t_ramp + t_cruise,
+        ]
         rates = [0.0, speed, speed, 0.0]
     else:
         times = [start_s, start_s + t_cruise, start_s + t_cruise]
@@ -177,10 +186,14 @@ def thread_cut(rate: float | None = None, ramp_steps: float = 0.0, machine=None)
     t2 = t1 + 2 * n / rate
     t3 = t2 + 2 * n / rate
     t4 = t3 + (stroke - n) / rate
-    return from_rates("thread-cut-ramped", [0, t1, t2, t3, t4, t4], [rate, rate, 0, -rate, -rate, 0])
+    return from_rates(
+        "thread-cut-ramped", [0, t1, t2, t3, t4, t4], [rate, rate, 0, -rate, -rate, 0]
+    )
 
 
-def builtin(name: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS, machine=None) -> StepProfile:
+def builtin(
+    name: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS, machine=None
+) -> StepProfile:
     if name == "thread-cut":
         return thread_cut(rate, machine=machine)
     if name == "thread-cut-ramped":
@@ -219,7 +232,9 @@ def from_file(path: str | os.PathLike, rate: float | None = None, machine=None) 
     from mechanism.files.tables import check_increasing, read_table
 
     path = Path(path)
-    table = read_table(path, required=["time_s"], optional=["rate_steps_s", "target_steps"], what="sequence")
+    table = read_table(
+        path, required=["time_s"], optional=["rate_steps_s", "target_steps"], what="sequence"
+    )
     has_rate, has_target = "rate_steps_s" in table, "target_steps" in table
     if has_rate == has_target:
         raise UserError(
@@ -232,19 +247,26 @@ def from_file(path: str | os.PathLike, rate: float | None = None, machine=None) 
         raise UserError(f"{table.source}: time_s starts at {t[0]:g}; times must be >= 0")
     if has_rate:
         if rate is not None:
-            raise UserError(f"{table.source}: a rate profile sets its own rates; --rate applies to thread-cut and target files")
+            raise UserError(
+                f"{table.source}: a rate profile sets its own rates; --rate applies to thread-cut and target files"
+            )
         if t.size < 2:
             raise UserError(f"{table.source}: a rate profile needs at least two rows")
         times, rates = t, table["rate_steps_s"]
         if times[0] > 0:  # at rest until the first row
-            times, rates = np.concatenate([[0.0, times[0]], times]), np.concatenate([[0.0, 0.0], rates])
+            times, rates = (
+                np.concatenate([[0.0, times[0]], times]),
+                np.concatenate([[0.0, 0.0], rates]),
+            )
         return from_rates(path.name, times, rates)
     if rate is None:
         rate = described_step_rate(machine)
     return from_targets(path.name, t, table["target_steps"], rate)
 
 
-def resolve(sequence: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS, machine=None) -> StepProfile:
+def resolve(
+    sequence: str, rate: float | None = None, ramp_steps: float = DEFAULT_RAMP_STEPS, machine=None
+) -> StepProfile:
     """A built-in name or a CSV file path (the CLI's ``--sequence``); defaults (step rate,
     thread cut) from ``machine``'s description (default: the shipped machine)."""
     if rate is not None:

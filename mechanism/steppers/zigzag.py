@@ -82,17 +82,26 @@ class NeedleProfile:
         return np.asarray(self._function(np.asarray(arm_angle_rad, dtype=float)), dtype=float)
 
     @classmethod
-    def slider_crank(cls, crank_mm: float = 16.5, rod_mm: float = 50.0, tdc_height_mm: float = 21.0) -> "NeedleProfile":
+    def slider_crank(
+        cls, crank_mm: float = 16.5, rod_mm: float = 50.0, tdc_height_mm: float = 21.0
+    ) -> "NeedleProfile":
         """A needle bar driven by a plain slider-crank (an analytic stand-in for the
         machine): height ``tdc_height_mm`` at TDC, stroke 2 x crank."""
         if not (0 < crank_mm < rod_mm):
             raise UserError(f"slider-crank needs 0 < crank ({crank_mm} mm) < rod ({rod_mm} mm)")
 
         def height(angle):
-            drop = crank_mm + rod_mm - (crank_mm * np.cos(angle) + np.sqrt(rod_mm**2 - (crank_mm * np.sin(angle)) ** 2))
+            drop = (
+                crank_mm
+                + rod_mm
+                - (crank_mm * np.cos(angle) + np.sqrt(rod_mm**2 - (crank_mm * np.sin(angle)) ** 2))
+            )
             return tdc_height_mm - drop
 
-        return cls(height, f"slider-crank (crank {crank_mm:g} mm, rod {rod_mm:g} mm, TDC {tdc_height_mm:g} mm above the plate)")
+        return cls(
+            height,
+            f"slider-crank (crank {crank_mm:g} mm, rod {rod_mm:g} mm, TDC {tdc_height_mm:g} mm above the plate)",
+        )
 
     @classmethod
     def from_table(cls, arm_angle_rad, needle_z_mm, name: str = "table") -> "NeedleProfile":
@@ -100,7 +109,9 @@ class NeedleProfile:
         angle = np.asarray(arm_angle_rad, dtype=float)
         z = np.asarray(needle_z_mm, dtype=float)
         if angle.ndim != 1 or angle.shape != z.shape or angle.size < 8:
-            raise UserError(f"needle table {name}: needs at least 8 rows of arm angle and needle height")
+            raise UserError(
+                f"needle table {name}: needs at least 8 rows of arm angle and needle height"
+            )
         order = np.argsort(np.mod(angle, 2 * np.pi))
         wrapped, z = np.mod(angle, 2 * np.pi)[order], z[order]
         if np.any(np.diff(wrapped) <= 0):
@@ -112,13 +123,20 @@ class NeedleProfile:
         """A CSV with ``arm_angle_deg`` (or ``arm_angle_rad``) and ``needle_z_mm``."""
         from mechanism.files.tables import read_table
 
-        table = read_table(path, required=["needle_z_mm"], optional=["arm_angle_deg", "arm_angle_rad"], what="needle table")
+        table = read_table(
+            path,
+            required=["needle_z_mm"],
+            optional=["arm_angle_deg", "arm_angle_rad"],
+            what="needle table",
+        )
         if "arm_angle_deg" in table:
             angle = np.radians(table["arm_angle_deg"])
         elif "arm_angle_rad" in table:
             angle = table["arm_angle_rad"]
         else:
-            raise UserError(f"{table.source}: needs a column arm_angle_deg or arm_angle_rad next to needle_z_mm")
+            raise UserError(
+                f"{table.source}: needs a column arm_angle_deg or arm_angle_rad next to needle_z_mm"
+            )
         return cls.from_table(angle, table["needle_z_mm"], Path(path).name)
 
     def window(self, clearance_mm: float = 0.0, samples: int = 7200) -> tuple[float, float]:
@@ -132,9 +150,13 @@ class NeedleProfile:
         if not above[samples // 2]:
             raise UserError(f"needle ({self.name}) is not above {clearance_mm:g} mm at TDC")
         if above.all():
-            raise UserError(f"needle ({self.name}) never goes below {clearance_mm:g} mm: nothing to time against")
+            raise UserError(
+                f"needle ({self.name}) never goes below {clearance_mm:g} mm: nothing to time against"
+            )
         centre = samples // 2
-        first = centre - np.flatnonzero(~above[:centre][::-1])[0]  # first index above, going back from TDC
+        first = (
+            centre - np.flatnonzero(~above[:centre][::-1])[0]
+        )  # first index above, going back from TDC
         last = centre + np.flatnonzero(~above[centre:])[0] - 1  # last index above, going forward
 
         def f(a):
@@ -158,13 +180,18 @@ def machine_needle_profile(description=None, model_path=None) -> NeedleProfile:
     if model_path is not None:
         description = replace(description, model=Path(model_path))
     motion = needle_motion(Machine(description), samples=720)
-    return NeedleProfile.from_table(np.deg2rad(motion.arm_angle_deg), motion.needle_z_mm,
-                                    f"machine {description.name}" if model_path is None else str(model_path))
+    return NeedleProfile.from_table(
+        np.deg2rad(motion.arm_angle_deg),
+        motion.needle_z_mm,
+        f"machine {description.name}" if model_path is None else str(model_path),
+    )
 
 
 def arm_period_s(stitches_per_minute: float) -> float:
     if not (np.isfinite(stitches_per_minute) and stitches_per_minute > 0):
-        raise UserError(f"sewing speed must be a positive number of stitches per minute, got {stitches_per_minute:g}")
+        raise UserError(
+            f"sewing speed must be a positive number of stitches per minute, got {stitches_per_minute:g}"
+        )
     return 60.0 / stitches_per_minute
 
 
@@ -210,10 +237,19 @@ def settle_time(time_s: np.ndarray, error: np.ndarray, tolerance: float) -> floa
     return float(time_s[outside[-1] + 1])
 
 
-def check_move(stitches_per_minute: float, needle: NeedleProfile, width_mm: float | None = None,
-               rate: float | None = None, linkage: ZigzagLinkage | None = None,
-               params: StepperParams | None = None, kind: str = "circuit", mode: str = "full",
-               ramp_steps: float = 0.0, clearance_mm: float = 0.0, tolerance_mm: float | None = None) -> MoveCheck:
+def check_move(
+    stitches_per_minute: float,
+    needle: NeedleProfile,
+    width_mm: float | None = None,
+    rate: float | None = None,
+    linkage: ZigzagLinkage | None = None,
+    params: StepperParams | None = None,
+    kind: str = "circuit",
+    mode: str = "full",
+    ramp_steps: float = 0.0,
+    clearance_mm: float = 0.0,
+    tolerance_mm: float | None = None,
+) -> MoveCheck:
     """Simulate one sideways move of ``width_mm`` (default: the full width) starting when
     the needle leaves the fabric, and time it against the needle's time above it.
     ``tolerance_mm`` (default half a step at the needle) says when the move is done."""
@@ -222,7 +258,9 @@ def check_move(stitches_per_minute: float, needle: NeedleProfile, width_mm: floa
     width_mm = linkage.width_mm if width_mm is None else float(width_mm)
     steps = linkage.steps_for(width_mm)
     if steps <= 0:
-        raise UserError(f"a zigzag move of {width_mm:g} mm is less than one step ({linkage.mm_per_step:g} mm)")
+        raise UserError(
+            f"a zigzag move of {width_mm:g} mm is less than one step ({linkage.mm_per_step:g} mm)"
+        )
     rate = float(rate) if rate is not None else described_step_rate()
     tolerance_mm = 0.5 * linkage.mm_per_step if tolerance_mm is None else float(tolerance_mm)
     period = arm_period_s(stitches_per_minute)
@@ -230,15 +268,27 @@ def check_move(stitches_per_minute: float, needle: NeedleProfile, width_mm: floa
     window_s = (entry_angle - exit_angle) / (2 * np.pi) * period
     profile = step_profiles.move(steps, rate, ramp_steps, name=f"zigzag {steps} steps")
     run = simulate(profile, kind, mode, motor, settle_s=max(window_s, 0.05))
-    error_mm = (run.rotor_deg - steps * motor.step_angle_deg) / motor.step_angle_deg * linkage.mm_per_step
+    error_mm = (
+        (run.rotor_deg - steps * motor.step_angle_deg) / motor.step_angle_deg * linkage.mm_per_step
+    )
     move_time = settle_time(run.time_s, error_mm, tolerance_mm)
-    finish_angle = exit_angle + 2 * np.pi * move_time / period if math.isfinite(move_time) else math.nan
+    finish_angle = (
+        exit_angle + 2 * np.pi * move_time / period if math.isfinite(move_time) else math.nan
+    )
     return MoveCheck(
-        stitches_per_minute=float(stitches_per_minute), steps=steps, width_mm=steps * linkage.mm_per_step,
-        rate_steps_s=rate, exit_angle_deg=math.degrees(exit_angle), entry_angle_deg=math.degrees(entry_angle),
-        window_s=window_s, move_time_s=move_time, tolerance_mm=tolerance_mm,
+        stitches_per_minute=float(stitches_per_minute),
+        steps=steps,
+        width_mm=steps * linkage.mm_per_step,
+        rate_steps_s=rate,
+        exit_angle_deg=math.degrees(exit_angle),
+        entry_angle_deg=math.degrees(entry_angle),
+        window_s=window_s,
+        move_time_s=move_time,
+        tolerance_mm=tolerance_mm,
         finish_angle_deg=math.degrees(finish_angle),
-        needle_z_at_finish_mm=float(needle(finish_angle)) if math.isfinite(finish_angle) else math.nan,
+        needle_z_at_finish_mm=float(needle(finish_angle))
+        if math.isfinite(finish_angle)
+        else math.nan,
         lost_steps=run.summary["lost_steps"],
     )
 
@@ -251,10 +301,20 @@ class SewingRun:
     summary: dict
 
 
-def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, width_mm: float | None = None,
-        rate: float | None = None, linkage: ZigzagLinkage | None = None, params: StepperParams | None = None,
-        kind: str = "circuit", mode: str = "full", clearance_mm: float = 0.0, tolerance_mm: float | None = None,
-        sample_period_s: float = 1e-4) -> SewingRun:
+def sew(
+    stitches_per_minute: float,
+    needle: NeedleProfile,
+    stitches: int = 6,
+    width_mm: float | None = None,
+    rate: float | None = None,
+    linkage: ZigzagLinkage | None = None,
+    params: StepperParams | None = None,
+    kind: str = "circuit",
+    mode: str = "full",
+    clearance_mm: float = 0.0,
+    tolerance_mm: float | None = None,
+    sample_period_s: float = 1e-4,
+) -> SewingRun:
     """Zigzag stitches at a steady arm speed: each time the needle leaves the fabric the
     driver heads for the other side at ``rate``. Time 0 is the first exit. Reports, per
     stitch, the largest sideways error of the needle while it is in the fabric."""
@@ -272,10 +332,12 @@ def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, wi
     targets = np.where(np.arange(int(stitches)) % 2 == 0, steps, 0)
     profile = step_profiles.from_targets("zigzag", starts, targets, rate)
     duration = int(stitches) * period
-    run = simulate(profile, kind, mode, motor, settle_s=max(duration - profile.duration_s, 0.0) + 1e-9)
+    run = simulate(
+        profile, kind, mode, motor, settle_s=max(duration - profile.duration_s, 0.0) + 1e-9
+    )
     dt = run.time_s[1] - run.time_s[0]
     every = max(1, int(round(sample_period_s / dt)))
-    keep = (run.time_s < duration)
+    keep = run.time_s < duration
     time_s = run.time_s[keep]
     arm = exit_angle + 2 * np.pi * time_s / period
     z = needle(arm)
@@ -299,9 +361,14 @@ def sew(stitches_per_minute: float, needle: NeedleProfile, stitches: int = 6, wi
         "sideways_error_in_fabric_mm": error[::every],
     }
     summary = {
-        "stitches_per_minute": float(stitches_per_minute), "stitches": int(stitches), "steps_per_move": steps,
-        "width_mm": steps * linkage.mm_per_step, "rate_steps_s": rate, "tolerance_mm": tolerance_mm,
-        "worst_error_in_fabric_mm": max(per_stitch), "stitches_moving_in_fabric": bad,
+        "stitches_per_minute": float(stitches_per_minute),
+        "stitches": int(stitches),
+        "steps_per_move": steps,
+        "width_mm": steps * linkage.mm_per_step,
+        "rate_steps_s": rate,
+        "tolerance_mm": tolerance_mm,
+        "worst_error_in_fabric_mm": max(per_stitch),
+        "stitches_moving_in_fabric": bad,
         "lost_steps": run.summary["lost_steps"],
     }
     return SewingRun(columns, summary)
@@ -322,12 +389,23 @@ def plot_sewing(run: SewingRun, path) -> None:
     axes[1].set_ylabel("needle sideways [mm]")
     axes[1].set_xlabel("time [s]")
     for ax in axes:
-        ax.fill_between(t, 0, 1, where=c["needle_in_fabric"] > 0, transform=ax.get_xaxis_transform(),
-                        color="tab:red", alpha=0.12, lw=0)
+        ax.fill_between(
+            t,
+            0,
+            1,
+            where=c["needle_in_fabric"] > 0,
+            transform=ax.get_xaxis_transform(),
+            color="tab:red",
+            alpha=0.12,
+            lw=0,
+        )
         ax.grid(alpha=0.3)
     axes[1].legend(fontsize=8)
     s = run.summary
-    fig.suptitle(f"zigzag {s['width_mm']:.2f} mm at {s['stitches_per_minute']:g} stitches/min, "
-                 f"{s['rate_steps_s']:g} steps/s: worst sideways error in the fabric {s['worst_error_in_fabric_mm']:.3f} mm "
-                 f"(shaded: needle in the fabric)", fontsize=9)
+    fig.suptitle(
+        f"zigzag {s['width_mm']:.2f} mm at {s['stitches_per_minute']:g} stitches/min, "
+        f"{s['rate_steps_s']:g} steps/s: worst sideways error in the fabric {s['worst_error_in_fabric_mm']:.3f} mm "
+        f"(shaded: needle in the fabric)",
+        fontsize=9,
+    )
     save_figure(fig, path)

@@ -75,7 +75,9 @@ def fit_running(description=None, start=(0.2, np.deg2rad(160.0))) -> tuple[float
     observations = ripple_observations()
 
     def residual(x):
-        reduced = ReducedModel(Machine(description, MachineConfig(friction=_laws(x[0], x[1], description=description))))
+        reduced = ReducedModel(
+            Machine(description, MachineConfig(friction=_laws(x[0], x[1], description=description)))
+        )
         return [np.log(ripple(reduced.simulate(v, 8.0))[0] / r) for v, r in observations]
 
     fit = least_squares(residual, start, bounds=([0.0, 0.0], [0.6, TWO_PI]), diff_step=0.02)
@@ -89,14 +91,28 @@ def fit_static(amplitude, phase_rad, description=None) -> tuple[float, float]:
     low, high = data["lowest_breakaway_arm_Nm"], data["highest_breakaway_arm_Nm"]
 
     def spread(static, static_amplitude):
-        reduced = ReducedModel(Machine(description, MachineConfig(
-            friction=_laws(amplitude, phase_rad, static, static_amplitude, description))))
-        total = [reduced.static_friction(a) for a in reduced.tables.angle_rad] + reduced.tables.gravity_torque_Nm
+        reduced = ReducedModel(
+            Machine(
+                description,
+                MachineConfig(
+                    friction=_laws(amplitude, phase_rad, static, static_amplitude, description)
+                ),
+            )
+        )
+        total = [
+            reduced.static_friction(a) for a in reduced.tables.angle_rad
+        ] + reduced.tables.gravity_torque_Nm
         return float(np.min(total)), float(np.max(total))
 
     static = (low + high) / 2
     for _ in range(4):  # alternate: the amplitude fixes the ratio, the level fixes the scale
-        a_s = brentq(lambda a, level=static: (lambda lo_hi: lo_hi[1] / lo_hi[0] - high / low)(spread(level, a)), 0.0, 0.5)
+        a_s = brentq(
+            lambda a, level=static: (lambda lo_hi: lo_hi[1] / lo_hi[0] - high / low)(
+                spread(level, a)
+            ),
+            0.0,
+            0.5,
+        )
         lo, _ = spread(static, a_s)
         static *= low / lo
     return static, a_s
@@ -107,8 +123,10 @@ def steady_speeds_table(description=None):
     from mechanism.files.tables import read_table
 
     description = resolve_description(description)
-    table = read_table(description.model.parent / "measurements" / "steady_speeds.csv",
-                       required=["motor_voltage_V", "warm_s", "speed_rpm"])
+    table = read_table(
+        description.model.parent / "measurements" / "steady_speeds.csv",
+        required=["motor_voltage_V", "warm_s", "speed_rpm"],
+    )
     return list(zip(table["motor_voltage_V"], table["warm_s"], table["speed_rpm"]))
 
 
@@ -126,27 +144,44 @@ def fit_warming_and_supply(description=None, start=(0.5, 0.05, 3.5e-5, 30.0)):
     supply_V = description.section("supply")["voltage_V"]
     shaft, motor = description.shaft_joint, description.motor_joint
     cold = description.friction.get(shaft, {})
-    static_ratio = cold.get("static_Nm", cold.get("coulomb_Nm", 1.0)) / max(cold.get("coulomb_Nm", 1.0), 1e-12)
+    static_ratio = cold.get("static_Nm", cold.get("coulomb_Nm", 1.0)) / max(
+        cold.get("coulomb_Nm", 1.0), 1e-12
+    )
     used = [row for row in rows if row[1] > 0 or row[0] >= supply_V]
     scales = np.array([1.0, 0.1, 1e-5, 30.0])
 
     def variant(x):
         rs, coulomb, viscous, tau = x * scales
-        sections = {**description.sections, "supply": {**description.section("supply"), "series_resistance_ohm": rs},
-                    "warm": {"time_constant_s": tau}}
-        warm = {motor: {"viscous_Nm_s_per_rad": viscous}, shaft: {"coulomb_Nm": coulomb, "static_Nm": coulomb * static_ratio}}
+        sections = {
+            **description.sections,
+            "supply": {**description.section("supply"), "series_resistance_ohm": rs},
+            "warm": {"time_constant_s": tau},
+        }
+        warm = {
+            motor: {"viscous_Nm_s_per_rad": viscous},
+            shaft: {"coulomb_Nm": coulomb, "static_Nm": coulomb * static_ratio},
+        }
         return replace(description, sections=sections, warm_friction=warm)
 
     def residual(x):
         changed = variant(x)
         out = []
         for volts, warm_s, measured in used:
-            reduced = ReducedModel(Machine(changed, MachineConfig(needle=False, warm_s=float(warm_s))))
+            reduced = ReducedModel(
+                Machine(changed, MachineConfig(needle=False, warm_s=float(warm_s)))
+            )
             run = reduced.simulate(float(volts), 6.0)
-            out.append(np.log(run.arm_velocity_rad_s[run.window(2.0)].mean() * 60 / TWO_PI / measured))
+            out.append(
+                np.log(run.arm_velocity_rad_s[run.window(2.0)].mean() * 60 / TWO_PI / measured)
+            )
         return np.array(out)
 
-    fit = least_squares(residual, np.array(start) / scales, bounds=([0, 0, 0.05, 0.03], [20, 2, 20, 20]), diff_step=1e-3)
+    fit = least_squares(
+        residual,
+        np.array(start) / scales,
+        bounds=([0, 0, 0.05, 0.03], [20, 2, 20, 20]),
+        diff_step=1e-3,
+    )
     dof = max(1, len(fit.fun) - len(fit.x))
     covariance = np.linalg.pinv(fit.jac.T @ fit.jac) * float(fit.fun @ fit.fun) / dof
     return fit.x * scales, np.sqrt(np.diag(covariance)) * scales, fit.fun
@@ -157,8 +192,12 @@ def main() -> None:
 
     if "--steady-speeds" in sys.argv:
         values, errors, residual = fit_warming_and_supply()
-        names = ("[supply] series_resistance_ohm", "[warm_friction.shaft] coulomb_Nm",
-                 "[warm_friction.motor] viscous_Nm_s_per_rad", "[warm] time_constant_s")
+        names = (
+            "[supply] series_resistance_ohm",
+            "[warm_friction.shaft] coulomb_Nm",
+            "[warm_friction.motor] viscous_Nm_s_per_rad",
+            "[warm] time_constant_s",
+        )
         for name, value, error in zip(names, values, errors):
             print(f"{name} = {value:.4g}   # +/- {error:.2g}")
         print("residuals [%]:", " ".join(f"{100 * r:+.1f}" for r in residual))
@@ -172,10 +211,14 @@ def main() -> None:
     print(f"position_amplitude = {amplitude:.3f}")
     print(f"static_position_amplitude = {static_amplitude:.4f}")
     print(f"position_phase_deg = {np.degrees(phase):.1f}")
-    reduced = ReducedModel(Machine(None, MachineConfig(friction=_laws(amplitude, phase, static, static_amplitude))))
+    reduced = ReducedModel(
+        Machine(None, MachineConfig(friction=_laws(amplitude, phase, static, static_amplitude)))
+    )
     for v, r in ripple_observations():
         amp, where = ripple(reduced.simulate(v, 8.0))
-        print(f"  {v:5.1f} V: ripple +/-{amp:.2f} rad/s (thesis {r:.2f}), slowest at {where:.0f} deg")
+        print(
+            f"  {v:5.1f} V: ripple +/-{amp:.2f} rad/s (thesis {r:.2f}), slowest at {where:.0f} deg"
+        )
 
 
 if __name__ == "__main__":

@@ -35,13 +35,33 @@ from scipy.signal import find_peaks, welch
 
 from mechanism.sysid.report import Traces
 from mechanism.sysid.effects import Effect, Located, library as effect_library
-from mechanism.sysid.identification import (FitResult, ModelStructure, Problem, blas_single_threaded, damping_below_datasheet,
-                                      equation_error_start, fit, fit_baseline, require_identifiable)
+from mechanism.sysid.identification import (
+    FitResult,
+    ModelStructure,
+    Problem,
+    blas_single_threaded,
+    damping_below_datasheet,
+    equation_error_start,
+    fit,
+    fit_baseline,
+    require_identifiable,
+)
 from mechanism.dynamics.lumped import DriveNominal
 from mechanism.sysid.identifiability import Identifiability
-from mechanism.sysid.generic import GenericEffect, candidates as generic_candidates, evidence as generic_evidence
+from mechanism.sysid.generic import (
+    GenericEffect,
+    candidates as generic_candidates,
+    evidence as generic_evidence,
+)
 from mechanism.sysid.recording import Recording, at_fitting_rate
-from mechanism.sysid.residual import UNEXPLAINED_FACTOR, NoiseFloor, Signature, describe, noise_floor, signature
+from mechanism.sysid.residual import (
+    UNEXPLAINED_FACTOR,
+    NoiseFloor,
+    Signature,
+    describe,
+    noise_floor,
+    signature,
+)
 
 # An effect must cut the validation rmse by at least 35 %. The contract asks every effect
 # recording to end at <= 0.7 of the baseline rmse (a 30 % cut), so a smaller gain is never
@@ -61,13 +81,16 @@ STEP_GAIN = 0.10
 # a proxy soaking up a true effect's leftovers cut at most 18-25 %.
 KEEP_GAIN_JOINT = 0.30
 GENERIC_GAIN = 0.30  # a generic model (names no mechanism) is kept when it cuts the error by 30 %
-TIE_BAND = 0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
+TIE_BAND = (
+    0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
+)
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
 
 
 # ----------------------------------------------------------------------------- locate
+
 
 @dataclass
 class Localisation:
@@ -120,7 +143,9 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     rec = problem.recording
     s = problem.signals
     pred = problem.full_prediction(fitted.structure, fitted.values)
-    r = np.nan_to_num(rec.velocity_rad_s - pred)  # unscored samples (the ends, unused windows) count as zero
+    r = np.nan_to_num(
+        rec.velocity_rad_s - pred
+    )  # unscored samples (the ends, unused windows) count as zero
     t, w = rec.time_s, rec.velocity_rad_s
     speed = np.abs(w)
     top = max(np.percentile(speed, 99), 1e-6)
@@ -129,12 +154,16 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     edges = np.linspace(0, 2 * np.pi, 73)
     centres = 0.5 * (edges[1:] + edges[:-1])
     arm_profile, _ = _bin_mean(phase[moving], r[moving], edges)
-    motor_profile, _ = _bin_mean(np.mod(s.ratio * rec.arm_angle_rad[moving], 2 * np.pi), r[moving], edges)
+    motor_profile, _ = _bin_mean(
+        np.mod(s.ratio * rec.arm_angle_rad[moving], 2 * np.pi), r[moving], edges
+    )
     speed_edges = np.linspace(0, top * 1.001, 16)
     sq, _ = _bin_mean(speed, r * r, speed_edges)
     speed_rms = np.sqrt(sq)
     # harmonic content per speed band: project the residual on cos/sin(k theta)
-    bands = np.quantile(speed[moving], [0, 0.25, 0.5, 0.75, 1.0]) if moving.any() else np.array([0, 1])
+    bands = (
+        np.quantile(speed[moving], [0, 0.25, 0.5, 0.75, 1.0]) if moving.any() else np.array([0, 1])
+    )
     orders = {}
     for k in (1, 2, 3, 8):
         centres_b, amps = [], []
@@ -149,22 +178,43 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
             centres_b.append(float(np.median(speed[sel])))
         orders[k] = (np.array(centres_b), np.array(amps))
     sp, amp = orders[1]
-    exponent = float(np.polyfit(np.log(sp), np.log(np.maximum(amp, 1e-9)), 1)[0]) if len(sp) >= 2 else math.nan
+    exponent = (
+        float(np.polyfit(np.log(sp), np.log(np.maximum(amp, 1e-9)), 1)[0])
+        if len(sp) >= 2
+        else math.nan
+    )
     fs = 1.0 / problem.dt
     f, psd = welch(r, fs=fs, nperseg=min(len(r), 4096))
     resonance = _resonance_peaks(f, psd)
     steps = np.flatnonzero(np.abs(np.diff(rec.voltage_V)) > 0.5) + 1
     after = np.zeros(len(r), bool)
     for step in steps:
-        after[step:step + int(0.3 * fs)] = True
+        after[step : step + int(0.3 * fs)] = True
     transient_rms = float(np.sqrt(np.mean(r[after] ** 2))) if after.any() else 0.0
     steady_rms = float(np.sqrt(np.mean(r[~after] ** 2))) if (~after).any() else 0.0
     low = (speed < 0.1 * top) & ((speed > 0.01) | (np.abs(rec.voltage_V) > 0.1))
     low_rms = float(np.sqrt(np.mean(r[low] ** 2))) if low.any() else 0.0
     drift = _plateau_drift(t, rec.voltage_V, r, after)
-    return Localisation(float(np.sqrt(np.mean(r * r))), t, r, speed, centres, arm_profile, motor_profile,
-                        0.5 * (speed_edges[1:] + speed_edges[:-1]), speed_rms, orders, exponent, f, psd,
-                        resonance, transient_rms, steady_rms, low_rms, drift)
+    return Localisation(
+        float(np.sqrt(np.mean(r * r))),
+        t,
+        r,
+        speed,
+        centres,
+        arm_profile,
+        motor_profile,
+        0.5 * (speed_edges[1:] + speed_edges[:-1]),
+        speed_rms,
+        orders,
+        exponent,
+        f,
+        psd,
+        resonance,
+        transient_rms,
+        steady_rms,
+        low_rms,
+        drift,
+    )
 
 
 def _resonance_peaks(f: np.ndarray, psd: np.ndarray, count: int = 3) -> tuple:
@@ -194,6 +244,7 @@ def _plateau_drift(t, u, r, transient) -> float:
 
 # ----------------------------------------------------------------------------- name and choose
 
+
 @dataclass
 class Finding:
     effect: Effect
@@ -214,7 +265,11 @@ class Finding:
             "rmse": self.fit.rmse_val,
             "meaning": self.effect.meaning,
             "candidates_rmse": self.candidates,
-            **({"signature": self.signature, "possible_physics": self.effect.physics} if self.effect.generic else {}),
+            **(
+                {"signature": self.signature, "possible_physics": self.effect.physics}
+                if self.effect.generic
+                else {}
+            ),
         }
 
 
@@ -231,8 +286,13 @@ class Unexplained:
     sentence: str
 
     def to_json(self) -> dict:
-        return {"rmse": self.rmse, "noise_floor_rad_s": self.floor.rmse, "times_noise_floor": self.rmse / self.floor.rmse,
-                "signature": self.signature.to_json(), "sentence": self.sentence}
+        return {
+            "rmse": self.rmse,
+            "noise_floor_rad_s": self.floor.rmse,
+            "times_noise_floor": self.rmse / self.floor.rmse,
+            "signature": self.signature.to_json(),
+            "sentence": self.sentence,
+        }
 
 
 @dataclass
@@ -262,28 +322,38 @@ class Diagnosis:
         lag = self.baseline.values.get("electrical_time_constant_s", 0.0)
         if lag > LONG_WINDING_LAG_S:
             r = self.problem.nominal.motor.resistance_ohm
-            notes.append(f"winding lag L/R fitted {1e3 * lag:.3g} ms (L = {1e3 * lag * r:.3g} mH at {r:g} ohm): a small DC motor's is "
-                         f"0.2-2 ms; a lag this long more likely is a delay elsewhere (the angle or voltage logged late)")
+            notes.append(
+                f"winding lag L/R fitted {1e3 * lag:.3g} ms (L = {1e3 * lag * r:.3g} mH at {r:g} ohm): a small DC motor's is "
+                f"0.2-2 ms; a lag this long more likely is a delay elsewhere (the angle or voltage logged late)"
+            )
         sheet = self.problem.nominal.motor
         r_fit = self.baseline.values.get("motor_resistance_ohm")
         if r_fit is not None:
-            notes.append(f"the drive's effective resistance fitted ({r_fit:.4g} ohm instead of the described "
-                         f"{sheet.resistance_ohm:g}: {sheet.resistance_ohm / r_fit:.2g}x the described torque per volt and "
-                         f"back-emf damping): the model's gravity, a known load, weighs the torque per volt, and the "
-                         f"search from this baseline ended lower on the validation segments")
+            notes.append(
+                f"the drive's effective resistance fitted ({r_fit:.4g} ohm instead of the described "
+                f"{sheet.resistance_ohm:g}: {sheet.resistance_ohm / r_fit:.2g}x the described torque per volt and "
+                f"back-emf damping): the model's gravity, a known load, weighs the torque per volt, and the "
+                f"search from this baseline ended lower on the validation segments"
+            )
         ke = self.baseline.values.get("motor_back_emf_V_s_per_rad")
         if ke is None:
             return notes
-        return notes + [f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
-                f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
-                f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"]
+        return notes + [
+            f"back-emf constant fitted ({ke:.4g} V s/rad instead of the datasheet's {sheet.back_emf_V_s_per_rad:g}): "
+            f"the recording shows less speed-proportional damping than the datasheet's Ke with Kt "
+            f"{sheet.torque_constant_Nm_per_A:g} gives, so the viscous friction would have had to be negative"
+        ]
 
     def to_json(self) -> dict:
         base = self.baseline
         return {
             "recording": self.recording.source,
             "identifiable": True,
-            **({"identifiability": self.identifiability.to_json()} if self.identifiability is not None else {}),
+            **(
+                {"identifiability": self.identifiability.to_json()}
+                if self.identifiability is not None
+                else {}
+            ),
             "baseline": {
                 "name": self.baseline_name,
                 "terms": base.structure.baseline.terms,
@@ -297,17 +367,23 @@ class Diagnosis:
             "effects": [f.to_json() for f in self.findings],
             **({"noise_floor": self.noise.to_json()} if self.noise else {}),
             **({"unexplained": self.unexplained.to_json()} if self.unexplained else {}),
-            "final": {"params": self.final.values, "uncertainty_1sigma": self.final.uncertainties,
-                      "rmse": self.final.rmse_val, "effects": self.effect_names},
+            "final": {
+                "params": self.final.values,
+                "uncertainty_1sigma": self.final.uncertainties,
+                "rmse": self.final.rmse_val,
+                "effects": self.effect_names,
+            },
             "selection": {
-                "rule": (f"forward selection with joint refits: refit every candidate added to the current model on "
-                         f"the fit segments; rank by validation rmse x (1 + {PARAMETER_PENALTY} per added parameter), "
-                         f"near-ties within {TIE_BAND:.0%} go to fewer parameters; a candidate joins when the validation "
-                         f"rmse falls by at least {STEP_GAIN:.0%} (pairs when no single one does), an earlier one leaves "
-                         f"when the joint refit without it is within {STEP_GAIN:.0%}; the final model keeps a single "
-                         f"effect only if it cuts the validation rmse by at least {MIN_RELATIVE_GAIN:.0%} (generic "
-                         f"models: {GENERIC_GAIN:.0%}), and of several each only if, added last to the others, it cuts "
-                         f"it by at least {KEEP_GAIN_JOINT:.0%}"),
+                "rule": (
+                    f"forward selection with joint refits: refit every candidate added to the current model on "
+                    f"the fit segments; rank by validation rmse x (1 + {PARAMETER_PENALTY} per added parameter), "
+                    f"near-ties within {TIE_BAND:.0%} go to fewer parameters; a candidate joins when the validation "
+                    f"rmse falls by at least {STEP_GAIN:.0%} (pairs when no single one does), an earlier one leaves "
+                    f"when the joint refit without it is within {STEP_GAIN:.0%}; the final model keeps a single "
+                    f"effect only if it cuts the validation rmse by at least {MIN_RELATIVE_GAIN:.0%} (generic "
+                    f"models: {GENERIC_GAIN:.0%}), and of several each only if, added last to the others, it cuts "
+                    f"it by at least {KEEP_GAIN_JOINT:.0%}"
+                ),
                 "rounds": self.rounds,
             },
             "reading": self.recording.reading,
@@ -316,8 +392,15 @@ class Diagnosis:
 
 
 def not_identifiable_json(rec_source: str, reason: str, reading: dict | None = None) -> dict:
-    return {"recording": rec_source, "identifiable": False, "reason": f"not identifiable: {reason}",
-            "baseline": None, "effects": [], "final": None, **({"reading": reading} if reading else {})}
+    return {
+        "recording": rec_source,
+        "identifiable": False,
+        "reason": f"not identifiable: {reason}",
+        "baseline": None,
+        "effects": [],
+        "final": None,
+        **({"reading": reading} if reading else {}),
+    }
 
 
 def _by_speed(loc: Localisation, order: int) -> str:
@@ -330,27 +413,51 @@ def _by_speed(loc: Localisation, order: int) -> str:
 # The residual feature each effect's evidence quotes, before and after adding it (numbers
 # from locate(); they illustrate, the validation fit decided).
 FEATURES: dict[str, tuple[str, Callable[[Localisation], str]]] = {
-    "motor_profile": ("the residual averaged over the motor angle swings",
-                      lambda L: f"{np.ptp(np.nan_to_num(L.motor_profile)):.2g} rad/s peak to peak"),
-    "arm_profile": ("the residual averaged over the arm angle swings",
-                    lambda L: f"{np.ptp(np.nan_to_num(L.arm_profile)):.2g} rad/s peak to peak"),
+    "motor_profile": (
+        "the residual averaged over the motor angle swings",
+        lambda L: f"{np.ptp(np.nan_to_num(L.motor_profile)):.2g} rad/s peak to peak",
+    ),
+    "arm_profile": (
+        "the residual averaged over the arm angle swings",
+        lambda L: f"{np.ptp(np.nan_to_num(L.arm_profile)):.2g} rad/s peak to peak",
+    ),
     "order1_by_speed": ("the once-per-revolution residual is", lambda L: _by_speed(L, 1)),
     "order2_by_speed": ("the twice-per-revolution residual is", lambda L: _by_speed(L, 2)),
-    "low_speed": ("the residual below 10% of top speed is", lambda L: f"{L.low_speed_rms:.2g} rad/s rms"),
-    "drift": ("the residual drifts by", lambda L: f"{L.drift_per_min:+.2g} rad/s per minute at repeated voltages"),
-    "transient": ("the residual within 0.3 s of voltage steps is", lambda L: f"{L.transient_rms:.2g} rad/s rms"),
-    "steady": ("the residual away from voltage steps is", lambda L: f"{L.steady_rms:.2g} rad/s rms"),
+    "low_speed": (
+        "the residual below 10% of top speed is",
+        lambda L: f"{L.low_speed_rms:.2g} rad/s rms",
+    ),
+    "drift": (
+        "the residual drifts by",
+        lambda L: f"{L.drift_per_min:+.2g} rad/s per minute at repeated voltages",
+    ),
+    "transient": (
+        "the residual within 0.3 s of voltage steps is",
+        lambda L: f"{L.transient_rms:.2g} rad/s rms",
+    ),
+    "steady": (
+        "the residual away from voltage steps is",
+        lambda L: f"{L.steady_rms:.2g} rad/s rms",
+    ),
 }
 
 
-def _evidence(effect: Effect, result: FitResult, before: float, problem: Problem,
-              loc_before: Localisation, loc_after: Localisation) -> str:
+def _evidence(
+    effect: Effect,
+    result: FitResult,
+    before: float,
+    problem: Problem,
+    loc_before: Localisation,
+    loc_after: Localisation,
+) -> str:
     """One sentence: the fitted physics, the residual feature it removes, the rmse it saves."""
     text = effect.sentence.format(**effect.summary(result.values, problem.signals))
     what, measure = FEATURES[effect.feature]
     gain = 100 * (1 - result.rmse_val / before) if before > 0 else 0.0
-    return (f"{text[0].upper()}{text[1:]} ({what} {measure(loc_before)} before, {measure(loc_after)} after); "
-            f"the validation velocity error falls from {before:.3g} to {result.rmse_val:.3g} rad/s ({gain:.0f}% lower).")
+    return (
+        f"{text[0].upper()}{text[1:]} ({what} {measure(loc_before)} before, {measure(loc_after)} after); "
+        f"the validation velocity error falls from {before:.3g} to {result.rmse_val:.3g} rad/s ({gain:.0f}% lower)."
+    )
 
 
 def _starts(effect: Effect, current: FitResult, problem: Problem, located: Located) -> list[dict]:
@@ -360,10 +467,18 @@ def _starts(effect: Effect, current: FitResult, problem: Problem, located: Locat
     if effect.linear is not None:
         structure = current.structure.with_effect(effect)
         base = {**{p.name: p.nominal for p in effect.parameters}, **current.values}
-        start, _ = equation_error_start(problem, structure, base, effect, effect.grid(problem.signals, located))
+        start, _ = equation_error_start(
+            problem, structure, base, effect, effect.grid(problem.signals, located)
+        )
         return [start, null]
     own = list(effect.starts_from(current.values)) if hasattr(effect, "starts_from") else []
-    return [*({**current.values, **start} for start in [*own, *effect.starts(problem.signals, located)]), null]
+    return [
+        *(
+            {**current.values, **start}
+            for start in [*own, *effect.starts(problem.signals, located)]
+        ),
+        null,
+    ]
 
 
 def _rank(results: dict[str, FitResult], current: FitResult) -> str:
@@ -387,14 +502,27 @@ def _fit_all(jobs: list[tuple], workers: int) -> list[FitResult]:
         return list(pool.map(lambda job: fit(job[0], job[1], job[2], **job[3]), jobs))
 
 
-def _screen_and_refit(problem, current: FitResult, effects: list[Effect], located: Located, tick, workers: int) -> dict[str, FitResult]:
+def _screen_and_refit(
+    problem, current: FitResult, effects: list[Effect], located: Located, tick, workers: int
+) -> dict[str, FitResult]:
     """Fit each candidate added to ``current``: first its own and the baseline's parameters
     (the baseline's friction must be free to give back what the effect now explains), then
     the best few again with every parameter free."""
     base_names = [p.name for p in current.structure.baseline.parameters]
-    jobs = [(problem, current.structure.with_effect(e), _starts(e, current, problem, located),
-             {"free": base_names + [p.name for p in e.parameters], "max_nfev": 12, "part": "screen", "scout_nfev": 0})
-            for e in effects]
+    jobs = [
+        (
+            problem,
+            current.structure.with_effect(e),
+            _starts(e, current, problem, located),
+            {
+                "free": base_names + [p.name for p in e.parameters],
+                "max_nfev": 12,
+                "part": "screen",
+                "scout_nfev": 0,
+            },
+        )
+        for e in effects
+    ]
     tick(f"screening {len(effects)} candidates")
     results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
     by_name = {e.name: e for e in effects}
@@ -405,8 +533,18 @@ def _screen_and_refit(problem, current: FitResult, effects: list[Effect], locate
             results[name] = null
     top = sorted(results, key=lambda n: results[n].rmse_val)[:REFINE_TOP]
     tick(f"refitting {', '.join(top)}")
-    refits = _fit_all([(problem, results[n].structure, [results[n].values, {**current.values, **by_name[n].null()}],
-                        {"max_nfev": 25, "scout_nfev": 0}) for n in top], workers)
+    refits = _fit_all(
+        [
+            (
+                problem,
+                results[n].structure,
+                [results[n].values, {**current.values, **by_name[n].null()}],
+                {"max_nfev": 25, "scout_nfev": 0},
+            )
+            for n in top
+        ],
+        workers,
+    )
     for name, refined in zip(top, refits):
         if refined.rmse_fit <= results[name].rmse_fit:
             results[name] = refined
@@ -422,9 +560,16 @@ def switched_off(problem: Problem, current: FitResult, effect: Effect) -> FitRes
     return FitResult(structure, values, unc, current.rmse_fit, current.rmse_val)
 
 
-def diagnose(recording: Recording, baseline: str = "lumped", candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None, model_path=None, workers: int | None = None, *,
-             nominal: DriveNominal) -> Diagnosis:
+def diagnose(
+    recording: Recording,
+    baseline: str = "lumped",
+    candidates: Sequence[str] | None = None,
+    progress: Callable[[str], None] | None = None,
+    model_path=None,
+    workers: int | None = None,
+    *,
+    nominal: DriveNominal,
+) -> Diagnosis:
     """Fit the baseline, locate its residual, and add candidate effects while the validation
     error falls clearly (see the module docstring for the rule). ``nominal``: the described
     drive, from which every bound and starting value scales."""
@@ -459,7 +604,9 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
         # identifications of one servo differ 2x in R). Fit the effective resistance too, and
         # keep the baseline whose search ends lower on the validation segments.
         tick("baseline with the drive's torque per volt free")
-        freed = fit_baseline(problem, baseline, free=(*base.structure.baseline.free, "R"), model_path=model_path)
+        freed = fit_baseline(
+            problem, baseline, free=(*base.structure.baseline.free, "R"), model_path=model_path
+        )
         if freed.rmse_val < base.rmse_val:
             bases.append(freed)
     searches = [_search(problem, b, lib, floor, shafts, tick, workers) for b in bases]
@@ -472,20 +619,47 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
         finding.rmse_before = previous.rmse_val
         if isinstance(finding.effect, GenericEffect):  # the effects with generic = True
             finding.signature = description
-            finding.evidence = generic_evidence(finding.effect, finding.fit.values, description, previous.rmse_val, finding.fit.rmse_val)
+            finding.evidence = generic_evidence(
+                finding.effect,
+                finding.fit.values,
+                description,
+                previous.rmse_val,
+                finding.fit.rmse_val,
+            )
         else:
-            finding.evidence = _evidence(finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc)
+            finding.evidence = _evidence(
+                finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc
+            )
         previous, loc_previous = finding.fit, loc
     unexplained = None
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
         sig = signature(recording, loc_previous.residual, shafts)
         unexplained = Unexplained(current.rmse_val, floor, sig, describe(sig, shafts))
-    result = Diagnosis(recording, baseline, base, findings, where, problem, rounds, noise=floor, unexplained=unexplained)
+    result = Diagnosis(
+        recording,
+        baseline,
+        base,
+        findings,
+        where,
+        problem,
+        rounds,
+        noise=floor,
+        unexplained=unexplained,
+    )
     predicted = {"baseline": problem.full_prediction(base.structure, base.values)}
     if findings:
-        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(result.final.structure, result.final.values)
-    result.traces = Traces(recording.time_s, recording.arm_angle_rad, recording.voltage_V, recording.velocity_rad_s, predicted,
-                           ratio=nominal.ratio, zero_meaning=nominal.zero_meaning)
+        predicted["final (+" + ", ".join(result.effect_names) + ")"] = problem.full_prediction(
+            result.final.structure, result.final.values
+        )
+    result.traces = Traces(
+        recording.time_s,
+        recording.arm_angle_rad,
+        recording.voltage_V,
+        recording.velocity_rad_s,
+        predicted,
+        ratio=nominal.ratio,
+        zero_meaning=nominal.zero_meaning,
+    )
     return result
 
 
@@ -493,7 +667,9 @@ def _calibrated_by_gravity(base: FitResult) -> bool:
     """The baseline carries the model's gravity torque (a known load) and the motor's
     resistance is still the described one."""
     model = base.structure.baseline
-    return bool(getattr(model, "terms", {}).get("model_gravity_torque")) and "R" not in getattr(model, "free", ("R",))
+    return bool(getattr(model, "terms", {}).get("model_gravity_torque")) and "R" not in getattr(
+        model, "free", ("R",)
+    )
 
 
 def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
@@ -510,24 +686,54 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
         sig = signature(recording, locate(problem, current).residual, shafts)
         description = describe(sig, shafts)
         generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
-        more, current, more_rounds = _select(problem, base, current, generic, located, tick, workers, backward=False,
-                                             step_gain=GENERIC_GAIN, keep_gain=GENERIC_GAIN)
+        more, current, more_rounds = _select(
+            problem,
+            base,
+            current,
+            generic,
+            located,
+            tick,
+            workers,
+            backward=False,
+            step_gain=GENERIC_GAIN,
+            keep_gain=GENERIC_GAIN,
+        )
         findings += more
         rounds += more_rounds
-        findings, current = _prefer_library(problem, base, findings, current, lib, located, tick, workers)
+        findings, current = _prefer_library(
+            problem, base, findings, current, lib, located, tick, workers
+        )
         if not all(f.effect.generic for f in more):
             # library physics took a generic's place: what else of the library now passes on top
             rest = {n: e for n, e in lib.items() if n not in current.structure.names}
-            again, current, again_rounds = _select(problem, base, current, rest, located, tick, workers, backward=False,
-                                                   step_gain=MIN_RELATIVE_GAIN)
+            again, current, again_rounds = _select(
+                problem,
+                base,
+                current,
+                rest,
+                located,
+                tick,
+                workers,
+                backward=False,
+                step_gain=MIN_RELATIVE_GAIN,
+            )
             findings += again
             rounds += again_rounds
     return where, findings, current, rounds, description
 
 
-def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect], located: Located, tick, workers,
-            backward: bool = True, step_gain: float | None = None, keep_gain: float | None = None,
-            ) -> tuple[list["Finding"], FitResult, list]:
+def _select(
+    problem,
+    base: FitResult,
+    current: FitResult,
+    lib: dict[str, Effect],
+    located: Located,
+    tick,
+    workers,
+    backward: bool = True,
+    step_gain: float | None = None,
+    keep_gain: float | None = None,
+) -> tuple[list["Finding"], FitResult, list]:
     """Forward selection from ``current`` over ``lib`` with a joint refit at every step, a
     backward step after each acceptance, and a final pruning.
 
@@ -555,7 +761,9 @@ def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect]
         results = _screen_and_refit(problem, current, remaining, located, tick, workers)
         rounds.append({name: r.rmse_val for name, r in results.items()})
         tried = {name: r.rmse_val for name, r in results.items()}
-        passing = {name: r for name, r in results.items() if _clear_gain(problem, current, r, step_gain)}
+        passing = {
+            name: r for name, r in results.items() if _clear_gain(problem, current, r, step_gain)
+        }
         if passing:
             best = _rank(passing, current)
             findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
@@ -568,16 +776,29 @@ def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect]
             # the pair must pass against the current model, and each member must add the
             # same gain on top of the other alone (no passenger)
             alone = min(results[first].rmse_val, results[second].rmse_val)
-            if not _clear_gain(problem, current, together, step_gain) or together.rmse_val > (1 - step_gain) * alone:
+            if (
+                not _clear_gain(problem, current, together, step_gain)
+                or together.rmse_val > (1 - step_gain) * alone
+            ):
                 break
             rounds.append({f"{first}+{second}": together.rmse_val})
             findings.append(Finding(lib[first], results[first], current.rmse_val, "", tried))
-            findings.append(Finding(lib[second], together, results[first].rmse_val, "", {f"{first}+{second}": together.rmse_val}))
+            findings.append(
+                Finding(
+                    lib[second],
+                    together,
+                    results[first].rmse_val,
+                    "",
+                    {f"{first}+{second}": together.rmse_val},
+                )
+            )
             current = together
         else:
             break
         if backward:
-            findings, current = _drop_redundant(problem, start, findings, current, tick, workers, step_gain)
+            findings, current = _drop_redundant(
+                problem, start, findings, current, tick, workers, step_gain
+            )
         # converge the accepted model before the next round: otherwise the next candidates'
         # refits finish this optimisation and get the credit for it
         tick("converging")
@@ -590,11 +811,21 @@ def _select(problem, base: FitResult, current: FitResult, lib: dict[str, Effect]
 
 
 def _without(start: FitResult, findings: list["Finding"], i: int) -> "ModelStructure":
-    return ModelStructure(start.structure.baseline,
-                          [*start.structure.effects, *(f.effect for j, f in enumerate(findings) if j != i)])
+    return ModelStructure(
+        start.structure.baseline,
+        [*start.structure.effects, *(f.effect for j, f in enumerate(findings) if j != i)],
+    )
 
 
-def _prune(problem, start: FitResult, findings: list["Finding"], current: FitResult, gain: float, tick, workers):
+def _prune(
+    problem,
+    start: FitResult,
+    findings: list["Finding"],
+    current: FitResult,
+    gain: float,
+    tick,
+    workers,
+):
     """Keep only effects that cut the validation rmse by ``gain`` when added last to the
     others (see :func:`_select`)."""
     while findings:
@@ -605,11 +836,22 @@ def _prune(problem, start: FitResult, findings: list["Finding"], current: FitRes
         joint = min(gain, KEEP_GAIN_JOINT)
         tick("checking each finding against the others")
         own = [{p.name for p in f.effect.parameters} for f in findings]
-        jobs = [(problem, _without(start, findings, i), [{k: v for k, v in current.values.items() if k not in own[i]}],
-                 {"max_nfev": 25}) for i in range(len(findings))]
+        jobs = [
+            (
+                problem,
+                _without(start, findings, i),
+                [{k: v for k, v in current.values.items() if k not in own[i]}],
+                {"max_nfev": 25},
+            )
+            for i in range(len(findings))
+        ]
         without = _fit_all(jobs, workers)
-        cut = [1 - current.rmse_val / w.rmse_val if w.rmse_val > 0 and current.rmse_fit < w.rmse_fit else 0.0
-               for w in without]
+        cut = [
+            1 - current.rmse_val / w.rmse_val
+            if w.rmse_val > 0 and current.rmse_fit < w.rmse_fit
+            else 0.0
+            for w in without
+        ]
         weakest = min(range(len(findings)), key=lambda i: cut[i])
         if cut[weakest] >= joint:
             return findings, current
@@ -618,28 +860,51 @@ def _prune(problem, start: FitResult, findings: list["Finding"], current: FitRes
     return findings, current
 
 
-def _chain(problem, start: FitResult, findings: list["Finding"], current: FitResult, workers) -> list["Finding"]:
+def _chain(
+    problem, start: FitResult, findings: list["Finding"], current: FitResult, workers
+) -> list["Finding"]:
     """Each finding's fit is the model up to it (its evidence quotes the error it removed):
     refit the prefixes that pruning or a backward step left without one."""
     if not findings:
         return findings
     findings[-1].fit = current
     base_names = list(start.structure.names)
-    missing = [k for k in range(1, len(findings))
-               if findings[k - 1].fit.structure.names != base_names + [f.effect.name for f in findings[:k]]]
+    missing = [
+        k
+        for k in range(1, len(findings))
+        if findings[k - 1].fit.structure.names != base_names + [f.effect.name for f in findings[:k]]
+    ]
     if missing:
         jobs = []
         for k in missing:
-            structure = ModelStructure(start.structure.baseline, [*start.structure.effects, *(f.effect for f in findings[:k])])
+            structure = ModelStructure(
+                start.structure.baseline,
+                [*start.structure.effects, *(f.effect for f in findings[:k])],
+            )
             names = {p.name for p in structure.parameters}
-            jobs.append((problem, structure, [{n: v for n, v in current.values.items() if n in names}], {"max_nfev": 25}))
+            jobs.append(
+                (
+                    problem,
+                    structure,
+                    [{n: v for n, v in current.values.items() if n in names}],
+                    {"max_nfev": 25},
+                )
+            )
         for k, prefix in zip(missing, _fit_all(jobs, workers)):
             findings[k - 1].fit = prefix
     return findings
 
 
-def _prefer_library(problem, base: FitResult, findings: list["Finding"], current: FitResult, lib: dict[str, Effect],
-                    located: Located, tick, workers) -> tuple[list["Finding"], FitResult]:
+def _prefer_library(
+    problem,
+    base: FitResult,
+    findings: list["Finding"],
+    current: FitResult,
+    lib: dict[str, Effect],
+    located: Located,
+    tick,
+    workers,
+) -> tuple[list["Finding"], FitResult]:
     """A generic finding may stand for library physics that needed company to pass (two
     effects each below the margin alone): replace each generic effect by the library effect
     that, in its place, fits as well (within the tie band on both halves)."""
@@ -654,28 +919,43 @@ def _prefer_library(problem, base: FitResult, findings: list["Finding"], current
         jobs = []
         for e in options:
             structure = ModelStructure(base.structure.baseline, [*others, e])
-            start = {k: v for k, v in current.values.items() if k not in {p.name for p in finding.effect.parameters}}
-            jobs.append((problem, structure, [{**start, **s} for s in _starts(e, current, problem, located)],
-                         {"max_nfev": 25, "scout_nfev": 0}))
+            start = {
+                k: v
+                for k, v in current.values.items()
+                if k not in {p.name for p in finding.effect.parameters}
+            }
+            jobs.append(
+                (
+                    problem,
+                    structure,
+                    [{**start, **s} for s in _starts(e, current, problem, located)],
+                    {"max_nfev": 25, "scout_nfev": 0},
+                )
+            )
         tick(f"a library name for {finding.effect.name}?")
         fits = _fit_all(jobs, workers)
         j = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
-        if fits[j].rmse_val <= current.rmse_val * (1 + TIE_BAND) and fits[j].rmse_fit <= current.rmse_fit * (1 + TIE_BAND):
+        if fits[j].rmse_val <= current.rmse_val * (1 + TIE_BAND) and fits[
+            j
+        ].rmse_fit <= current.rmse_fit * (1 + TIE_BAND):
             findings[i] = Finding(options[j], fits[j], 0.0, "", finding.candidates)
             current = fits[j]
-            for f in findings[i + 1:]:
+            for f in findings[i + 1 :]:
                 f.fit = current
     if findings:
         findings[-1].fit = current
     return findings, current
 
 
-def _clear_gain(problem: Problem, current: FitResult, candidate: FitResult, gain: float = MIN_RELATIVE_GAIN) -> bool:
+def _clear_gain(
+    problem: Problem, current: FitResult, candidate: FitResult, gain: float = MIN_RELATIVE_GAIN
+) -> bool:
     """The candidate cuts the validation rmse by ``gain`` and also fits the fit segments better. A refit that ends in another optimum of the baseline's parameters,
     worse on the half it was fitted to, can do better on the validation half by chance when the
     baseline is misspecified; that is no evidence for the effect it carried."""
-    return (candidate.rmse_fit < current.rmse_fit
-            and candidate.rmse_val <= (1 - gain) * _reference_rmse(problem, current, candidate))
+    return candidate.rmse_fit < current.rmse_fit and candidate.rmse_val <= (
+        1 - gain
+    ) * _reference_rmse(problem, current, candidate)
 
 
 def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) -> float:
@@ -690,14 +970,25 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
 
 
-def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], lib: dict[str, Effect], tick, workers,
-               top: int = PAIR_TOP):
+def _best_pair(
+    problem,
+    current: FitResult,
+    singles: dict[str, FitResult],
+    lib: dict[str, Effect],
+    tick,
+    workers,
+    top: int = PAIR_TOP,
+):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
     of which explains much alone. When no single candidate passes, refit the pairs of the
     best few singles together; returns ((first, second), fit) for the best pair, first being
     the better single. Every pair member must have helped a little on its own."""
-    helped = [n for n in sorted(singles, key=lambda n: singles[n].rmse_val) if singles[n].rmse_val < current.rmse_val][:top]
-    pairs = [(a, b) for i, a in enumerate(helped) for b in helped[i + 1:]]
+    helped = [
+        n
+        for n in sorted(singles, key=lambda n: singles[n].rmse_val)
+        if singles[n].rmse_val < current.rmse_val
+    ][:top]
+    pairs = [(a, b) for i, a in enumerate(helped) for b in helped[i + 1 :]]
     if not pairs:
         return None
     jobs = []
@@ -711,8 +1002,15 @@ def _best_pair(problem, current: FitResult, singles: dict[str, FitResult], lib: 
     return pairs[i], fits[i]
 
 
-def _drop_redundant(problem, start: FitResult, findings: list[Finding], current: FitResult, tick, workers,
-                    gain: float = MIN_RELATIVE_GAIN):
+def _drop_redundant(
+    problem,
+    start: FitResult,
+    findings: list[Finding],
+    current: FitResult,
+    tick,
+    workers,
+    gain: float = MIN_RELATIVE_GAIN,
+):
     """Backward step: a greedy search can accept an effect early that a later one explains
     better (a linkage fitted to part of a needle pulse). Refit without each earlier effect;
     drop it when the validation rmse stays within the acceptance margin ``gain`` of the full model."""
@@ -726,5 +1024,6 @@ def _drop_redundant(problem, start: FitResult, findings: list[Finding], current:
     best_i = min(range(len(fits)), key=lambda i: fits[i].rmse_val)
     if fits[best_i].rmse_val <= current.rmse_val / (1 - gain):
         return [f for j, f in enumerate(findings) if j != best_i][:-1] + [
-            Finding(findings[-1].effect, fits[best_i], 0.0, "", findings[-1].candidates)], fits[best_i]
+            Finding(findings[-1].effect, fits[best_i], 0.0, "", findings[-1].candidates)
+        ], fits[best_i]
     return findings, current

@@ -61,7 +61,9 @@ class Effect:
     meaning: str = ""
     enters: str = ""  # "torque", "friction", "voltage", "belt", "measurement"
     sentence: str = ""
-    feature: str = ""  # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
+    feature: str = (
+        ""  # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
+    )
     generic: bool = False  # a fallback family that names no mechanism
     physics: str = ""  # for a generic family: what physics could be behind it
 
@@ -76,7 +78,9 @@ class Effect:
 
     def null(self) -> dict[str, float]:
         """Values at which the effect is switched off (the model it extends, exactly)."""
-        return {p.name: (0.0 if p.name in (self.linear or ()) else p.nominal) for p in self.parameters}
+        return {
+            p.name: (0.0 if p.name in (self.linear or ()) else p.nominal) for p in self.parameters
+        }
 
     def apply(self, v: dict[str, float], s: Signals, drive: Drive) -> None:
         """Add this effect to the drive coefficients (torque, friction, voltage, belt)."""
@@ -117,7 +121,9 @@ def _amplitude(v: dict, cos_key: str, sin_key: str) -> tuple[float, float]:
     return math.hypot(a, b), math.atan2(b, a)
 
 
-def _harmonic_pair(prefix: str, unit: str, bound: float, what: str, scale: float) -> tuple[Parameter, Parameter]:
+def _harmonic_pair(
+    prefix: str, unit: str, bound: float, what: str, scale: float
+) -> tuple[Parameter, Parameter]:
     return (
         Parameter(f"{prefix}_cos_{unit}", 0.0, -bound, bound, f"{what}, cosine part", scale=scale),
         Parameter(f"{prefix}_sin_{unit}", 0.0, -bound, bound, f"{what}, sine part", scale=scale),
@@ -140,7 +146,12 @@ class TorqueRipple(Effect):
     name = "torque_ripple"
     meaning = "motor-angle-periodic torque: shaft distortion (once and twice per motor revolution) and cogging of the 12-pole motor (12 and 24 per revolution)"
     enters = "torque"
-    MOTOR_ORDERS = (1, 2, 12, 24)  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
+    MOTOR_ORDERS = (
+        1,
+        2,
+        12,
+        24,
+    )  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
     all_linear = True
 
     @classmethod
@@ -149,11 +160,23 @@ class TorqueRipple(Effect):
 
     def make_parameters(self, nominal):
         motor_side = nominal.torque_scale_Nm / nominal.ratio  # the Coulomb level seen at the motor
-        return tuple(p for k in self.MOTOR_ORDERS for p in _harmonic_pair(
-            f"ripple_motor_order{k}", "Nm", 20 / 9 * motor_side, f"motor-side torque {k}x per motor revolution", 2 / 9 * motor_side))
+        return tuple(
+            p
+            for k in self.MOTOR_ORDERS
+            for p in _harmonic_pair(
+                f"ripple_motor_order{k}",
+                "Nm",
+                20 / 9 * motor_side,
+                f"motor-side torque {k}x per motor revolution",
+                2 / 9 * motor_side,
+            )
+        )
+
     feature = "motor_profile"
-    sentence = ("a torque ripple of {amp_Nm:.2g} Nm at the motor, {orders} times per arm revolution (cogging, shaft "
-                "distortion), explains the residual that repeats with the motor angle")
+    sentence = (
+        "a torque ripple of {amp_Nm:.2g} Nm at the motor, {orders} times per arm revolution (cogging, shaft "
+        "distortion), explains the residual that repeats with the motor angle"
+    )
 
     def apply(self, v, s, drive):
         torque = np.zeros(len(s))
@@ -164,37 +187,77 @@ class TorqueRipple(Effect):
         drive.tau_motor_Nm += s.ratio * torque
 
     def summary(self, v, s=None):
-        amps = {k: _amplitude(v, f"ripple_motor_order{k}_cos_Nm", f"ripple_motor_order{k}_sin_Nm")[0] for k in self.MOTOR_ORDERS}
+        amps = {
+            k: _amplitude(v, f"ripple_motor_order{k}_cos_Nm", f"ripple_motor_order{k}_sin_Nm")[0]
+            for k in self.MOTOR_ORDERS
+        }
         main = max(amps, key=amps.get)
-        orders = " and ".join(f"{k * self.nominal.ratio:g}" for k in self.MOTOR_ORDERS if amps[k] > 0.2 * amps[main])
+        orders = " and ".join(
+            f"{k * self.nominal.ratio:g}" for k in self.MOTOR_ORDERS if amps[k] > 0.2 * amps[main]
+        )
         return {"amp_Nm": amps[main], "orders": orders}
 
 
 class LinkageDynamics(Effect):
     name = "linkage_dynamics"
-    meaning = ("position-dependent inertia and gravity of the needle-bar linkage: a slider-crank (needle-bar mass m, "
-               "crank radius r, crank/rod ratio lambda, top dead centre at arm angle 0 + offset) with J(theta) = m x'^2, "
-               "G(theta) = m g x', and the 1/2 J'(theta) w^2 torque")
+    meaning = (
+        "position-dependent inertia and gravity of the needle-bar linkage: a slider-crank (needle-bar mass m, "
+        "crank radius r, crank/rod ratio lambda, top dead centre at arm angle 0 + offset) with J(theta) = m x'^2, "
+        "G(theta) = m g x', and the 1/2 J'(theta) w^2 torque"
+    )
     enters = "torque"
     linear = ("needle_bar_mass_kg",)
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
-        return shaft_turns(nominal)  # a slider-crank over whole revolutions; a rocker's linkage is its multibody baseline
+        return shaft_turns(
+            nominal
+        )  # a slider-crank over whole revolutions; a rocker's linkage is its multibody baseline
 
     def make_parameters(self, nominal):
         # at most a mass whose inertia on the largest crank is 1.7x the machine's whole inertia
         heaviest = 1.7 * nominal.inertia_kgm2 / 0.03**2
         return (
-            Parameter("needle_bar_mass_kg", heaviest / 60, 0.0, heaviest, "equivalent reciprocating mass of the needle bar", scale=heaviest / 30),
-            Parameter("crank_radius_m", 0.015, 0.003, 0.05, "crank radius (half the needle stroke)", scale=0.015),
-            Parameter("crank_rod_ratio", 0.3, 0.0, 0.7, "crank radius over connecting-rod length", scale=0.3),
-            Parameter("top_dead_centre_offset_rad", 0.0, -0.6, 0.6, "arm angle of the linkage's top dead centre (0 by the encoder index)", scale=0.2),
+            Parameter(
+                "needle_bar_mass_kg",
+                heaviest / 60,
+                0.0,
+                heaviest,
+                "equivalent reciprocating mass of the needle bar",
+                scale=heaviest / 30,
+            ),
+            Parameter(
+                "crank_radius_m",
+                0.015,
+                0.003,
+                0.05,
+                "crank radius (half the needle stroke)",
+                scale=0.015,
+            ),
+            Parameter(
+                "crank_rod_ratio",
+                0.3,
+                0.0,
+                0.7,
+                "crank radius over connecting-rod length",
+                scale=0.3,
+            ),
+            Parameter(
+                "top_dead_centre_offset_rad",
+                0.0,
+                -0.6,
+                0.6,
+                "arm angle of the linkage's top dead centre (0 by the encoder index)",
+                scale=0.2,
+            ),
         )
+
     feature = "order2_by_speed"
-    sentence = ("the needle-bar linkage's varying inertia ({inertia_kgm2:.2g} kg m^2 at the arm, a {mass_kg:.2g} kg bar on "
-                "a {radius_mm:.3g} mm crank, whose 1/2 J' w^2 torque grows with the square of speed) and its gravity "
-                "({gravity_Nm:.2g} Nm) explain the residual that is periodic in the arm angle")
+    sentence = (
+        "the needle-bar linkage's varying inertia ({inertia_kgm2:.2g} kg m^2 at the arm, a {mass_kg:.2g} kg bar on "
+        "a {radius_mm:.3g} mm crank, whose 1/2 J' w^2 torque grows with the square of speed) and its gravity "
+        "({gravity_Nm:.2g} Nm) explain the residual that is periodic in the arm angle"
+    )
 
     @staticmethod
     def kinematics(v, theta):
@@ -213,26 +276,39 @@ class LinkageDynamics(Effect):
             return
         grid_dx, grid_ddx = self.kinematics(v, Signals.periodic_grid())
         inertia = grid_dx * grid_dx
-        drive.inertia_kgm2 += m * s.periodic(inertia - inertia.mean())  # the revolution mean is the baseline's J
+        drive.inertia_kgm2 += m * s.periodic(
+            inertia - inertia.mean()
+        )  # the revolution mean is the baseline's J
         drive.quadratic_Nm_s2 += m * s.periodic(grid_dx * grid_ddx)  # 1/2 dJ/dtheta
-        drive.tau_arm_Nm += m * 9.81 * s.periodic(grid_dx)  # potential energy m g x, resisting when the bar rises
+        drive.tau_arm_Nm += (
+            m * 9.81 * s.periodic(grid_dx)
+        )  # potential energy m g x, resisting when the bar rises
 
     def grid(self, s, located):
-        return [{"crank_radius_m": r, "crank_rod_ratio": lam, "top_dead_centre_offset_rad": 0.0}
-                for r in (0.008, 0.016, 0.03) for lam in (0.1, 0.3, 0.5)]
+        return [
+            {"crank_radius_m": r, "crank_rod_ratio": lam, "top_dead_centre_offset_rad": 0.0}
+            for r in (0.008, 0.016, 0.03)
+            for lam in (0.1, 0.3, 0.5)
+        ]
 
     def summary(self, v, s=None):
         theta = np.linspace(0, 2 * PI, 360, endpoint=False)
         dx, _ = self.kinematics(v, theta)
         m = v["needle_bar_mass_kg"]
-        return {"mass_kg": m, "radius_mm": 1e3 * v["crank_radius_m"], "inertia_kgm2": float(np.ptp(m * dx * dx)),
-                "gravity_Nm": float(np.max(np.abs(m * 9.81 * dx)))}
+        return {
+            "mass_kg": m,
+            "radius_mm": 1e3 * v["crank_radius_m"],
+            "inertia_kgm2": float(np.ptp(m * dx * dx)),
+            "gravity_Nm": float(np.max(np.abs(m * 9.81 * dx))),
+        }
 
 
 class PositionFriction(Effect):
     name = "position_friction"
-    meaning = ("the Coulomb friction level varies over the arm revolution (bearing loads change with the crank "
-               "position): once-, twice- and three-times-per-revolution terms, independent of speed")
+    meaning = (
+        "the Coulomb friction level varies over the arm revolution (bearing loads change with the crank "
+        "position): once-, twice- and three-times-per-revolution terms, independent of speed"
+    )
     enters = "friction"
     # the bearing loads come from the slider-crank and the cams and levers off the arm shaft:
     # a single cosine (thesis 5.2.2), a broad bump or a lobed profile all need the third order
@@ -241,51 +317,99 @@ class PositionFriction(Effect):
 
     def make_parameters(self, nominal):
         t = nominal.torque_scale_Nm
-        return tuple(p for k in self.ORDERS for p in _harmonic_pair(
-            f"coulomb_order{k}", "Nm", 25 / 9 * t, f"{k}x-per-revolution variation of the Coulomb level", t / 9))
+        return tuple(
+            p
+            for k in self.ORDERS
+            for p in _harmonic_pair(
+                f"coulomb_order{k}",
+                "Nm",
+                25 / 9 * t,
+                f"{k}x-per-revolution variation of the Coulomb level",
+                t / 9,
+            )
+        )
+
     feature = "arm_profile"
-    sentence = ("a Coulomb friction that varies by +-{amp_Nm:.2g} Nm {over}, highest {peak_deg:.0f} deg "
-                "{after} and the same at every speed, explains the residual that {follows}")
+    sentence = (
+        "a Coulomb friction that varies by +-{amp_Nm:.2g} Nm {over}, highest {peak_deg:.0f} deg "
+        "{after} and the same at every speed, explains the residual that {follows}"
+    )
 
     def variation(self, v, theta):
-        return sum(v[f"coulomb_order{k}_cos_Nm"] * np.cos(k * theta) + v[f"coulomb_order{k}_sin_Nm"] * np.sin(k * theta)
-                   for k in self.ORDERS)
+        return sum(
+            v[f"coulomb_order{k}_cos_Nm"] * np.cos(k * theta)
+            + v[f"coulomb_order{k}_sin_Nm"] * np.sin(k * theta)
+            for k in self.ORDERS
+        )
 
     def apply(self, v, s, drive):
-        drive.coulomb_Nm += sum(v[f"coulomb_order{k}_cos_Nm"] * s.harmonic(k, "cos") + v[f"coulomb_order{k}_sin_Nm"] * s.harmonic(k, "sin")
-                                for k in self.ORDERS)
+        drive.coulomb_Nm += sum(
+            v[f"coulomb_order{k}_cos_Nm"] * s.harmonic(k, "cos")
+            + v[f"coulomb_order{k}_sin_Nm"] * s.harmonic(k, "sin")
+            for k in self.ORDERS
+        )
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
 
     def summary(self, v, s=None):
         travel = getattr(self.nominal, "travel_rad", None)
         if travel is None:
             theta = np.linspace(0, 2 * PI, 720, endpoint=False)
-            words = {"over": "over the arm revolution", "after": "after needle top",
-                     "follows": "is periodic in the arm angle"}
+            words = {
+                "over": "over the arm revolution",
+                "after": "after needle top",
+                "follows": "is periodic in the arm angle",
+            }
             if self.nominal.zero_meaning != "needle top":
                 words["after"] = f"after {self.nominal.zero_meaning}"
         else:  # a shaft that rocks: the variation over its travel, from the described zero
             theta = np.linspace(travel[0], travel[1], 720)
-            words = {"over": "over the shaft's travel", "after": f"from {self.nominal.zero_meaning}",
-                     "follows": "follows the shaft angle"}
+            words = {
+                "over": "over the shaft's travel",
+                "after": f"from {self.nominal.zero_meaning}",
+                "follows": "follows the shaft angle",
+            }
         shape = self.variation(v, theta)
-        return {"amp_Nm": 0.5 * float(np.ptp(shape)), "peak_deg": math.degrees(theta[int(np.argmax(shape))]), **words}
+        return {
+            "amp_Nm": 0.5 * float(np.ptp(shape)),
+            "peak_deg": math.degrees(theta[int(np.argmax(shape))]),
+            **words,
+        }
 
 
 class Stribeck(Effect):
     name = "stribeck"
     meaning = "static friction above the kinetic level, decaying with speed (Tustin: Fc + Fx exp(-(|w|/ws)^delta))"
     enters = "friction"
+
     def make_parameters(self, nominal):
         t = nominal.torque_scale_Nm
         return (
-            Parameter("static_excess_arm_Nm", 5 / 18 * t, 0.0, 25 / 3 * t, "static minus kinetic friction on the arm", scale=5 / 18 * t),
-            Parameter("stribeck_velocity_arm_rad_s", 2.0, 0.02, 40.0, "speed at which the excess has decayed to 1/e", log=True),
-            Parameter("stribeck_exponent", 1.0, 0.4, 3.0, "shape exponent delta (Tustin 0.5-2)", scale=1.0),
+            Parameter(
+                "static_excess_arm_Nm",
+                5 / 18 * t,
+                0.0,
+                25 / 3 * t,
+                "static minus kinetic friction on the arm",
+                scale=5 / 18 * t,
+            ),
+            Parameter(
+                "stribeck_velocity_arm_rad_s",
+                2.0,
+                0.02,
+                40.0,
+                "speed at which the excess has decayed to 1/e",
+                log=True,
+            ),
+            Parameter(
+                "stribeck_exponent", 1.0, 0.4, 3.0, "shape exponent delta (Tustin 0.5-2)", scale=1.0
+            ),
         )
+
     feature = "low_speed"
-    sentence = ("static friction {excess_Nm:.2g} Nm above the kinetic level, fading over {ws:.2g} rad/s of arm speed, "
-                "explains the residual at starts, stops and low speed")
+    sentence = (
+        "static friction {excess_Nm:.2g} Nm above the kinetic level, fading over {ws:.2g} rad/s of arm speed, "
+        "explains the residual at starts, stops and low speed"
+    )
 
     def apply(self, v, s, drive):
         drive.static_excess_Nm += v["static_excess_arm_Nm"]
@@ -295,8 +419,11 @@ class Stribeck(Effect):
     linear = ("static_excess_arm_Nm",)
 
     def grid(self, s, located):
-        return [{"stribeck_velocity_arm_rad_s": ws, "stribeck_exponent": delta}
-                for ws in (0.3, 1.0, 3.0, 10.0) for delta in (1.0, 2.0)]
+        return [
+            {"stribeck_velocity_arm_rad_s": ws, "stribeck_exponent": delta}
+            for ws in (0.3, 1.0, 3.0, 10.0)
+            for delta in (1.0, 2.0)
+        ]
 
     def summary(self, v, s=None):
         return {"excess_Nm": v["static_excess_arm_Nm"], "ws": v["stribeck_velocity_arm_rad_s"]}
@@ -304,21 +431,50 @@ class Stribeck(Effect):
 
 class ThermalDrift(Effect):
     name = "thermal_drift"
-    meaning = ("friction falls as the sintered bearings warm up during the run: Coulomb and viscous scaled by "
-               "1 - a x(t), the warmth x a first-order lag (time constant tau) of a heating that is partly constant "
-               "(ambient, motor) and partly proportional to the shaft speed (bearing friction), cold at the start")
+    meaning = (
+        "friction falls as the sintered bearings warm up during the run: Coulomb and viscous scaled by "
+        "1 - a x(t), the warmth x a first-order lag (time constant tau) of a heating that is partly constant "
+        "(ambient, motor) and partly proportional to the shaft speed (bearing friction), cold at the start"
+    )
     enters = "friction"
+
     def make_parameters(self, nominal):
         return (
-            Parameter("coulomb_drop_fraction", 0.0, -0.5, 0.95, "fraction of the Coulomb friction lost when warm", scale=0.2),
-            Parameter("viscous_drop_fraction", 0.0, -2.0, 0.95, "fraction of the viscous friction lost when warm", scale=0.5),
-            Parameter("warmup_time_constant_s", 60.0, 3.0, 3000.0, "warm-up time constant", log=True),
-            Parameter("speed_heating_share", 0.5, 0.0, 1.0, "share of the heating that follows the shaft speed (0: warms with time alone)", scale=1.0),
+            Parameter(
+                "coulomb_drop_fraction",
+                0.0,
+                -0.5,
+                0.95,
+                "fraction of the Coulomb friction lost when warm",
+                scale=0.2,
+            ),
+            Parameter(
+                "viscous_drop_fraction",
+                0.0,
+                -2.0,
+                0.95,
+                "fraction of the viscous friction lost when warm",
+                scale=0.5,
+            ),
+            Parameter(
+                "warmup_time_constant_s", 60.0, 3.0, 3000.0, "warm-up time constant", log=True
+            ),
+            Parameter(
+                "speed_heating_share",
+                0.5,
+                0.0,
+                1.0,
+                "share of the heating that follows the shaft speed (0: warms with time alone)",
+                scale=1.0,
+            ),
         )
+
     linear = ("coulomb_drop_fraction", "viscous_drop_fraction")
     feature = "drift"
-    sentence = ("friction that falls as the bearings warm up ({coulomb_pct:.0f}% Coulomb, {viscous_pct:.0f}% viscous by the end "
-                "of the recording) explains a residual that drifts with time at repeated voltage levels")
+    sentence = (
+        "friction that falls as the bearings warm up ({coulomb_pct:.0f}% Coulomb, {viscous_pct:.0f}% viscous by the end "
+        "of the recording) explains a residual that drifts with time at repeated voltage levels"
+    )
 
     def warmth(self, v, s):
         """x' = (heating - x) / tau, x(0) = 0; heating = 1 - b + b |w| / mean |w| (measured speed)."""
@@ -342,37 +498,95 @@ class ThermalDrift(Effect):
         np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
 
     def grid(self, s, located):
-        return [{"warmup_time_constant_s": tau, "speed_heating_share": b}
-                for tau in (8.0, 25.0, 80.0, 250.0, 1000.0) for b in (0.0, 0.5, 1.0)]
+        return [
+            {"warmup_time_constant_s": tau, "speed_heating_share": b}
+            for tau in (8.0, 25.0, 80.0, 250.0, 1000.0)
+            for b in (0.0, 0.5, 1.0)
+        ]
 
     def summary(self, v, s=None):
-        w = float(self.warmth(v, s)[-1]) if s is not None else 1 - math.exp(-60.0 / v["warmup_time_constant_s"])
-        return {"coulomb_pct": 100 * v["coulomb_drop_fraction"] * w, "viscous_pct": 100 * v["viscous_drop_fraction"] * w}
+        w = (
+            float(self.warmth(v, s)[-1])
+            if s is not None
+            else 1 - math.exp(-60.0 / v["warmup_time_constant_s"])
+        )
+        return {
+            "coulomb_pct": 100 * v["coulomb_drop_fraction"] * w,
+            "viscous_pct": 100 * v["viscous_drop_fraction"] * w,
+        }
 
 
 class NeedlePenetration(Effect):
     name = "needle_penetration"
-    meaning = ("fabric load while the needle is below the fabric surface, a window of arm angle around needle-down "
-               "(bottom dead centre): the force on the needle acts through the needle bar's velocity ratio |dx/dtheta| "
-               "(friction on the way down and up, a piercing peak as the point enters), plus a smooth load bump")
+    meaning = (
+        "fabric load while the needle is below the fabric surface, a window of arm angle around needle-down "
+        "(bottom dead centre): the force on the needle acts through the needle bar's velocity ratio |dx/dtheta| "
+        "(friction on the way down and up, a piercing peak as the point enters), plus a smooth load bump"
+    )
     enters = "friction"
     CRANK_ROD_RATIO = 0.3  # typical needle-bar slider-crank; only shapes |dx/dtheta|
     EDGE_RAD = 0.03
     PIERCE_RAD = 0.15  # the piercing peak decays over ~9 deg of arm angle after the needle enters
+
     def make_parameters(self, nominal):
         t = nominal.torque_scale_Nm
         start, top, scale = 5 / 18 * t, 50 / 3 * t, 5 / 9 * t
         return (
-            Parameter("penetration_down_arm_Nm", start, 0.0, top, "arm torque per unit velocity ratio while the needle goes down through the fabric (force x crank radius)", scale=scale),
-            Parameter("penetration_up_arm_Nm", start, 0.0, top, "the same while the needle comes up out of the fabric", scale=scale),
-            Parameter("penetration_bump_arm_Nm", 0.0, 0.0, top, "peak of a smooth (cos^2) load over the window", scale=scale),
-            Parameter("piercing_arm_Nm", 0.0, 0.0, top, "extra load as the point pierces the fabric, decaying over PIERCE_RAD after entry", scale=scale),
-            Parameter("penetration_half_width_rad", 1.0, 0.15, 1.75, "half the arm angle the needle spends in the fabric", scale=0.5),
-            Parameter("penetration_centre_offset_rad", 0.0, -0.8, 0.8, "window centre relative to bottom dead centre (pi)", scale=0.3),
+            Parameter(
+                "penetration_down_arm_Nm",
+                start,
+                0.0,
+                top,
+                "arm torque per unit velocity ratio while the needle goes down through the fabric (force x crank radius)",
+                scale=scale,
+            ),
+            Parameter(
+                "penetration_up_arm_Nm",
+                start,
+                0.0,
+                top,
+                "the same while the needle comes up out of the fabric",
+                scale=scale,
+            ),
+            Parameter(
+                "penetration_bump_arm_Nm",
+                0.0,
+                0.0,
+                top,
+                "peak of a smooth (cos^2) load over the window",
+                scale=scale,
+            ),
+            Parameter(
+                "piercing_arm_Nm",
+                0.0,
+                0.0,
+                top,
+                "extra load as the point pierces the fabric, decaying over PIERCE_RAD after entry",
+                scale=scale,
+            ),
+            Parameter(
+                "penetration_half_width_rad",
+                1.0,
+                0.15,
+                1.75,
+                "half the arm angle the needle spends in the fabric",
+                scale=0.5,
+            ),
+            Parameter(
+                "penetration_centre_offset_rad",
+                0.0,
+                -0.8,
+                0.8,
+                "window centre relative to bottom dead centre (pi)",
+                scale=0.3,
+            ),
         )
+
     feature = "arm_profile"
-    sentence = ("a fabric load of up to {load_Nm:.2g} Nm at the arm while the needle is in the fabric ({width_deg:.0f} deg of "
-                "arm angle around needle-down at {centre_deg:.0f} deg) explains the once-per-revolution drop in speed")
+    sentence = (
+        "a fabric load of up to {load_Nm:.2g} Nm at the arm while the needle is in the fabric ({width_deg:.0f} deg of "
+        "arm angle around needle-down at {centre_deg:.0f} deg) explains the once-per-revolution drop in speed"
+    )
 
     def shape(self, v, theta):
         """Arm torque over the arm angle (>= 0, resisting)."""
@@ -395,36 +609,71 @@ class NeedlePenetration(Effect):
     def apply(self, v, s, drive):
         drive.coulomb_Nm += s.periodic(self.shape(v, Signals.periodic_grid()))
 
-    linear = ("penetration_down_arm_Nm", "penetration_up_arm_Nm", "penetration_bump_arm_Nm", "piercing_arm_Nm")
+    linear = (
+        "penetration_down_arm_Nm",
+        "penetration_up_arm_Nm",
+        "penetration_bump_arm_Nm",
+        "piercing_arm_Nm",
+    )
 
     def grid(self, s, located):
-        return [{"penetration_half_width_rad": hw, "penetration_centre_offset_rad": off}
-                for hw in (0.35, 0.6, 0.9, 1.2, 1.45, 1.7) for off in (-0.5, -0.25, 0.0, 0.25, 0.5)]
+        return [
+            {"penetration_half_width_rad": hw, "penetration_centre_offset_rad": off}
+            for hw in (0.35, 0.6, 0.9, 1.2, 1.45, 1.7)
+            for off in (-0.5, -0.25, 0.0, 0.25, 0.5)
+        ]
 
     def summary(self, v, s=None):
         theta = np.linspace(0, 2 * PI, 720, endpoint=False)
         load = self.shape(v, theta)
-        return {"load_Nm": float(load.max()), "centre_deg": math.degrees(PI + v["penetration_centre_offset_rad"]),
-                "width_deg": 2 * math.degrees(v["penetration_half_width_rad"])}
+        return {
+            "load_Nm": float(load.max()),
+            "centre_deg": math.degrees(PI + v["penetration_centre_offset_rad"]),
+            "width_deg": 2 * math.degrees(v["penetration_half_width_rad"]),
+        }
 
 
 class BeltCompliance(Effect):
     name = "belt_compliance"
     meaning = "elastic belt between motor and arm: two inertias on a spring-damper, a resonance excited by steps and ripple"
     enters = "belt"
+
     def make_parameters(self, nominal):
         return (
-            Parameter("belt_resonance_Hz", 30.0, 2.0, self.RIGID_HZ, "resonance frequency of motor against arm on the belt", log=True),
-            Parameter("belt_damping_ratio", 0.1, 0.003, 2.0, "damping ratio of the belt mode", log=True),
-            Parameter("motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia (thesis: 8.6e-6 of 2.78e-5)", scale=1.0),
+            Parameter(
+                "belt_resonance_Hz",
+                30.0,
+                2.0,
+                self.RIGID_HZ,
+                "resonance frequency of motor against arm on the belt",
+                log=True,
+            ),
+            Parameter(
+                "belt_damping_ratio", 0.1, 0.003, 2.0, "damping ratio of the belt mode", log=True
+            ),
+            Parameter(
+                "motor_inertia_fraction",
+                0.31,
+                0.03,
+                0.97,
+                "motor's share of the total inertia (thesis: 8.6e-6 of 2.78e-5)",
+                scale=1.0,
+            ),
         )
 
     def null(self):
         # the stiffest, best-damped belt is the rigid one to within the fit's resolution
-        return {"belt_resonance_Hz": self.RIGID_HZ, "belt_damping_ratio": 1.0, "motor_inertia_fraction": 0.31}
+        return {
+            "belt_resonance_Hz": self.RIGID_HZ,
+            "belt_damping_ratio": 1.0,
+            "motor_inertia_fraction": 0.31,
+        }
+
     feature = "transient"
-    sentence = ("an elastic belt between motor and arm (resonance {f:.3g} Hz, damping ratio {zeta:.2g}, unrelated to the "
-                "shaft rates) explains the ringing after voltage steps")
+    sentence = (
+        "an elastic belt between motor and arm (resonance {f:.3g} Hz, damping ratio {zeta:.2g}, unrelated to the "
+        "shaft rates) explains the ringing after voltage steps"
+    )
 
     RIGID_HZ = 250.0  # the upper bound: a belt this stiff is the rigid one (the null)
 
@@ -443,8 +692,16 @@ class BeltCompliance(Effect):
 
     def starts(self, s, located):
         nyquist = 0.5 / s.dt
-        freqs = [f for f in located.resonance_hz if 2.0 < f < min(250.0, 0.9 * nyquist)][:3] or [8.0, 25.0, 60.0]
-        return [{"belt_resonance_Hz": f, "belt_damping_ratio": z, "motor_inertia_fraction": 0.31} for f in freqs for z in (0.03, 0.2)]
+        freqs = [f for f in located.resonance_hz if 2.0 < f < min(250.0, 0.9 * nyquist)][:3] or [
+            8.0,
+            25.0,
+            60.0,
+        ]
+        return [
+            {"belt_resonance_Hz": f, "belt_damping_ratio": z, "motor_inertia_fraction": 0.31}
+            for f in freqs
+            for z in (0.03, 0.2)
+        ]
 
     def summary(self, v, s=None):
         return {"f": v["belt_resonance_Hz"], "zeta": v["belt_damping_ratio"]}
@@ -452,25 +709,59 @@ class BeltCompliance(Effect):
 
 class Backlash(BeltCompliance):
     name = "backlash"
-    meaning = ("free play in the belt or gear between motor and shaft: a dead zone the motor crosses unloaded "
-               "whenever the torque through the transmission reverses (braking, stops), then an elastic contact")
+    meaning = (
+        "free play in the belt or gear between motor and shaft: a dead zone the motor crosses unloaded "
+        "whenever the torque through the transmission reverses (braking, stops), then an elastic contact"
+    )
     feature = "transient"
-    sentence = ("free play of {play_deg:.2g} deg at the shaft between motor and shaft (a dead zone crossed whenever the "
-                "torque through the transmission reverses) explains the error after the motor starts braking")
-    AS_BELT = {"contact_resonance_Hz": "belt_resonance_Hz", "contact_damping_ratio": "belt_damping_ratio",
-               "backlash_motor_inertia_fraction": "motor_inertia_fraction"}
+    sentence = (
+        "free play of {play_deg:.2g} deg at the shaft between motor and shaft (a dead zone crossed whenever the "
+        "torque through the transmission reverses) explains the error after the motor starts braking"
+    )
+    AS_BELT = {
+        "contact_resonance_Hz": "belt_resonance_Hz",
+        "contact_damping_ratio": "belt_damping_ratio",
+        "backlash_motor_inertia_fraction": "motor_inertia_fraction",
+    }
 
     def make_parameters(self, nominal):
         return (
-            Parameter("backlash_free_play_rad", 0.005, 0.0, 0.1, "free play of the transmission, shaft-side angle", scale=0.005),
-            Parameter("contact_resonance_Hz", 100.0, 10.0, self.RIGID_HZ, "resonance of motor against shaft in contact", log=True),
-            Parameter("contact_damping_ratio", 0.1, 0.003, 2.0, "damping ratio in contact", log=True),
-            Parameter("backlash_motor_inertia_fraction", 0.31, 0.03, 0.97, "motor's share of the total inertia", scale=1.0),
+            Parameter(
+                "backlash_free_play_rad",
+                0.005,
+                0.0,
+                0.1,
+                "free play of the transmission, shaft-side angle",
+                scale=0.005,
+            ),
+            Parameter(
+                "contact_resonance_Hz",
+                100.0,
+                10.0,
+                self.RIGID_HZ,
+                "resonance of motor against shaft in contact",
+                log=True,
+            ),
+            Parameter(
+                "contact_damping_ratio", 0.1, 0.003, 2.0, "damping ratio in contact", log=True
+            ),
+            Parameter(
+                "backlash_motor_inertia_fraction",
+                0.31,
+                0.03,
+                0.97,
+                "motor's share of the total inertia",
+                scale=1.0,
+            ),
         )
 
     def null(self):
-        return {"backlash_free_play_rad": 0.0, "contact_resonance_Hz": self.RIGID_HZ, "contact_damping_ratio": 1.0,
-                "backlash_motor_inertia_fraction": 0.31}
+        return {
+            "backlash_free_play_rad": 0.0,
+            "contact_resonance_Hz": self.RIGID_HZ,
+            "contact_damping_ratio": 1.0,
+            "backlash_motor_inertia_fraction": 0.31,
+        }
 
     def apply(self, v, s, drive):
         play = v["backlash_free_play_rad"]
@@ -482,8 +773,16 @@ class Backlash(BeltCompliance):
             drive.belt_gap_rad = 0.5 * play
 
     def starts(self, s, located):
-        return [{"backlash_free_play_rad": play, "contact_resonance_Hz": f, "contact_damping_ratio": 0.1,
-                 "backlash_motor_inertia_fraction": 0.31} for play in (0.01, 0.03) for f in (60.0, 120.0)]
+        return [
+            {
+                "backlash_free_play_rad": play,
+                "contact_resonance_Hz": f,
+                "contact_damping_ratio": 0.1,
+                "backlash_motor_inertia_fraction": 0.31,
+            }
+            for play in (0.01, 0.03)
+            for f in (60.0, 120.0)
+        ]
 
     def summary(self, v, s=None):
         return {"play_deg": math.degrees(v["backlash_free_play_rad"])}
@@ -491,8 +790,10 @@ class Backlash(BeltCompliance):
 
 class VoltageNonlinearity(Effect):
     name = "voltage_nonlinearity"
-    meaning = ("the voltage reaching the motor is a nonlinear function of the logged one (the thesis's PWM power "
-               "switch): U + s(U) (c0 + c1 x + c2 x^2 + c3 x^3), x = U / 24 V, s ramping from 0 at 0 V to 1 at 0.5 V")
+    meaning = (
+        "the voltage reaching the motor is a nonlinear function of the logged one (the thesis's PWM power "
+        "switch): U + s(U) (c0 + c1 x + c2 x^2 + c3 x^3), x = U / 24 V, s ramping from 0 at 0 V to 1 at 0.5 V"
+    )
     enters = "voltage"
     U_REF = 24.0
     U_RAMP = 0.5
@@ -500,17 +801,24 @@ class VoltageNonlinearity(Effect):
 
     def make_parameters(self, nominal):
         return (
-            Parameter("supply_offset_V", 0.0, -3.0, 3.0, "voltage offset of the switch (c0)", scale=0.3),
+            Parameter(
+                "supply_offset_V", 0.0, -3.0, 3.0, "voltage offset of the switch (c0)", scale=0.3
+            ),
             Parameter("supply_linear_V", 0.0, -12.0, 12.0, "linear term c1", scale=0.5),
             Parameter("supply_quadratic_V", 0.0, -30.0, 30.0, "quadratic term c2", scale=1.0),
             Parameter("supply_cubic_V", 0.0, -30.0, 30.0, "cubic term c3", scale=1.0),
         )
-    feature = "steady"
-    sentence = ("a supply that gives the motor {lo:+.2g} V at {ulo:.3g} V logged, {mid:+.2g} V at {umid:.3g} V and {hi:+.2g} V "
-                "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
-                "while the coast-downs at 0 V already fit")
 
-    def recorded_levels(self, u: np.ndarray, default: tuple[float, float, float]) -> tuple[float, float, float]:
+    feature = "steady"
+    sentence = (
+        "a supply that gives the motor {lo:+.2g} V at {ulo:.3g} V logged, {mid:+.2g} V at {umid:.3g} V and {hi:+.2g} V "
+        "at {uhi:.3g} V explains a steady-state error that depends on the voltage level but not on the angle, "
+        "while the coast-downs at 0 V already fit"
+    )
+
+    def recorded_levels(
+        self, u: np.ndarray, default: tuple[float, float, float]
+    ) -> tuple[float, float, float]:
         """Three voltages the recording contains (its 5th, 50th and 95th percentiles of the
         driven samples): the evidence quotes the supply only where it was seen."""
         driven = u[np.abs(u) > self.U_RAMP]
@@ -522,7 +830,9 @@ class VoltageNonlinearity(Effect):
     def applied(self, v, u):
         x = u / self.U_REF
         ramp = np.clip(np.abs(u) / self.U_RAMP, 0.0, 1.0) * np.sign(u)
-        poly = v["supply_offset_V"] + x * (v["supply_linear_V"] + x * (v["supply_quadratic_V"] + x * v["supply_cubic_V"]))
+        poly = v["supply_offset_V"] + x * (
+            v["supply_linear_V"] + x * (v["supply_quadratic_V"] + x * v["supply_cubic_V"])
+        )
         # a switch between supply and motor can lose voltage (a dead band) but never reverse it
         return np.where(u >= 0, np.maximum(u + ramp * poly, 0.0), np.minimum(u + ramp * poly, 0.0))
 
@@ -533,7 +843,14 @@ class VoltageNonlinearity(Effect):
         if s is not None:
             levels = self.recorded_levels(s.voltage_V, levels)
         lo, mid, hi = (float(self.applied(v, np.array(u))) - u for u in levels)
-        return {"lo": lo, "mid": mid, "hi": hi, "ulo": levels[0], "umid": levels[1], "uhi": levels[2]}
+        return {
+            "lo": lo,
+            "mid": mid,
+            "hi": hi,
+            "ulo": levels[0],
+            "umid": levels[1],
+            "uhi": levels[2],
+        }
 
 
 class EncoderEccentricity(Effect):
@@ -543,35 +860,56 @@ class EncoderEccentricity(Effect):
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
-        return shaft_turns(nominal)  # once per revolution: over part of one it is an angle-dependent torque's twin
+        return shaft_turns(
+            nominal
+        )  # once per revolution: over part of one it is an angle-dependent torque's twin
 
     def make_parameters(self, nominal):
-        return _harmonic_pair("encoder_order1", "rad", 0.05, "once-per-revolution angle error of the sensor", 0.002)
+        return _harmonic_pair(
+            "encoder_order1", "rad", 0.05, "once-per-revolution angle error of the sensor", 0.002
+        )
 
     def null(self):
         return {p.name: 0.0 for p in self.parameters}
+
     feature = "order1_by_speed"
-    sentence = ("an eccentric encoder reading {amp_mrad:.2g} mrad off once per revolution explains a once-per-revolution "
-                "error that grows with speed, which a torque cannot do (the inertia filters it)")
+    sentence = (
+        "an eccentric encoder reading {amp_mrad:.2g} mrad off once per revolution explains a once-per-revolution "
+        "error that grows with speed, which a torque cannot do (the inertia filters it)"
+    )
 
     def measure(self, v, s, angle):
-        return angle + v["encoder_order1_cos_rad"] * np.cos(angle) + v["encoder_order1_sin_rad"] * np.sin(angle)
+        return (
+            angle
+            + v["encoder_order1_cos_rad"] * np.cos(angle)
+            + v["encoder_order1_sin_rad"] * np.sin(angle)
+        )
 
     def summary(self, v, s=None):
-        return {"amp_mrad": 1e3 * _amplitude(v, "encoder_order1_cos_rad", "encoder_order1_sin_rad")[0]}
+        return {
+            "amp_mrad": 1e3 * _amplitude(v, "encoder_order1_cos_rad", "encoder_order1_sin_rad")[0]
+        }
 
 
 class SensorDelay(Effect):
     name = "sensor_delay"
-    meaning = ("the angle is logged late by a fixed delay (an encoder interface that filters or buffers, a logger that "
-               "time-stamps late): a phase lag that grows with frequency, no effect on the machine")
+    meaning = (
+        "the angle is logged late by a fixed delay (an encoder interface that filters or buffers, a logger that "
+        "time-stamps late): a phase lag that grows with frequency, no effect on the machine"
+    )
     enters = "measurement"
     feature = "transient"
-    sentence = ("the angle logged {delay_ms:.3g} ms late (a phase lag that grows with frequency, no torque) explains the "
-                "error that follows every change of speed")
+    sentence = (
+        "the angle logged {delay_ms:.3g} ms late (a phase lag that grows with frequency, no torque) explains the "
+        "error that follows every change of speed"
+    )
 
     def make_parameters(self, nominal):
-        return (Parameter("sensor_delay_s", 2e-3, 0.0, 0.05, "how late the angle is logged", scale=2e-3),)
+        return (
+            Parameter(
+                "sensor_delay_s", 2e-3, 0.0, 0.05, "how late the angle is logged", scale=2e-3
+            ),
+        )
 
     def null(self):
         return {"sensor_delay_s": 0.0}
@@ -579,7 +917,10 @@ class SensorDelay(Effect):
     def starts(self, s, located):
         # a model without the delay has pushed the winding lag L/R up to mimic it: start the
         # delay's fits with the lag back at a small motor's (the fit frees it again)
-        return [{"sensor_delay_s": d, "electrical_time_constant_s": 5e-4} for d in (1e-3, 3e-3, 7e-3, 15e-3)]
+        return [
+            {"sensor_delay_s": d, "electrical_time_constant_s": 5e-4}
+            for d in (1e-3, 3e-3, 7e-3, 15e-3)
+        ]
 
     def starts_from(self, values):
         """The lag the model without the delay fitted is mostly the delay: move it over."""
@@ -606,19 +947,37 @@ class SensorDelay(Effect):
 
 class WindingHeating(Effect):
     name = "winding_heating"
-    meaning = ("the winding's resistance rises with the copper temperature (copper: +0.39 % per kelvin), heated by the "
-               "current squared with a thermal time constant: less torque per volt and less back-emf damping as the "
-               "motor warms, R(t) = R (1 + a x(t)), x a first-order lag of I^2 / mean I^2, cold at the start")
+    meaning = (
+        "the winding's resistance rises with the copper temperature (copper: +0.39 % per kelvin), heated by the "
+        "current squared with a thermal time constant: less torque per volt and less back-emf damping as the "
+        "motor warms, R(t) = R (1 + a x(t)), x a first-order lag of I^2 / mean I^2, cold at the start"
+    )
     enters = "voltage"
     linear = ("winding_resistance_rise_fraction",)
     feature = "drift"
-    sentence = ("a winding that warms under the current squared, its resistance {end_pct:.0f}% higher by the end of the "
-                "recording (time constant {tau:.3g} s), explains a residual that drifts as the motor delivers less torque per volt")
+    sentence = (
+        "a winding that warms under the current squared, its resistance {end_pct:.0f}% higher by the end of the "
+        "recording (time constant {tau:.3g} s), explains a residual that drifts as the motor delivers less torque per volt"
+    )
 
     def make_parameters(self, nominal):
         return (
-            Parameter("winding_resistance_rise_fraction", 0.0, -0.05, 0.8, "resistance rise at the mean heating, steady state", scale=0.05),
-            Parameter("winding_time_constant_s", 60.0, 5.0, 3000.0, "thermal time constant of the winding", log=True),
+            Parameter(
+                "winding_resistance_rise_fraction",
+                0.0,
+                -0.05,
+                0.8,
+                "resistance rise at the mean heating, steady state",
+                scale=0.05,
+            ),
+            Parameter(
+                "winding_time_constant_s",
+                60.0,
+                5.0,
+                3000.0,
+                "thermal time constant of the winding",
+                log=True,
+            ),
         )
 
     def heating(self, v, s):
@@ -630,7 +989,9 @@ class WindingHeating(Effect):
         m = self.nominal.motor
 
         def compute(whole):
-            current = (whole.voltage_V - m.back_emf_V_s_per_rad * m.ratio * whole.velocity_rad_s) / m.resistance_ohm
+            current = (
+                whole.voltage_V - m.back_emf_V_s_per_rad * m.ratio * whole.velocity_rad_s
+            ) / m.resistance_ohm
             power = current * current
             a = math.exp(-whole.dt / tau)
             return lfilter([0.0, 1.0 - a], [1.0, -a], power / max(float(power.mean()), 1e-12))
@@ -647,7 +1008,10 @@ class WindingHeating(Effect):
 
     def summary(self, v, s=None):
         end = float(self.heating(v, s)[-1]) if s is not None else 1.0
-        return {"end_pct": 100 * v["winding_resistance_rise_fraction"] * end, "tau": v["winding_time_constant_s"]}
+        return {
+            "end_pct": 100 * v["winding_resistance_rise_fraction"] * end,
+            "tau": v["winding_time_constant_s"],
+        }
 
 
 class GearLoadFriction(Effect):
@@ -659,44 +1023,89 @@ class GearLoadFriction(Effect):
     speed."""
 
     name = "gear_load_friction"
-    meaning = ("gearbox friction proportional to the torque the teeth carry: a share of the motor torque when the motor "
-               "drives the load, another share when the load drives the motor back (a gearbox's efficiency, "
-               "direction-dependent)")
+    meaning = (
+        "gearbox friction proportional to the torque the teeth carry: a share of the motor torque when the motor "
+        "drives the load, another share when the load drives the motor back (a gearbox's efficiency, "
+        "direction-dependent)"
+    )
     enters = "friction"
     all_linear = True
     feature = "steady"
     MIN_REDUCTION = 20.0  # a gearbox: a belt (8:1) or a direct drive has no tooth friction growing with the load
-    sentence = ("gearbox friction of {drive_pct:.2g} % of the motor torque while the motor drives and {back_pct:.2g} % while "
-                "the load drives it back (efficiencies {eta_drive:.2g} and {eta_back:.2g}) explains the error that follows "
-                "the transmitted torque")
+    sentence = (
+        "gearbox friction of {drive_pct:.2g} % of the motor torque while the motor drives and {back_pct:.2g} % while "
+        "the load drives it back (efficiencies {eta_drive:.2g} and {eta_back:.2g}) explains the error that follows "
+        "the transmitted torque"
+    )
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
         return nominal.ratio >= cls.MIN_REDUCTION
 
     def make_parameters(self, nominal):
-        return (Parameter("gear_friction_driving_fraction", 0.0, 0.0, 0.8, "friction per unit motor torque, motor driving", scale=0.1),
-                Parameter("gear_friction_backdriving_fraction", 0.0, 0.0, 0.8, "friction per unit motor torque, load driving",
-                          scale=0.1))
+        return (
+            Parameter(
+                "gear_friction_driving_fraction",
+                0.0,
+                0.0,
+                0.8,
+                "friction per unit motor torque, motor driving",
+                scale=0.1,
+            ),
+            Parameter(
+                "gear_friction_backdriving_fraction",
+                0.0,
+                0.0,
+                0.8,
+                "friction per unit motor torque, load driving",
+                scale=0.1,
+            ),
+        )
 
     def apply(self, v, s, drive):
         m = self.nominal.motor
         w = s.velocity_rad_s
         torque = m.gain_arm * drive.voltage_V - m.emf_damping_arm * w
-        share = np.where(torque * w >= 0, v["gear_friction_driving_fraction"], v["gear_friction_backdriving_fraction"])
+        share = np.where(
+            torque * w >= 0,
+            v["gear_friction_driving_fraction"],
+            v["gear_friction_backdriving_fraction"],
+        )
         drive.coulomb_Nm = drive.coulomb_Nm + share * np.abs(torque)
 
     def summary(self, v, s=None):
         a, b = v["gear_friction_driving_fraction"], v["gear_friction_backdriving_fraction"]
-        return {"drive_pct": 100 * a, "back_pct": 100 * b, "eta_drive": 1 - a, "eta_back": 1 / (1 + b)}
+        return {
+            "drive_pct": 100 * a,
+            "back_pct": 100 * b,
+            "eta_drive": 1 - a,
+            "eta_back": 1 / (1 + b),
+        }
 
 
-EFFECTS: dict[str, type[Effect]] = {e.name: e for e in (
-    TorqueRipple, LinkageDynamics, PositionFriction, Stribeck, ThermalDrift, NeedlePenetration,
-    BeltCompliance, Backlash, VoltageNonlinearity, EncoderEccentricity, SensorDelay, WindingHeating, GearLoadFriction)}
+EFFECTS: dict[str, type[Effect]] = {
+    e.name: e
+    for e in (
+        TorqueRipple,
+        LinkageDynamics,
+        PositionFriction,
+        Stribeck,
+        ThermalDrift,
+        NeedlePenetration,
+        BeltCompliance,
+        Backlash,
+        VoltageNonlinearity,
+        EncoderEccentricity,
+        SensorDelay,
+        WindingHeating,
+        GearLoadFriction,
+    )
+}
 
 
-NEEDS_FABRIC = ("needle_penetration",)  # offered only where the machine has a tool working in fabric
+NEEDS_FABRIC = (
+    "needle_penetration",
+)  # offered only where the machine has a tool working in fabric
 
 
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:
@@ -706,11 +1115,17 @@ def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[s
     if names:
         missing = [name for name in names if name in NEEDS_FABRIC and not nominal.tool_in_fabric]
         if missing:
-            raise UserError(f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
-                            "and piercing_force_per_layer_N)")
+            raise UserError(
+                f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
+                "and piercing_force_per_layer_N)"
+            )
         return {name: EFFECTS[name](nominal) for name in names}
-    return {name: e(nominal) for name, e in EFFECTS.items()
-            if (nominal.tool_in_fabric or name not in NEEDS_FABRIC) and getattr(e, "applies", lambda n: True)(nominal)}
+    return {
+        name: e(nominal)
+        for name, e in EFFECTS.items()
+        if (nominal.tool_in_fabric or name not in NEEDS_FABRIC)
+        and getattr(e, "applies", lambda n: True)(nominal)
+    }
 
 
 def effect(name: str) -> type[Effect]:

@@ -67,7 +67,9 @@ def recording_paths(arguments: Sequence[str | os.PathLike]) -> list[Path]:
         if path.is_dir():
             found = sorted(p for p in path.iterdir() if is_recording(p))
             if not found:
-                raise UserError(f"folder {path}: no recordings in it (*.csv, *.csv.gz, *.mat, *.parquet, *.tdms, ...)")
+                raise UserError(
+                    f"folder {path}: no recordings in it (*.csv, *.csv.gz, *.mat, *.parquet, *.tdms, ...)"
+                )
             paths.extend(found)
         elif path.is_file():
             paths.append(path)
@@ -83,13 +85,16 @@ def _unique_names(paths: Sequence[Path]) -> list[str]:
     names: list[str] = []
     seen: dict[str, int] = {}  # stem -> how often it came so far
     for path in paths:
-        stem = Path(path.name[: -len(path.suffix)] if path.suffix.lower() in COMPRESSIONS else path.name).stem  # rec.csv.gz: rec
+        stem = Path(
+            path.name[: -len(path.suffix)] if path.suffix.lower() in COMPRESSIONS else path.name
+        ).stem  # rec.csv.gz: rec
         seen[stem] = seen.get(stem, 0) + 1
         names.append(stem if seen[stem] == 1 else f"{stem}_{seen[stem]}")
     return names
 
 
 # -- one recording (runs in a worker) ----------------------------------------------------------
+
 
 def _diagnose_one(options: dict, path: str) -> dict:
     """Diagnose one recording; a recording that cannot be diagnosed gives its error line."""
@@ -118,11 +123,19 @@ def _diagnose_one(options: dict, path: str) -> dict:
 
 def _summary_row(name: str, outcome: dict) -> dict:
     data = outcome["json"]
-    row = {"recording": name, "status": "error" if outcome["error"] else "ok", "effects": "",
-           "baseline_rmse_rad_s": math.nan, "final_rmse_rad_s": math.nan}
+    row = {
+        "recording": name,
+        "status": "error" if outcome["error"] else "ok",
+        "effects": "",
+        "baseline_rmse_rad_s": math.nan,
+        "final_rmse_rad_s": math.nan,
+    }
     if data and data.get("identifiable"):
-        row.update(effects="+".join(data["final"]["effects"]), baseline_rmse_rad_s=data["baseline"]["rmse"],
-                   final_rmse_rad_s=data["final"]["rmse"])
+        row.update(
+            effects="+".join(data["final"]["effects"]),
+            baseline_rmse_rad_s=data["baseline"]["rmse"],
+            final_rmse_rad_s=data["final"]["rmse"],
+        )
         row.update(data["final"]["params"])  # parameter names carry their units
     row["time_s"] = outcome["time_s"]
     row["error"] = outcome["error"] or ""
@@ -130,6 +143,7 @@ def _summary_row(name: str, outcome: dict) -> dict:
 
 
 # -- the fleet --------------------------------------------------------------------------------
+
 
 def diagnose_fleet(
     paths: Sequence[str | os.PathLike],
@@ -163,13 +177,23 @@ def diagnose_fleet(
 
         start = time.perf_counter()
         try:
-            outcomes = run_batch(_diagnose_one, [str(p) for p in files], shared=options, workers=workers,
-                                 backend=backend, ray_address=ray_address, on_result=done, progress=progress,
-                                 desc="recordings", unit="recording")
+            outcomes = run_batch(
+                _diagnose_one,
+                [str(p) for p in files],
+                shared=options,
+                workers=workers,
+                backend=backend,
+                ray_address=ray_address,
+                on_result=done,
+                progress=progress,
+                desc="recordings",
+                unit="recording",
+            )
         except BatchLost as exc:  # per recording: which were not diagnosed (nothing is published)
             lost = ", ".join(names[i] for i in exc.unfinished)
-            raise UserError(f"{exc}; recordings not diagnosed: {lost}; nothing was written, run the fleet "
-                            "again") from None
+            raise UserError(
+                f"{exc}; recordings not diagnosed: {lost}; nothing was written, run the fleet again"
+            ) from None
         rows = [_summary_row(name, outcome) for name, outcome in zip(names, outcomes)]
         result = FleetResult(Path(out_dir), rows, find_outliers(rows), time.perf_counter() - start)
         write_summary_csv(folder / SUMMARY_CSV, rows)
@@ -194,17 +218,36 @@ def _write_json(path: Path, data: dict) -> None:
 
 def parameter_columns(rows: Sequence[dict]) -> list[str]:
     """The fitted parameters of the fleet, in order of first appearance."""
-    fixed = {"recording", "status", "effects", "baseline_rmse_rad_s", "final_rmse_rad_s", "time_s", "error"}
+    fixed = {
+        "recording",
+        "status",
+        "effects",
+        "baseline_rmse_rad_s",
+        "final_rmse_rad_s",
+        "time_s",
+        "error",
+    }
     return list(dict.fromkeys(key for row in rows for key in row if key not in fixed))
 
 
 def write_summary_csv(path: Path, rows: Sequence[dict]) -> None:
     from mechanism.files.outputs import atomic_file
 
-    header = ["recording", "status", "effects", "baseline_rmse_rad_s", "final_rmse_rad_s", *parameter_columns(rows), "time_s", "error"]
+    header = [
+        "recording",
+        "status",
+        "effects",
+        "baseline_rmse_rad_s",
+        "final_rmse_rad_s",
+        *parameter_columns(rows),
+        "time_s",
+        "error",
+    ]
     with atomic_file(path) as handle:
-        handle.write("# one row per recording; rmse: RMS arm-velocity residual on the held-out half [rad/s]; "
-                     "parameters: the final fit (blank where a recording's model has no such parameter)\n")
+        handle.write(
+            "# one row per recording; rmse: RMS arm-velocity residual on the held-out half [rad/s]; "
+            "parameters: the final fit (blank where a recording's model has no such parameter)\n"
+        )
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(header)
         for row in rows:
@@ -219,6 +262,7 @@ def _cell(value) -> str:
 
 # -- outliers and the report ------------------------------------------------------------------
 
+
 def robust_z(values: np.ndarray) -> np.ndarray:
     """0.6745 (x - median) / MAD; zero where MAD is zero and x is the median, inf elsewhere."""
     values = np.asarray(values, dtype=float)
@@ -230,7 +274,11 @@ def robust_z(values: np.ndarray) -> np.ndarray:
 
 
 def _parameter_values(rows: Sequence[dict], name: str) -> tuple[list[str], np.ndarray]:
-    found = [(row["recording"], row[name]) for row in rows if row["status"] == "ok" and isinstance(row.get(name), float)]
+    found = [
+        (row["recording"], row[name])
+        for row in rows
+        if row["status"] == "ok" and isinstance(row.get(name), float)
+    ]
     return [r for r, _ in found], np.array([v for _, v in found], dtype=float)
 
 
@@ -244,7 +292,14 @@ def find_outliers(rows: Sequence[dict]) -> list[dict]:
             continue
         for recording, value, z in zip(recordings, values, robust_z(values)):
             if abs(z) > OUTLIER_Z:
-                outliers.append({"recording": recording, "parameter": name, "value": float(value), "robust_z": float(z)})
+                outliers.append(
+                    {
+                        "recording": recording,
+                        "parameter": name,
+                        "value": float(value),
+                        "robust_z": float(z),
+                    }
+                )
     return outliers
 
 
@@ -259,9 +314,20 @@ def _strip_plot(name: str, recordings: list[str], values: np.ndarray) -> str:
     outlying = np.abs(z) > OUTLIER_Z
     jitter = np.random.default_rng(0).uniform(-0.25, 0.25, len(values))
     fig, ax = plt.subplots(figsize=(7, 1.6))
-    ax.scatter(values[~outlying], jitter[~outlying], s=14, color="#3465a4", alpha=0.7, label="recording")
-    ax.scatter(values[outlying], jitter[outlying], s=30, color="#cc0000", marker="x", label=f"outlier (|robust z| > {OUTLIER_Z:g})")
-    for value, y, recording in zip(values[outlying], jitter[outlying], np.array(recordings)[outlying]):
+    ax.scatter(
+        values[~outlying], jitter[~outlying], s=14, color="#3465a4", alpha=0.7, label="recording"
+    )
+    ax.scatter(
+        values[outlying],
+        jitter[outlying],
+        s=30,
+        color="#cc0000",
+        marker="x",
+        label=f"outlier (|robust z| > {OUTLIER_Z:g})",
+    )
+    for value, y, recording in zip(
+        values[outlying], jitter[outlying], np.array(recordings)[outlying]
+    ):
         ax.annotate(recording, (value, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
     ax.axvline(np.median(values), color="#888", lw=1, label="median")
     ax.set_yticks([])
@@ -279,30 +345,51 @@ def write_summary_html(path: Path, result: FleetResult) -> None:
     from mechanism.sysid.report import _STYLE
 
     rows = result.rows
-    body = [f"<h1>Fleet diagnosis: {result.diagnosed} of {len(rows)} recordings diagnosed</h1>",
-            "<table><tr><th>recording</th><th>status</th><th>effects</th><th>baseline rmse [rad/s]</th>"
-            "<th>final rmse [rad/s]</th><th>time [s]</th><th>error</th></tr>"]
+    body = [
+        f"<h1>Fleet diagnosis: {result.diagnosed} of {len(rows)} recordings diagnosed</h1>",
+        "<table><tr><th>recording</th><th>status</th><th>effects</th><th>baseline rmse [rad/s]</th>"
+        "<th>final rmse [rad/s]</th><th>time [s]</th><th>error</th></tr>",
+    ]
     for row in rows:
-        cells = [row["recording"], row["status"], row["effects"] or "-", _cell(row["baseline_rmse_rad_s"]),
-                 _cell(row["final_rmse_rad_s"]), f"{row['time_s']:.1f}", row["error"]]
+        cells = [
+            row["recording"],
+            row["status"],
+            row["effects"] or "-",
+            _cell(row["baseline_rmse_rad_s"]),
+            _cell(row["final_rmse_rad_s"]),
+            f"{row['time_s']:.1f}",
+            row["error"],
+        ]
         body.append("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in cells) + "</tr>")
     body.append("</table>")
-    body.append(f"<h2>Outliers</h2><p>A recording is an outlier for a parameter when its robust z-score "
-                f"0.6745&nbsp;(x&nbsp;&minus;&nbsp;median)&nbsp;/&nbsp;MAD exceeds {OUTLIER_Z:g} in magnitude "
-                f"(MAD: median absolute deviation over the recordings that fitted the parameter; "
-                f"at least {OUTLIER_MIN_RECORDINGS} needed).</p>")
+    body.append(
+        f"<h2>Outliers</h2><p>A recording is an outlier for a parameter when its robust z-score "
+        f"0.6745&nbsp;(x&nbsp;&minus;&nbsp;median)&nbsp;/&nbsp;MAD exceeds {OUTLIER_Z:g} in magnitude "
+        f"(MAD: median absolute deviation over the recordings that fitted the parameter; "
+        f"at least {OUTLIER_MIN_RECORDINGS} needed).</p>"
+    )
     if result.outliers:
-        body.append("<table><tr><th>recording</th><th>parameter</th><th>value</th><th>robust z</th></tr>" + "".join(
-            f"<tr><td>{html.escape(o['recording'])}</td><td><code>{html.escape(o['parameter'])}</code></td>"
-            f"<td>{o['value']:.5g}</td><td>{o['robust_z']:.1f}</td></tr>" for o in result.outliers) + "</table>")
+        body.append(
+            "<table><tr><th>recording</th><th>parameter</th><th>value</th><th>robust z</th></tr>"
+            + "".join(
+                f"<tr><td>{html.escape(o['recording'])}</td><td><code>{html.escape(o['parameter'])}</code></td>"
+                f"<td>{o['value']:.5g}</td><td>{o['robust_z']:.1f}</td></tr>"
+                for o in result.outliers
+            )
+            + "</table>"
+        )
     else:
         body.append("<p>None.</p>")
     body.append("<h2>Fitted parameters across the fleet</h2>")
     for name in parameter_columns(rows):
         recordings, values = _parameter_values(rows, name)
         if len(values):
-            body.append(f"<h3><code>{html.escape(name)}</code> ({len(values)} recordings, median {np.median(values):.5g})</h3>"
-                        f"<img alt='{html.escape(name)}' src='data:image/png;base64,{_strip_plot(name, recordings, values)}'>")
+            body.append(
+                f"<h3><code>{html.escape(name)}</code> ({len(values)} recordings, median {np.median(values):.5g})</h3>"
+                f"<img alt='{html.escape(name)}' src='data:image/png;base64,{_strip_plot(name, recordings, values)}'>"
+            )
     with atomic_file(path) as handle:
-        handle.write(f"<!doctype html><html><head><meta charset='utf-8'><title>Fleet diagnosis</title><style>{_STYLE}</style>"
-                     f"</head><body>{''.join(body)}</body></html>")
+        handle.write(
+            f"<!doctype html><html><head><meta charset='utf-8'><title>Fleet diagnosis</title><style>{_STYLE}</style>"
+            f"</head><body>{''.join(body)}</body></html>"
+        )

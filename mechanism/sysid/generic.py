@@ -33,23 +33,52 @@ class GenericEffect(Effect):
 
 class GenericShaftTorque(GenericEffect):
     name = "generic_shaft_torque"
-    physics = ("an unbalanced or eccentric part on that shaft, a cam or a mechanism it drives, a damaged gear tooth or "
-               "bearing race: a torque that repeats with the shaft's angle")
+    physics = (
+        "an unbalanced or eccentric part on that shaft, a cam or a mechanism it drives, a damaged gear tooth or "
+        "bearing race: a torque that repeats with the shaft's angle"
+    )
     enters = "torque"
     all_linear = True
     feature = "residual"
 
     def __init__(self, nominal: DriveNominal, shaft: str, ratio: float, orders: list[int]):
-        self.shaft, self.ratio, self.orders = shaft, float(ratio), sorted(set(int(k) for k in orders))
+        self.shaft, self.ratio, self.orders = (
+            shaft,
+            float(ratio),
+            sorted(set(int(k) for k in orders)),
+        )
         super().__init__(nominal)
-        self.meaning = (f"a torque periodic in the {shaft.replace('_', ' ')} angle ({ratio:g} turns per shaft turn), "
-                        f"orders {', '.join(map(str, self.orders))}, constant in speed: a Fourier series with free phases")
+        self.meaning = (
+            f"a torque periodic in the {shaft.replace('_', ' ')} angle ({ratio:g} turns per shaft turn), "
+            f"orders {', '.join(map(str, self.orders))}, constant in speed: a Fourier series with free phases"
+        )
 
     def make_parameters(self, nominal):
-        bound = 25 / 9 * nominal.torque_scale_Nm / self.ratio  # up to ~3x the Coulomb level at the shaft
-        return tuple(p for k in self.orders for p in (
-            Parameter(f"generic_{self.shaft}_order{k}_cos_Nm", 0.0, -bound, bound, f"{self.shaft}-side torque {k}x per turn, cosine", scale=bound / 25),
-            Parameter(f"generic_{self.shaft}_order{k}_sin_Nm", 0.0, -bound, bound, f"{self.shaft}-side torque {k}x per turn, sine", scale=bound / 25)))
+        bound = (
+            25 / 9 * nominal.torque_scale_Nm / self.ratio
+        )  # up to ~3x the Coulomb level at the shaft
+        return tuple(
+            p
+            for k in self.orders
+            for p in (
+                Parameter(
+                    f"generic_{self.shaft}_order{k}_cos_Nm",
+                    0.0,
+                    -bound,
+                    bound,
+                    f"{self.shaft}-side torque {k}x per turn, cosine",
+                    scale=bound / 25,
+                ),
+                Parameter(
+                    f"generic_{self.shaft}_order{k}_sin_Nm",
+                    0.0,
+                    -bound,
+                    bound,
+                    f"{self.shaft}-side torque {k}x per turn, sine",
+                    scale=bound / 25,
+                ),
+            )
+        )
 
     def apply(self, v, s, drive):
         torque = np.zeros(len(s))
@@ -63,20 +92,31 @@ class GenericShaftTorque(GenericEffect):
             drive.tau_arm_Nm += self.ratio * torque
 
     def words(self, v) -> str:
-        amps = {k: _amplitude(v, f"generic_{self.shaft}_order{k}_cos_Nm", f"generic_{self.shaft}_order{k}_sin_Nm")[0] for k in self.orders}
+        amps = {
+            k: _amplitude(
+                v, f"generic_{self.shaft}_order{k}_cos_Nm", f"generic_{self.shaft}_order{k}_sin_Nm"
+            )[0]
+            for k in self.orders
+        }
         main = max(amps, key=amps.__getitem__)
-        return (f"a generic {self.shaft.replace('_', ' ')}-angle torque of order{'s' if len(self.orders) > 1 else ''} "
-                f"{', '.join(map(str, self.orders))} ({amps[main]:.2g} N m at order {main})")
+        return (
+            f"a generic {self.shaft.replace('_', ' ')}-angle torque of order{'s' if len(self.orders) > 1 else ''} "
+            f"{', '.join(map(str, self.orders))} ({amps[main]:.2g} N m at order {main})"
+        )
 
 
 class GenericSpeedFriction(GenericEffect):
     name = "generic_speed_friction"
-    physics = ("a friction of another speed dependence than the library's: a lubricant film (a Stribeck curve of another "
-               "shape), a fan, pump or air drag growing with speed, eddy-current drag, a seal")
+    physics = (
+        "a friction of another speed dependence than the library's: a lubricant film (a Stribeck curve of another "
+        "shape), a fan, pump or air drag growing with speed, eddy-current drag, a seal"
+    )
     enters = "friction"
     all_linear = True
     feature = "residual"
-    meaning = "a friction level that varies smoothly with speed (piecewise linear between speed knots)"
+    meaning = (
+        "a friction level that varies smoothly with speed (piecewise linear between speed knots)"
+    )
     KNOTS = (0.0, 0.05, 0.15, 0.35, 0.65, 1.0)  # fractions of the top speed
 
     def __init__(self, nominal: DriveNominal, top_speed_rad_s: float):
@@ -85,9 +125,17 @@ class GenericSpeedFriction(GenericEffect):
 
     def make_parameters(self, nominal):
         t = nominal.torque_scale_Nm
-        return tuple(Parameter(f"friction_at_speed{i}_Nm", 0.0, -t, 25 / 9 * t,
-                               f"change of the friction level at {100 * f:.0f}% of top speed", scale=t / 9)
-                     for i, f in enumerate(self.KNOTS))
+        return tuple(
+            Parameter(
+                f"friction_at_speed{i}_Nm",
+                0.0,
+                -t,
+                25 / 9 * t,
+                f"change of the friction level at {100 * f:.0f}% of top speed",
+                scale=t / 9,
+            )
+            for i, f in enumerate(self.KNOTS)
+        )
 
     def basis(self, s: Signals) -> np.ndarray:
         def compute():
@@ -99,19 +147,25 @@ class GenericSpeedFriction(GenericEffect):
 
     def apply(self, v, s, drive):
         b = self.basis(s)
-        drive.coulomb_Nm += sum(v[f"friction_at_speed{i}_Nm"] * b[i] for i in range(len(self.KNOTS)))
+        drive.coulomb_Nm += sum(
+            v[f"friction_at_speed{i}_Nm"] * b[i] for i in range(len(self.KNOTS))
+        )
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
 
     def words(self, v) -> str:
         values = [v[f"friction_at_speed{i}_Nm"] for i in range(len(self.KNOTS))]
-        return (f"a generic speed-dependent friction ({values[0]:+.2g} N m at rest, {values[2]:+.2g} N m at "
-                f"{100 * self.KNOTS[2]:.0f}% and {values[-1]:+.2g} N m at top speed)")
+        return (
+            f"a generic speed-dependent friction ({values[0]:+.2g} N m at rest, {values[2]:+.2g} N m at "
+            f"{100 * self.KNOTS[2]:.0f}% and {values[-1]:+.2g} N m at top speed)"
+        )
 
 
 class GenericChange(GenericEffect):
     name = "generic_change"
-    physics = ("something that changed at one instant: a supply dropout or a current limit engaging, a belt or clutch "
-               "starting to slip, a part working loose, a load added or removed")
+    physics = (
+        "something that changed at one instant: a supply dropout or a current limit engaging, a belt or clutch "
+        "starting to slip, a part working loose, a load added or removed"
+    )
     enters = "voltage"
     linear = ("coulomb_change_fraction", "viscous_change_fraction", "gain_change_fraction")
     feature = "residual"
@@ -124,15 +178,40 @@ class GenericChange(GenericEffect):
 
     def make_parameters(self, nominal):
         return (
-            Parameter("change_time_s", self.t0, 0.0, self.duration, "when the change happens", scale=1.0),
-            Parameter("coulomb_change_fraction", 0.0, -0.9, 3.0, "relative change of the Coulomb level", scale=0.2),
-            Parameter("viscous_change_fraction", 0.0, -0.9, 3.0, "relative change of the viscous friction", scale=0.5),
-            Parameter("gain_change_fraction", 0.0, -0.5, 0.5, "relative change of the torque per volt", scale=0.05),
+            Parameter(
+                "change_time_s", self.t0, 0.0, self.duration, "when the change happens", scale=1.0
+            ),
+            Parameter(
+                "coulomb_change_fraction",
+                0.0,
+                -0.9,
+                3.0,
+                "relative change of the Coulomb level",
+                scale=0.2,
+            ),
+            Parameter(
+                "viscous_change_fraction",
+                0.0,
+                -0.9,
+                3.0,
+                "relative change of the viscous friction",
+                scale=0.5,
+            ),
+            Parameter(
+                "gain_change_fraction",
+                0.0,
+                -0.5,
+                0.5,
+                "relative change of the torque per volt",
+                scale=0.05,
+            ),
         )
 
     def step(self, v, s):
         t0 = v["change_time_s"]
-        return s.memo("change_step", t0, lambda: 0.5 * (1 + np.tanh((s.time_s - t0) / self.WIDTH_S)))
+        return s.memo(
+            "change_step", t0, lambda: 0.5 * (1 + np.tanh((s.time_s - t0) / self.WIDTH_S))
+        )
 
     def apply(self, v, s, drive):
         h = self.step(v, s)
@@ -143,11 +222,15 @@ class GenericChange(GenericEffect):
         np.maximum(drive.viscous_Nm_s, 0.0, out=drive.viscous_Nm_s)
 
     def grid(self, s, located):
-        return [{"change_time_s": min(max(self.t0 + dt, 0.0), self.duration)} for dt in (-0.5, 0.0, 0.5)]
+        return [
+            {"change_time_s": min(max(self.t0 + dt, 0.0), self.duration)} for dt in (-0.5, 0.0, 0.5)
+        ]
 
     def words(self, v) -> str:
-        return (f"a generic change at t = {v['change_time_s']:.1f} s (Coulomb {100 * v['coulomb_change_fraction']:+.0f}%, viscous "
-                f"{100 * v['viscous_change_fraction']:+.0f}%, torque per volt {100 * v['gain_change_fraction']:+.0f}%)")
+        return (
+            f"a generic change at t = {v['change_time_s']:.1f} s (Coulomb {100 * v['coulomb_change_fraction']:+.0f}%, viscous "
+            f"{100 * v['viscous_change_fraction']:+.0f}%, torque per volt {100 * v['gain_change_fraction']:+.0f}%)"
+        )
 
 
 def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[Effect]:
@@ -158,14 +241,18 @@ def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[
         out.append(GenericShaftTorque(nominal, p.shaft, p.ratio, p.orders))
     if sig.step_time_s is not None and sig.step_share > 0.3:
         out.append(GenericChange(nominal, sig.step_time_s, float(signals.time_s[-1])))
-    out.append(GenericSpeedFriction(nominal, float(np.percentile(np.abs(signals.velocity_rad_s), 99))))
+    out.append(
+        GenericSpeedFriction(nominal, float(np.percentile(np.abs(signals.velocity_rad_s), 99)))
+    )
     return out
 
 
-def evidence(effect: GenericEffect, values: dict, description: str, before: float, after: float) -> str:
+def evidence(
+    effect: GenericEffect, values: dict, description: str, before: float, after: float
+) -> str:
     gain = 100 * (1 - after / before) if before > 0 else 0.0
     what = effect.words(values)
-    return (f"Not in the library: {description}; {what} cuts the validation velocity error from {before:.3g} to "
-            f"{after:.3g} rad/s ({gain:.0f}% lower). It names no mechanism; possible physics: {effect.physics}.")
-
-
+    return (
+        f"Not in the library: {description}; {what} cuts the validation velocity error from {before:.3g} to "
+        f"{after:.3g} rad/s ({gain:.0f}% lower). It names no mechanism; possible physics: {effect.physics}."
+    )

@@ -30,7 +30,12 @@ import numpy as np
 
 from mechanism.dynamics.lumped import DriveNominal
 from mechanism.sysid.recording import Recording, check_excitation, smoothed_velocity
-from mechanism.tolerances import BOTH_WAYS_FRACTION, MIN_INDEPENDENT_FRACTION, MIN_MOVING_SAMPLES, MOVING_SPEED_RAD_S
+from mechanism.tolerances import (
+    BOTH_WAYS_FRACTION,
+    MIN_INDEPENDENT_FRACTION,
+    MIN_MOVING_SAMPLES,
+    MOVING_SPEED_RAD_S,
+)
 
 WORDS = {
     "inertia": "the inertia",
@@ -38,7 +43,6 @@ WORDS = {
     "coulomb": "the Coulomb friction",
     "offset": "the constant offset torque",
 }
-
 
 
 def correlation_length(r: np.ndarray, max_lag: int = 2000) -> float:
@@ -68,11 +72,16 @@ class Identifiability:
         def shown(values: dict) -> dict:
             return {name: float(f"{value:.4g}") for name, value in values.items()}
 
-        return {"identifiable": self.identifiable, "reason": self.reason,
-                "independent_fraction": shown(self.independent_fraction),
-                "relative_uncertainty_1sigma_fraction": shown(self.relative_sd),
-                "rule": (f"a baseline parameter is determined when at least {MIN_INDEPENDENT_FRACTION:.0%} of its "
-                         f"regressor column (w', w, sgn w, 1 over the moving samples) is independent of the others")}
+        return {
+            "identifiable": self.identifiable,
+            "reason": self.reason,
+            "independent_fraction": shown(self.independent_fraction),
+            "relative_uncertainty_1sigma_fraction": shown(self.relative_sd),
+            "rule": (
+                f"a baseline parameter is determined when at least {MIN_INDEPENDENT_FRACTION:.0%} of its "
+                f"regressor column (w', w, sgn w, 1 over the moving samples) is independent of the others"
+            ),
+        }
 
 
 def turns_both_ways(velocity: np.ndarray) -> bool:
@@ -84,7 +93,9 @@ def turns_both_ways(velocity: np.ndarray) -> bool:
     return min(forward, 1.0 - forward) >= BOTH_WAYS_FRACTION
 
 
-def check_information(rec: Recording, nominal: DriveNominal, gravity_Nm: np.ndarray | None = None) -> Identifiability:
+def check_information(
+    rec: Recording, nominal: DriveNominal, gravity_Nm: np.ndarray | None = None
+) -> Identifiability:
     """Whether ``rec`` determines the baseline's inertia, viscous and Coulomb friction (and a
     constant offset torque when the shaft turns both ways); see the module docstring."""
     excitation = check_excitation(rec)
@@ -95,11 +106,21 @@ def check_information(rec: Recording, nominal: DriveNominal, gravity_Nm: np.ndar
     moving = np.abs(w) > MOVING_SPEED_RAD_S
     if moving.sum() < MIN_MOVING_SAMPLES:
         seconds = float(moving.sum() * rec.dt)
-        return Identifiability(False, f"the shaft moves (faster than {MOVING_SPEED_RAD_S:g} rad/s) for only {seconds:.2g} s "
-                                      f"of the recording: too little motion to determine its inertia and friction", {}, {}, both)
+        return Identifiability(
+            False,
+            f"the shaft moves (faster than {MOVING_SPEED_RAD_S:g} rad/s) for only {seconds:.2g} s "
+            f"of the recording: too little motion to determine its inertia and friction",
+            {},
+            {},
+            both,
+        )
     acc = smoothed_velocity(w, rec.dt)
     n = nominal.ratio
-    scales = {"inertia": nominal.inertia_kgm2, "viscous": nominal.viscous_motor_side * n * n, "coulomb": nominal.torque_scale_Nm}
+    scales = {
+        "inertia": nominal.inertia_kgm2,
+        "viscous": nominal.viscous_motor_side * n * n,
+        "coulomb": nominal.torque_scale_Nm,
+    }
     columns = {"inertia": acc, "viscous": w, "coulomb": np.sign(w)}
     if both:
         scales["offset"] = nominal.torque_scale_Nm
@@ -131,27 +152,47 @@ def check_information(rec: Recording, nominal: DriveNominal, gravity_Nm: np.ndar
         relative_sd = {name: float(math.sqrt(max(cov[k, k], 0.0))) for k, name in enumerate(names)}
     weakest = min(fractions, key=fractions.__getitem__)
     if fractions[weakest] < MIN_INDEPENDENT_FRACTION:
-        return Identifiability(False, _why(weakest, names, X, norms, w[moving], acc[moving], fractions[weakest]),
-                               fractions, relative_sd, both)
+        return Identifiability(
+            False,
+            _why(weakest, names, X, norms, w[moving], acc[moving], fractions[weakest]),
+            fractions,
+            relative_sd,
+            both,
+        )
     return Identifiability(True, excitation.reason, fractions, relative_sd, both)
 
 
-def _why(name: str, names: list[str], X: np.ndarray, norms: np.ndarray, w: np.ndarray, acc: np.ndarray, fraction: float) -> str:
+def _why(
+    name: str,
+    names: list[str],
+    X: np.ndarray,
+    norms: np.ndarray,
+    w: np.ndarray,
+    acc: np.ndarray,
+    fraction: float,
+) -> str:
     k = names.index(name)
     if not norms[k] > 0:
         return f"{WORDS[name]} is not determined: the recording never excites it"
-    cosine = {other: abs(float(X[:, k] @ X[:, j]) / (norms[k] * norms[j]))
-              for j, other in enumerate(names) if j != k and norms[j] > 0}
+    cosine = {
+        other: abs(float(X[:, k] @ X[:, j]) / (norms[k] * norms[j]))
+        for j, other in enumerate(names)
+        if j != k and norms[j] > 0
+    }
     partner = max(cosine, key=cosine.__getitem__)
     pair = {name, partner}
     speed = float(np.median(np.abs(w)))
     spread = float(np.std(np.abs(w)))
     share = f"only {100 * fraction:.2g} % of its signature in the recording is independent of the other parameters'"
     if name == "inertia":
-        return (f"the inertia is not determined: the speed hardly changes (acceleration {float(np.sqrt(np.mean(acc * acc))):.2g} "
-                f"rad/s^2 rms at {speed:.3g} rad/s), so {share}")
+        return (
+            f"the inertia is not determined: the speed hardly changes (acceleration {float(np.sqrt(np.mean(acc * acc))):.2g} "
+            f"rad/s^2 rms at {speed:.3g} rad/s), so {share}"
+        )
     if pair == {"viscous", "coulomb"} or pair == {"viscous", "offset"}:
-        return (f"viscous and Coulomb friction cannot be told apart: the shaft runs at nearly one speed "
-                f"({speed:.3g} rad/s, spread {spread:.2g} rad/s), where a speed-proportional and a constant friction "
-                f"torque are the same; vary the speed (several voltage levels)")
+        return (
+            f"viscous and Coulomb friction cannot be told apart: the shaft runs at nearly one speed "
+            f"({speed:.3g} rad/s, spread {spread:.2g} rad/s), where a speed-proportional and a constant friction "
+            f"torque are the same; vary the speed (several voltage levels)"
+        )
     return f"{WORDS[name]} cannot be told from {WORDS[partner]}: {share}"

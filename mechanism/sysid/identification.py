@@ -35,14 +35,35 @@ from scipy.optimize import least_squares
 from mechanism.sysid.identifiability import Identifiability, correlation_length
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
-from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Segments, Signals, make_segments, simulate
+from mechanism.dynamics.lumped import (
+    Drive,
+    DriveNominal,
+    MotorConstants,
+    Segments,
+    Signals,
+    make_segments,
+    simulate,
+)
 from mechanism.sysid.lumped_baseline import LumpedBaseline
-from mechanism.sysid.parameters import (Parameter, internal_bounds, internal_derivative, internal_vector, prior_weights,
-                                        values_from_internal)
-from mechanism.sysid.recording import Recording, at_fitting_rate, smoothed_velocity, velocity_coefficients
+from mechanism.sysid.parameters import (
+    Parameter,
+    internal_bounds,
+    internal_derivative,
+    internal_vector,
+    prior_weights,
+    values_from_internal,
+)
+from mechanism.sysid.recording import (
+    Recording,
+    at_fitting_rate,
+    smoothed_velocity,
+    velocity_coefficients,
+)
 
 REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
-DIVERGED_RAD_S = 1e6  # a simulated speed beyond this has diverged (its square would overflow the residual)
+DIVERGED_RAD_S = (
+    1e6  # a simulated speed beyond this has diverged (its square would overflow the residual)
+)
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
 #                   residual piecewise smooth, so derivatives need steps well above round-off
 
@@ -84,7 +105,9 @@ class ModelStructure:
         with a changed voltage (the winding lag filters it over the samples before)."""
         return all(e.enters not in ("voltage", "belt") for e in self.effects)
 
-    def measured_angle(self, values: dict[str, float], signals: Signals, angle: np.ndarray) -> np.ndarray:
+    def measured_angle(
+        self, values: dict[str, float], signals: Signals, angle: np.ndarray
+    ) -> np.ndarray:
         for e in self.effects:
             if e.is_measurement:
                 angle = e.measure(values, signals, angle)
@@ -105,15 +128,26 @@ class Problem:
     """
 
     FIT_STRIDE = 3
-    MAX_SEGMENTS = 360  # a long recording is scored on this many segments spread over it (6 min of 1 s)
+    MAX_SEGMENTS = (
+        360  # a long recording is scored on this many segments spread over it (6 min of 1 s)
+    )
 
-    def __init__(self, rec: Recording, nominal: DriveNominal, segment_s: float = 1.0, burn_in_s: float = 0.25):
+    def __init__(
+        self, rec: Recording, nominal: DriveNominal, segment_s: float = 1.0, burn_in_s: float = 0.25
+    ):
         self.recording = rec
         self.nominal = nominal
         self.dt = rec.dt
         self.coefficients = velocity_coefficients(rec.dt)
         self.pad = (len(self.coefficients) - 1) // 2
-        whole = Signals(rec.time_s, rec.voltage_V, rec.arm_angle_rad, rec.velocity_rad_s, rec.dt, ratio=nominal.ratio)
+        whole = Signals(
+            rec.time_s,
+            rec.voltage_V,
+            rec.arm_angle_rad,
+            rec.velocity_rad_s,
+            rec.dt,
+            ratio=nominal.ratio,
+        )
         every = make_segments(len(rec), rec.dt, segment_s, burn_in_s, self.pad)
         self.segments = _spread(every, self.MAX_SEGMENTS)
         self.signals, simulated = whole, self.segments
@@ -121,10 +155,24 @@ class Problem:
             # a long recording: the model runs on its scored windows laid end to end (per-sample
             # work then no longer grows with the length; history effects read the whole one)
             index = self.segments.window_indices().ravel()
-            self.signals = Signals(rec.time_s[index], rec.voltage_V[index], rec.arm_angle_rad[index], rec.velocity_rad_s[index],
-                                   rec.dt, ratio=nominal.ratio, source_index=index, whole=whole)
+            self.signals = Signals(
+                rec.time_s[index],
+                rec.voltage_V[index],
+                rec.arm_angle_rad[index],
+                rec.velocity_rad_s[index],
+                rec.dt,
+                ratio=nominal.ratio,
+                source_index=index,
+                whole=whole,
+            )
             s = self.segments
-            simulated = Segments(np.arange(len(s), dtype=np.int64) * s.length, s.length, s.score_begin, s.score_end, s.is_fit)
+            simulated = Segments(
+                np.arange(len(s), dtype=np.int64) * s.length,
+                s.length,
+                s.score_begin,
+                s.score_end,
+                s.is_fit,
+            )
         original = _parts(self.segments)
         self.parts = _parts(simulated)
         self.strides = {"fit": self.FIT_STRIDE, "screen": self.FIT_STRIDE, "val": 1, "all": 1}
@@ -138,8 +186,9 @@ class Problem:
                 window_offsets.append(offsets)
             rows, cols = np.concatenate(window_rows), np.concatenate(window_offsets)
             # the differentiator's support of every scored sample, as flat indices into the part's windows
-            self._gather[name] = ((rows * seg.length + cols - self.pad)[:, None]
-                                  + np.arange(len(self.coefficients), dtype=np.int64)[None, :])
+            self._gather[name] = (rows * seg.length + cols - self.pad)[:, None] + np.arange(
+                len(self.coefficients), dtype=np.int64
+            )[None, :]
             self.scored[name] = original[name].starts[rows] + cols
             self.measured[name] = rec.velocity_rad_s[self.scored[name]]
         # each part runs on its own windows laid end to end (the screening part on a quarter of
@@ -148,12 +197,19 @@ class Problem:
         for name, seg in self.parts.items():
             if len(seg) * seg.length < len(self.signals):
                 ends = np.arange(len(seg), dtype=np.int64) * seg.length
-                self._runs[name] = (self.signals.subset(seg.window_indices().ravel()),
-                                    Segments(ends, seg.length, seg.score_begin, seg.score_end, seg.is_fit))
+                self._runs[name] = (
+                    self.signals.subset(seg.window_indices().ravel()),
+                    Segments(ends, seg.length, seg.score_begin, seg.score_end, seg.is_fit),
+                )
 
-    def simulate(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
+    def simulate(
+        self, structure: ModelStructure, values: dict[str, float], part: str = "fit"
+    ) -> np.ndarray:
         """Simulated arm velocity (by the tool's velocity definition) at the part's scored samples."""
-        signals, seg = (structure.per_sample and self._runs.get(part)) or (self.signals, self.parts[part])
+        signals, seg = (structure.per_sample and self._runs.get(part)) or (
+            self.signals,
+            self.parts[part],
+        )
         drive = structure.drive(values, signals)
         motor = structure.baseline.motor(values)
         w0 = signals.velocity_rad_s[seg.starts]
@@ -176,7 +232,9 @@ class Problem:
         angle = structure.measured_angle(values, signals, angle)
         return angle.ravel()[self._gather[part]] @ self.coefficients
 
-    def residual(self, structure: ModelStructure, values: dict[str, float], part: str = "fit") -> np.ndarray:
+    def residual(
+        self, structure: ModelStructure, values: dict[str, float], part: str = "fit"
+    ) -> np.ndarray:
         return self.measured[part] - self.simulate(structure, values, part)
 
     def rmse(self, structure: ModelStructure, values: dict[str, float], part: str = "val") -> float:
@@ -194,8 +252,12 @@ def _parts(segments: Segments) -> dict[str, Segments]:
     fit_part = segments.subset(segments.is_fit)
     screen = np.zeros(len(fit_part), bool)
     screen[::2] = True
-    return {"fit": fit_part, "val": segments.subset(~segments.is_fit), "all": segments,
-            "screen": fit_part.subset(screen) if len(fit_part) > 3 else fit_part}
+    return {
+        "fit": fit_part,
+        "val": segments.subset(~segments.is_fit),
+        "all": segments,
+        "screen": fit_part.subset(screen) if len(fit_part) > 3 else fit_part,
+    }
 
 
 def _spread(segments: Segments, most: int) -> Segments:
@@ -208,7 +270,7 @@ def _spread(segments: Segments, most: int) -> Segments:
     chosen = np.unique(np.linspace(0, groups - 1, most // 4).round().astype(int))
     keep = np.zeros(len(segments), bool)
     for g in chosen:
-        keep[4 * g:4 * g + 4] = True
+        keep[4 * g : 4 * g + 4] = True
     return segments.subset(keep)
 
 
@@ -228,9 +290,16 @@ class FitResult:
         return self.structure.names
 
 
-def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, float]],
-        free: Sequence[str] | None = None, max_nfev: int = 40, scout_nfev: int = 3,
-        progress: Callable[[], None] | None = None, part: str = "fit") -> FitResult:
+def fit(
+    problem: Problem,
+    structure: ModelStructure,
+    starts: Sequence[dict[str, float]],
+    free: Sequence[str] | None = None,
+    max_nfev: int = 40,
+    scout_nfev: int = 3,
+    progress: Callable[[], None] | None = None,
+    part: str = "fit",
+) -> FitResult:
     """Least-squares fit of the parameters of ``structure`` on the fit segments.
 
     ``starts`` are initial guesses (missing names take the nominal value). With several,
@@ -276,8 +345,18 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
     def run(x0, nfev):
         x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
         with np.errstate(all="ignore"):
-            return least_squares(fun, x0, bounds=(lo, hi), x_scale="jac", diff_step=DIFF_STEP, method="trf",
-                                 max_nfev=nfev, xtol=1e-5, ftol=1e-5, gtol=1e-8)
+            return least_squares(
+                fun,
+                x0,
+                bounds=(lo, hi),
+                x_scale="jac",
+                diff_step=DIFF_STEP,
+                method="trf",
+                max_nfev=nfev,
+                xtol=1e-5,
+                ftol=1e-5,
+                gtol=1e-8,
+            )
 
     candidates = [internal_vector(params, s) for s in starts] or [internal_vector(params, {})]
     scouts = []
@@ -289,7 +368,9 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
         x_start = min(scouts, key=lambda r: r.cost).x
     else:
         x_start = candidates[0]
-    result = min([run(x_start, max_nfev), *scouts], key=lambda r: r.cost)  # never worse than a start
+    result = min(
+        [run(x_start, max_nfev), *scouts], key=lambda r: r.cost
+    )  # never worse than a start
     values = values_of(result.x)
     n_data = len(result.fun) - prior_index.size
     r_fit = result.fun[:n_data] if part == "fit" else problem.residual(structure, values, "fit")
@@ -297,7 +378,16 @@ def fit(problem: Problem, structure: ModelStructure, starts: Sequence[dict[str, 
     rmse_val = problem.rmse(structure, values, "val")
     unc = {p.name: math.nan for p in every}
     unc.update(_uncertainties(params, result, result.fun[:n_data]))
-    return FitResult(structure, values, unc, rmse_fit, rmse_val, n_eval, bool(result.success), str(result.message))
+    return FitResult(
+        structure,
+        values,
+        unc,
+        rmse_fit,
+        rmse_val,
+        n_eval,
+        bool(result.success),
+        str(result.message),
+    )
 
 
 def _uncertainties(params: Sequence[Parameter], result, r: np.ndarray) -> dict[str, float]:
@@ -318,19 +408,34 @@ def _uncertainties(params: Sequence[Parameter], result, r: np.ndarray) -> dict[s
     return {q.name: (math.nan if b else float(s)) for q, s, b in zip(params, sd, at_bound)}
 
 
-def torque_balance(drive: Drive, motor: MotorConstants, w: np.ndarray, acc: np.ndarray) -> np.ndarray:
+def torque_balance(
+    drive: Drive, motor: MotorConstants, w: np.ndarray, acc: np.ndarray
+) -> np.ndarray:
     """The torque a model leaves unexplained at a measured velocity and acceleration
     (inverse dynamics of the rigid drive equation): drive minus losses minus J w'."""
     friction = drive.coulomb_Nm
     if np.any(drive.static_excess_Nm):
         friction = friction + drive.static_excess_Nm * np.exp(
-            -np.power(np.abs(w) / drive.stribeck_velocity_rad_s, drive.stribeck_exponent))
-    return (motor.gain_arm * drive.voltage_V - (motor.emf_damping_arm + drive.viscous_Nm_s) * w - drive.tau_motor_Nm
-            - drive.tau_arm_Nm - drive.quadratic_Nm_s2 * w * w - friction * np.sign(w) - drive.inertia_kgm2 * acc)
+            -np.power(np.abs(w) / drive.stribeck_velocity_rad_s, drive.stribeck_exponent)
+        )
+    return (
+        motor.gain_arm * drive.voltage_V
+        - (motor.emf_damping_arm + drive.viscous_Nm_s) * w
+        - drive.tau_motor_Nm
+        - drive.tau_arm_Nm
+        - drive.quadratic_Nm_s2 * w * w
+        - friction * np.sign(w)
+        - drive.inertia_kgm2 * acc
+    )
 
 
-def equation_error_start(problem: Problem, structure: ModelStructure, values: dict[str, float], effect: Effect,
-                         grid: Sequence[dict[str, float]]) -> tuple[dict[str, float], float]:
+def equation_error_start(
+    problem: Problem,
+    structure: ModelStructure,
+    values: dict[str, float],
+    effect: Effect,
+    grid: Sequence[dict[str, float]],
+) -> tuple[dict[str, float], float]:
     """A starting point for ``effect`` (the last one in ``structure``) from inverse dynamics.
 
     For each point of ``grid`` (the effect's non-linear parameters) the missing torque at
@@ -343,7 +448,9 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
 
     amplitudes = effect.linear
     if amplitudes is None:
-        raise ValueError(f"effect {effect.name} has no torque form (linear is None): it has no equation-error start")
+        raise ValueError(
+            f"effect {effect.name} has no torque form (linear is None): it has no equation-error start"
+        )
     s = problem.signals
     if "eq_error" not in s._cache:
         w = s.velocity_rad_s
@@ -357,6 +464,7 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
     by_name = {p.name: p for p in structure.parameters}
 
     if structure.per_sample:  # the drive at the chosen samples alone (the same values)
+
         def missing(v):
             return torque_balance(structure.drive(v, at_sel), motor, w, acc)
     else:
@@ -391,8 +499,13 @@ def equation_error_start(problem: Problem, structure: ModelStructure, values: di
     return best, best_cost
 
 
-def baseline_model(nominal: DriveNominal, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
-                   recording: Recording | None = None):
+def baseline_model(
+    nominal: DriveNominal,
+    baseline: str = "lumped",
+    free: Sequence[str] = (),
+    model_path=None,
+    recording: Recording | None = None,
+):
     """The baseline model object by name: ``lumped`` or ``multibody`` (the reduced model of
     the machine of ``nominal``, or of the MJCF at ``model_path``), around the described drive.
     With ``recording``, the terms every machine of the kind may need are chosen from it (see
@@ -400,8 +513,12 @@ def baseline_model(nominal: DriveNominal, baseline: str = "lumped", free: Sequen
     free = tuple(free)
     unknown = [f for f in free if f not in ("R", "Kt", "Ke")]
     if unknown:
-        raise UserError(f"--free: unknown motor constant(s) {', '.join(unknown)}; choose from R, Kt, Ke")
-    offset, gravity, notes = baseline_terms(nominal, recording) if recording is not None else (False, False, ())
+        raise UserError(
+            f"--free: unknown motor constant(s) {', '.join(unknown)}; choose from R, Kt, Ke"
+        )
+    offset, gravity, notes = (
+        baseline_terms(nominal, recording) if recording is not None else (False, False, ())
+    )
     if baseline == "lumped":
         return LumpedBaseline(nominal, free, offset=offset, gravity=gravity, notes=notes)
     if baseline == "multibody":
@@ -423,29 +540,47 @@ def baseline_terms(nominal: DriveNominal, rec: Recording) -> tuple[bool, bool, t
 
     notes = []
     offset = turns_both_ways(rec.velocity_rad_s)
-    notes.append("a constant offset torque is fitted: the shaft turns both ways, so it is separable from Coulomb friction"
-                 if offset else "no constant offset torque: the shaft turns one way, where a constant torque is the Coulomb level")
+    notes.append(
+        "a constant offset torque is fitted: the shaft turns both ways, so it is separable from Coulomb friction"
+        if offset
+        else "no constant offset torque: the shaft turns one way, where a constant torque is the Coulomb level"
+    )
     gravity = False
     if nominal.linkage is not None:
         g = nominal.linkage.at("gravity_torque_Nm", rec.arm_angle_rad)
         drive = nominal.motor.gain_arm * rec.voltage_V
         ratio = float(np.sqrt(np.mean(g * g)) / max(np.sqrt(np.mean(drive * drive)), 1e-12))
         gravity = ratio >= GRAVITY_SIGNIFICANT
-        notes.append(f"the model's gravity torque G(theta) is carried (a prior, scale 1 within the CAD's tolerance): its rms "
-                     f"over the recorded angles is {100 * ratio:.3g} % of the rms drive torque"
-                     if gravity else f"the model's gravity torque is left out: its rms over the recorded angles is "
-                                     f"{100 * ratio:.2g} % of the rms drive torque")
+        notes.append(
+            f"the model's gravity torque G(theta) is carried (a prior, scale 1 within the CAD's tolerance): its rms "
+            f"over the recorded angles is {100 * ratio:.3g} % of the rms drive torque"
+            if gravity
+            else f"the model's gravity torque is left out: its rms over the recorded angles is "
+            f"{100 * ratio:.2g} % of the rms drive torque"
+        )
     else:
-        notes.append("no gravity torque: the drive is described by its lumped numbers alone (no machine model)")
+        notes.append(
+            "no gravity torque: the drive is described by its lumped numbers alone (no machine model)"
+        )
     return offset, gravity, tuple(notes)
 
 
-def fit_baseline(problem: Problem, baseline: str = "lumped", free: Sequence[str] = (), model_path=None,
-                 progress: Callable[[], None] | None = None) -> FitResult:
+def fit_baseline(
+    problem: Problem,
+    baseline: str = "lumped",
+    free: Sequence[str] = (),
+    model_path=None,
+    progress: Callable[[], None] | None = None,
+) -> FitResult:
     """The baseline fitted from its equation-error start (and from the nominal values)."""
     model = baseline_model(problem.nominal, baseline, free, model_path, problem.recording)
     start = initial_baseline_values(problem, model)
-    return fit(problem, ModelStructure(model), [start, {p.name: p.nominal for p in model.parameters}], progress=progress)
+    return fit(
+        problem,
+        ModelStructure(model),
+        [start, {p.name: p.nominal for p in model.parameters}],
+        progress=progress,
+    )
 
 
 def damping_below_datasheet(result: FitResult) -> bool:
@@ -455,7 +590,9 @@ def damping_below_datasheet(result: FitResult) -> bool:
     0.021; in SI units a DC motor has Kt = Ke, and speed data sees only Ke relative to
     Kt/R.)"""
     viscous = result.values.get("viscous_motor_side_Nm_s_per_rad")
-    return viscous is not None and "motor_back_emf_V_s_per_rad" not in result.values and viscous < 1e-7
+    return (
+        viscous is not None and "motor_back_emf_V_s_per_rad" not in result.values and viscous < 1e-7
+    )
 
 
 def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
@@ -490,15 +627,24 @@ def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
     ke = by_name.get("motor_back_emf_V_s_per_rad")
     if ke is not None and c_arm < 0:
         # less damping than the datasheet back-emf gives: the back-emf constant is smaller
-        keep = 0.25 * by_name["viscous_motor_side_Nm_s_per_rad"].nominal * n * n  # start off the bound
-        k = ke.nominal + (c_arm - keep) * motor.resistance_ohm / (n * n * motor.torque_constant_Nm_per_A)
+        keep = (
+            0.25 * by_name["viscous_motor_side_Nm_s_per_rad"].nominal * n * n
+        )  # start off the bound
+        k = ke.nominal + (c_arm - keep) * motor.resistance_ohm / (
+            n * n * motor.torque_constant_Nm_per_A
+        )
         values[ke.name] = float(min(max(k, ke.lower), ke.upper))
         c_arm = keep
-    if "inertia_correction_motor_side_kgm2" in by_name:  # the multibody baseline: a correction to the model's mean
+    if (
+        "inertia_correction_motor_side_kgm2" in by_name
+    ):  # the multibody baseline: a correction to the model's mean
         j_arm = j_arm - baseline.tables.mean_inertia_kgm2
-    for p, value in (("inertia_motor_side_kgm2", j_arm / n**2), ("inertia_correction_motor_side_kgm2", j_arm / n**2),
-                     ("viscous_motor_side_Nm_s_per_rad", c_arm / n**2),
-                     ("coulomb_arm_Nm", fc)):
+    for p, value in (
+        ("inertia_motor_side_kgm2", j_arm / n**2),
+        ("inertia_correction_motor_side_kgm2", j_arm / n**2),
+        ("viscous_motor_side_Nm_s_per_rad", c_arm / n**2),
+        ("coulomb_arm_Nm", fc),
+    ):
         par = by_name.get(p)
         if par is not None and np.isfinite(value) and par.lower < value < par.upper:
             values[p] = float(value)
@@ -525,8 +671,15 @@ class IdentificationResult:
         rec = self.recording
         prediction = self.problem.full_prediction(self.fit.structure, self.fit.values)
         nominal = self.problem.nominal
-        return Traces(rec.time_s, rec.arm_angle_rad, rec.voltage_V, rec.velocity_rad_s, {self.baseline: prediction},
-                      ratio=nominal.ratio, zero_meaning=nominal.zero_meaning)
+        return Traces(
+            rec.time_s,
+            rec.arm_angle_rad,
+            rec.voltage_V,
+            rec.velocity_rad_s,
+            {self.baseline: prediction},
+            ratio=nominal.ratio,
+            zero_meaning=nominal.zero_meaning,
+        )
 
     @property
     def rmse(self) -> float:
@@ -542,7 +695,10 @@ class IdentificationResult:
             "rmse": self.fit.rmse_val,
             "rmse_fit": self.fit.rmse_fit,
             "rmse_definition": "RMS of measured minus simulated arm velocity [rad/s] on the validation segments; both by the same Savitzky-Golay differentiator (21 ms, degree 4) of an angle; each 1 s segment restarts from the measured velocity after a 0.25 s burn-in",
-            "split": {"segments_fit": int(self.problem.parts["fit"].starts.size), "segments_validation": int(self.problem.parts["val"].starts.size)},
+            "split": {
+                "segments_fit": int(self.problem.parts["fit"].starts.size),
+                "segments_validation": int(self.problem.parts["val"].starts.size),
+            },
             "reading": self.recording.reading,
         }
 
@@ -571,8 +727,15 @@ class NotIdentifiable(UserError):
     """The recording does not excite the machine enough to identify anything."""
 
 
-def identify(recording: Recording, baseline: str = "lumped", free: Sequence[str] = (),
-             progress: Callable[[], None] | None = None, model_path=None, *, nominal: DriveNominal) -> IdentificationResult:
+def identify(
+    recording: Recording,
+    baseline: str = "lumped",
+    free: Sequence[str] = (),
+    progress: Callable[[], None] | None = None,
+    model_path=None,
+    *,
+    nominal: DriveNominal,
+) -> IdentificationResult:
     """Fit the baseline (inertia, viscous and Coulomb friction; the motor constants named in
     ``free``) by simulation-error minimisation; rmse on the validation segments. ``nominal``:
     the described drive (starting values and bounds scale from it)."""

@@ -7,7 +7,11 @@ import numpy as np
 
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Signals, lagged_voltage
 from mechanism.sysid.parameters import Parameter
-from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_MEAN_INERTIA_TOLERANCE, PRIOR_BOUND_SIGMAS
+from mechanism.tolerances import (
+    CAD_GRAVITY_TOLERANCE,
+    CAD_MEAN_INERTIA_TOLERANCE,
+    PRIOR_BOUND_SIGMAS,
+)
 
 
 MOTOR_PARAMETER_NAMES = {
@@ -23,7 +27,16 @@ def motor_parameters(motor: MotorConstants, free: tuple[str, ...] = ()) -> list[
     for short in free:
         key = MOTOR_PARAMETER_NAMES[short]
         value = getattr(motor, key)
-        out.append(Parameter(f"motor_{key}", value, 0.5 * value, 1.5 * value, f"motor {short} (datasheet {value:g})", log=True))
+        out.append(
+            Parameter(
+                f"motor_{key}",
+                value,
+                0.5 * value,
+                1.5 * value,
+                f"motor {short} (datasheet {value:g})",
+                log=True,
+            )
+        )
     return out
 
 
@@ -42,7 +55,11 @@ class LumpedBaseline:
     convention is a 0.5 ms lag)."""
 
     name = "lumped"
-    linear: tuple[str, ...] = ("inertia_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
+    linear: tuple[str, ...] = (
+        "inertia_motor_side_kgm2",
+        "viscous_motor_side_Nm_s_per_rad",
+        "coulomb_arm_Nm",
+    )
     meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the belt"
 
     # bounds as factors of the description's values: wide enough for a machine 14x lighter or
@@ -51,8 +68,15 @@ class LumpedBaseline:
     VISCOUS_UPPER = 200 / 11
     COULOMB_UPPER = 100 / 9
 
-    def __init__(self, nominal: DriveNominal, free: tuple[str, ...] = (), *, offset: bool = False,
-                 gravity: bool = False, notes: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        nominal: DriveNominal,
+        free: tuple[str, ...] = (),
+        *,
+        offset: bool = False,
+        gravity: bool = False,
+        notes: tuple[str, ...] = (),
+    ):
         """``offset``: a constant torque on the shaft (a positioning axis's cable or spring, an
         unbalance) is fitted; it needs a shaft that turns both ways (one way only, it is the
         Coulomb level). ``gravity``: the model's gravity torque G(theta) acts on the shaft,
@@ -61,66 +85,134 @@ class LumpedBaseline:
         self.nominal = nominal
         self.offset, self.gravity = offset, gravity
         self.notes = tuple(notes)
-        j, d, fc = nominal.inertia_motor_side_kgm2, nominal.viscous_motor_side, nominal.torque_scale_Nm
+        j, d, fc = (
+            nominal.inertia_motor_side_kgm2,
+            nominal.viscous_motor_side,
+            nominal.torque_scale_Nm,
+        )
         lo, hi = self.INERTIA_RANGE
-        described = nominal.linkage is not None  # the inertia is the model's: a prior, not a free factor
+        described = (
+            nominal.linkage is not None
+        )  # the inertia is the model's: a prior, not a free factor
         self.parameters = (
-            Parameter("inertia_motor_side_kgm2", j, lo * j, hi * j,
-                      f"total inertia seen by the motor (described {j:.3g})", log=True,
-                      prior_sd=CAD_MEAN_INERTIA_TOLERANCE if described else 0.0),
-            Parameter("viscous_motor_side_Nm_s_per_rad", d, 0.0, self.VISCOUS_UPPER * d,
-                      f"viscous friction on the motor side (described {d:.3g})", scale=10 / 11 * d),
-            Parameter("coulomb_arm_Nm", fc, 0.0, self.COULOMB_UPPER * fc,
-                      f"kinetic (Coulomb) friction on the described shaft (described {fc:.3g})", scale=10 / 9 * fc),
-            Parameter("electrical_time_constant_s", 5e-4, 1e-5, 0.03,
-                      "winding inductance over resistance, L/R (neglected in the thesis)", log=True),
+            Parameter(
+                "inertia_motor_side_kgm2",
+                j,
+                lo * j,
+                hi * j,
+                f"total inertia seen by the motor (described {j:.3g})",
+                log=True,
+                prior_sd=CAD_MEAN_INERTIA_TOLERANCE if described else 0.0,
+            ),
+            Parameter(
+                "viscous_motor_side_Nm_s_per_rad",
+                d,
+                0.0,
+                self.VISCOUS_UPPER * d,
+                f"viscous friction on the motor side (described {d:.3g})",
+                scale=10 / 11 * d,
+            ),
+            Parameter(
+                "coulomb_arm_Nm",
+                fc,
+                0.0,
+                self.COULOMB_UPPER * fc,
+                f"kinetic (Coulomb) friction on the described shaft (described {fc:.3g})",
+                scale=10 / 9 * fc,
+            ),
+            Parameter(
+                "electrical_time_constant_s",
+                5e-4,
+                1e-5,
+                0.03,
+                "winding inductance over resistance, L/R (neglected in the thesis)",
+                log=True,
+            ),
             *motor_parameters(nominal.motor, free),
         )
         if offset:
-            self.parameters += (Parameter("offset_torque_arm_Nm", 0.0, -self.COULOMB_UPPER * fc, self.COULOMB_UPPER * fc,
-                                          "constant torque on the described shaft, resisting forward motion (a cable, a "
-                                          "spring preload, an unbalance, a current sensor's offset)", scale=fc),)
+            self.parameters += (
+                Parameter(
+                    "offset_torque_arm_Nm",
+                    0.0,
+                    -self.COULOMB_UPPER * fc,
+                    self.COULOMB_UPPER * fc,
+                    "constant torque on the described shaft, resisting forward motion (a cable, a "
+                    "spring preload, an unbalance, a current sensor's offset)",
+                    scale=fc,
+                ),
+            )
             self.linear = (*self.linear, "offset_torque_arm_Nm")
         if gravity:
             sd = CAD_GRAVITY_TOLERANCE
-            self.parameters += (Parameter("gravity_scale", 1.0, max(1.0 - PRIOR_BOUND_SIGMAS * sd, 0.1),
-                                          1.0 + PRIOR_BOUND_SIGMAS * sd,
-                                          f"factor on the model's gravity torque G(theta) (prior 1 +/- {sd:.0%}: the CAD's "
-                                          f"masses and centres of mass)", scale=1.0, prior_sd=sd),)
+            self.parameters += (
+                Parameter(
+                    "gravity_scale",
+                    1.0,
+                    max(1.0 - PRIOR_BOUND_SIGMAS * sd, 0.1),
+                    1.0 + PRIOR_BOUND_SIGMAS * sd,
+                    f"factor on the model's gravity torque G(theta) (prior 1 +/- {sd:.0%}: the CAD's "
+                    f"masses and centres of mass)",
+                    scale=1.0,
+                    prior_sd=sd,
+                ),
+            )
         self.free = tuple(free)
 
     @property
     def terms(self) -> dict:
         """Which terms this baseline carries and why (for the JSON)."""
-        return {"constant_offset_torque": self.offset, "model_gravity_torque": self.gravity, "why": list(self.notes)}
+        return {
+            "constant_offset_torque": self.offset,
+            "model_gravity_torque": self.gravity,
+            "why": list(self.notes),
+        }
 
     def shaft_torque(self, values: dict[str, float], signals: Signals):
         """The offset and the model's gravity torque at the measured angle (resisting; arm side), or None."""
         torque = None
         if self.gravity:
-            linkage = self.nominal.linkage  # one table per model: baselines of two models may share the signals
+            linkage = (
+                self.nominal.linkage
+            )  # one table per model: baselines of two models may share the signals
             if linkage is None:  # baseline_terms asks for gravity only where the tables are
-                raise ValueError("a gravity torque needs the machine model's linkage tables (nominal.linkage)")
+                raise ValueError(
+                    "a gravity torque needs the machine model's linkage tables (nominal.linkage)"
+                )
             # the entry holds the linkage itself: while it is cached its id cannot be reused by
             # another model's linkage (an id alone outlives a collected object)
-            held, table = signals.memo("model_gravity_Nm", id(linkage),
-                                       lambda: (linkage, linkage.at("gravity_torque_Nm", signals.drive_angle_rad)))
+            held, table = signals.memo(
+                "model_gravity_Nm",
+                id(linkage),
+                lambda: (linkage, linkage.at("gravity_torque_Nm", signals.drive_angle_rad)),
+            )
             if held is not linkage:
                 table = linkage.at("gravity_torque_Nm", signals.drive_angle_rad)
             torque = values["gravity_scale"] * table
         if self.offset:
-            torque = values["offset_torque_arm_Nm"] + (torque if torque is not None else np.zeros(len(signals)))
+            torque = values["offset_torque_arm_Nm"] + (
+                torque if torque is not None else np.zeros(len(signals))
+            )
         return torque
 
     def motor(self, values: dict[str, float]) -> MotorConstants:
         base = self.nominal.motor
-        changes = {key: values[f"motor_{key}"] for key in MOTOR_PARAMETER_NAMES.values() if f"motor_{key}" in values}
+        changes = {
+            key: values[f"motor_{key}"]
+            for key in MOTOR_PARAMETER_NAMES.values()
+            if f"motor_{key}" in values
+        }
         return MotorConstants(**{**base.__dict__, **changes}) if changes else base
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         n = signals.ratio
-        drive = Drive.constant(signals, signals.voltage_V, values["inertia_motor_side_kgm2"] * n**2,
-                               values["viscous_motor_side_Nm_s_per_rad"] * n**2, values["coulomb_arm_Nm"])
+        drive = Drive.constant(
+            signals,
+            signals.voltage_V,
+            values["inertia_motor_side_kgm2"] * n**2,
+            values["viscous_motor_side_Nm_s_per_rad"] * n**2,
+            values["coulomb_arm_Nm"],
+        )
         torque = self.shaft_torque(values, signals)
         if torque is not None:
             drive.tau_arm_Nm = torque  # a fresh array: effects add to it in place
@@ -140,6 +232,11 @@ class LumpedBaseline:
             drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)
         if tau > 0.02 * signals.dt:
             # a filter over the past: on the whole recording, read at these samples
-            lag = signals.history("lagged_speed", tau,
-                                  lambda whole: lagged_voltage(whole.velocity_rad_s, tau, whole.dt) - whole.velocity_rad_s)
+            lag = signals.history(
+                "lagged_speed",
+                tau,
+                lambda whole: (
+                    lagged_voltage(whole.velocity_rad_s, tau, whole.dt) - whole.velocity_rad_s
+                ),
+            )
             drive.tau_motor_Nm = drive.tau_motor_Nm + self.motor(values).emf_damping_arm * lag

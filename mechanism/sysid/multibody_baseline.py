@@ -21,15 +21,32 @@ from __future__ import annotations
 from mechanism.dynamics.lumped import Drive, Signals
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import Parameter
-from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_INERTIA_TOLERANCE, MOTOR_DATASHEET_TOLERANCE, PRIOR_BOUND_SIGMAS
+from mechanism.tolerances import (
+    CAD_GRAVITY_TOLERANCE,
+    CAD_INERTIA_TOLERANCE,
+    MOTOR_DATASHEET_TOLERANCE,
+    PRIOR_BOUND_SIGMAS,
+)
 
 
 class MultibodyBaseline(LumpedBaseline):
     name = "multibody"
-    linear = ("inertia_correction_motor_side_kgm2", "viscous_motor_side_Nm_s_per_rad", "coulomb_arm_Nm")
+    linear = (
+        "inertia_correction_motor_side_kgm2",
+        "viscous_motor_side_Nm_s_per_rad",
+        "coulomb_arm_Nm",
+    )
     meaning = "the CAD model's reduced 1-DOF dynamics (angle-dependent inertia and gravity) with viscous and Coulomb friction"
 
-    def __init__(self, nominal, free: tuple[str, ...] = (), model_path=None, *, offset: bool = False, notes: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        nominal,
+        free: tuple[str, ...] = (),
+        model_path=None,
+        *,
+        offset: bool = False,
+        notes: tuple[str, ...] = (),
+    ):
         super().__init__(nominal, free, offset=offset, notes=notes)
         self.gravity = True
         self.tables = linkage_tables(nominal, model_path)
@@ -38,48 +55,99 @@ class MultibodyBaseline(LumpedBaseline):
         lumped = {p.name: p for p in self.parameters}
         g, j = CAD_GRAVITY_TOLERANCE, CAD_INERTIA_TOLERANCE
         self.parameters = (
-            Parameter("inertia_correction_motor_side_kgm2", 0.0, -0.9 * mean_motor_side, max(5e-4, 10 * mean_motor_side),
-                      f"constant inertia added to the CAD model's (its mean is {mean_motor_side:.3g} kg m^2 motor side)",
-                      scale=max(1e-5, 0.1 * mean_motor_side)),
+            Parameter(
+                "inertia_correction_motor_side_kgm2",
+                0.0,
+                -0.9 * mean_motor_side,
+                max(5e-4, 10 * mean_motor_side),
+                f"constant inertia added to the CAD model's (its mean is {mean_motor_side:.3g} kg m^2 motor side)",
+                scale=max(1e-5, 0.1 * mean_motor_side),
+            ),
             lumped["viscous_motor_side_Nm_s_per_rad"],
             lumped["coulomb_arm_Nm"],
             lumped["electrical_time_constant_s"],
-            Parameter("cad_inertia_variation_scale", 1.0, max(1.0 - PRIOR_BOUND_SIGMAS * j, 0.1), 1.0 + PRIOR_BOUND_SIGMAS * j,
-                      f"factor on the CAD's angle-dependent inertia (prior 1 +/- {j:.0%}: masses of moving parts the export "
-                      f"may get wrong)", scale=1.0, prior_sd=j),
-            Parameter("cad_gravity_scale", 1.0, max(1.0 - PRIOR_BOUND_SIGMAS * g, 0.1), 1.0 + PRIOR_BOUND_SIGMAS * g,
-                      f"factor on the CAD's gravity torque (prior 1 +/- {g:.0%})", scale=1.0, prior_sd=g),
-            *[p for p in self.parameters if p.name.startswith("motor_") or p.name == "offset_torque_arm_Nm"],
+            Parameter(
+                "cad_inertia_variation_scale",
+                1.0,
+                max(1.0 - PRIOR_BOUND_SIGMAS * j, 0.1),
+                1.0 + PRIOR_BOUND_SIGMAS * j,
+                f"factor on the CAD's angle-dependent inertia (prior 1 +/- {j:.0%}: masses of moving parts the export "
+                f"may get wrong)",
+                scale=1.0,
+                prior_sd=j,
+            ),
+            Parameter(
+                "cad_gravity_scale",
+                1.0,
+                max(1.0 - PRIOR_BOUND_SIGMAS * g, 0.1),
+                1.0 + PRIOR_BOUND_SIGMAS * g,
+                f"factor on the CAD's gravity torque (prior 1 +/- {g:.0%})",
+                scale=1.0,
+                prior_sd=g,
+            ),
+            *[
+                p
+                for p in self.parameters
+                if p.name.startswith("motor_") or p.name == "offset_torque_arm_Nm"
+            ],
         )
         kt = "motor_torque_constant_Nm_per_A"
-        if getattr(nominal, "travel_rad", None) is not None and kt not in {p.name for p in self.parameters}:
+        if getattr(nominal, "travel_rad", None) is not None and kt not in {
+            p.name for p in self.parameters
+        }:
             # A shaft that rocks spends its time accelerating, stopping and holding against
             # gravity: the CAD's inertia and gravity fix the torque scale, so the motor's torque
             # per volt is seen (on a turning machine's steady speeds only its ratio to friction
             # is). It is fitted within the datasheet's tolerance (3 sigma; as a soft prior it held
             # the fit off the optimum on the bench's rocker recordings).
-            value, bound = nominal.motor.torque_constant_Nm_per_A, PRIOR_BOUND_SIGMAS * MOTOR_DATASHEET_TOLERANCE
-            self.parameters += (Parameter(kt, value, value * (1.0 - bound), value * (1.0 + bound),
-                                          f"motor Kt (datasheet {value:g}, within +/- {bound:.0%}: the shaft rocks, so the "
-                                          f"CAD's inertia and gravity fix the torque per volt)", log=True),)
-            self.notes = (*self.notes, "the motor's torque constant is fitted within the datasheet's tolerance: the shaft "
-                                       "rocks, so the CAD's inertia and gravity fix the torque scale")
+            value, bound = (
+                nominal.motor.torque_constant_Nm_per_A,
+                PRIOR_BOUND_SIGMAS * MOTOR_DATASHEET_TOLERANCE,
+            )
+            self.parameters += (
+                Parameter(
+                    kt,
+                    value,
+                    value * (1.0 - bound),
+                    value * (1.0 + bound),
+                    f"motor Kt (datasheet {value:g}, within +/- {bound:.0%}: the shaft rocks, so the "
+                    f"CAD's inertia and gravity fix the torque per volt)",
+                    log=True,
+                ),
+            )
+            self.notes = (
+                *self.notes,
+                "the motor's torque constant is fitted within the datasheet's tolerance: the shaft "
+                "rocks, so the CAD's inertia and gravity fix the torque scale",
+            )
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         n = signals.ratio
         cache = signals._cache
         if "multibody_tables" not in cache:
             angle = signals.drive_angle_rad
-            cache["multibody_tables"] = (self.tables.mean_inertia_kgm2, self.tables.at("inertia_variation_kgm2", angle),
-                                         0.5 * self.tables.at("dinertia_drad", angle),
-                                         self.tables.at("gravity_torque_Nm", angle))
+            cache["multibody_tables"] = (
+                self.tables.mean_inertia_kgm2,
+                self.tables.at("inertia_variation_kgm2", angle),
+                0.5 * self.tables.at("dinertia_drad", angle),
+                self.tables.at("gravity_torque_Nm", angle),
+            )
         mean, variation, half_dj, gravity = cache["multibody_tables"]
-        drive = Drive.constant(signals, signals.voltage_V, 0.0, values["viscous_motor_side_Nm_s_per_rad"] * n**2,
-                               values["coulomb_arm_Nm"])
+        drive = Drive.constant(
+            signals,
+            signals.voltage_V,
+            0.0,
+            values["viscous_motor_side_Nm_s_per_rad"] * n**2,
+            values["coulomb_arm_Nm"],
+        )
         k = values["cad_inertia_variation_scale"]
-        drive.inertia_kgm2 = mean + values["inertia_correction_motor_side_kgm2"] * n**2 + k * variation
+        drive.inertia_kgm2 = (
+            mean + values["inertia_correction_motor_side_kgm2"] * n**2 + k * variation
+        )
         drive.quadratic_Nm_s2 = k * half_dj
-        drive.tau_arm_Nm = values["cad_gravity_scale"] * gravity + values.get("offset_torque_arm_Nm", 0.0)
+        drive.tau_arm_Nm = values["cad_gravity_scale"] * gravity + values.get(
+            "offset_torque_arm_Nm", 0.0
+        )
         return drive
 
 
@@ -103,8 +171,10 @@ def linkage_tables(nominal, model_path=None):
     model = load_model(model_path)
     joints = [model.joint(i).name for i in range(model.njnt)]
     if shaft not in joints:
-        raise UserError(f"the model {model_path or 'of the machine'} has no joint {shaft!r} (its joints: "
-                        f"{', '.join(joints) or 'none'}); give the machine's description with --machine, which names "
-                        f"its shaft joint and zero site")
+        raise UserError(
+            f"the model {model_path or 'of the machine'} has no joint {shaft!r} (its joints: "
+            f"{', '.join(joints) or 'none'}); give the machine's description with --machine, which names "
+            f"its shaft joint and zero site"
+        )
     sites = [model.site(i).name for i in range(model.nsite)]
     return compute_tables(model, shaft, zero if zero in sites else None)

@@ -27,17 +27,35 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
     others = {}
     for joint, r in tables.ratios.items():
         mean = float(np.mean(r))
-        if joint not in (machine.motor_joint, machine.shaft_joint) and abs(mean) > 1e-9 \
-                and np.ptp(r) <= CONSTANT_RATIO * abs(mean):
+        if (
+            joint not in (machine.motor_joint, machine.shaft_joint)
+            and abs(mean) > 1e-9
+            and np.ptp(r) <= CONSTANT_RATIO * abs(mean)
+        ):
             others[joint] = abs(mean)
     supply = machine.description.section("supply").get("voltage_V")
-    constants = MotorConstants(motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, ratio)
+    constants = MotorConstants(
+        motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, ratio
+    )
     description = machine.description
     if description.zero_site is not None:
-        zero = f"{description.zero_site} highest" if description.zero_site != machine.tool_site else f"{description.zero_site} at its top"
+        zero = (
+            f"{description.zero_site} highest"
+            if description.zero_site != machine.tool_site
+            else f"{description.zero_site} at its top"
+        )
     else:
         zero = f"{machine.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
-    return DriveNominal(constants, inertia_kgm2=tables.mean_inertia_kgm2, coulomb_shaft_Nm=coulomb,
-                        viscous_shaft_Nm_s_per_rad=viscous, joint_ratios=tuple(others.items()), supply_V=supply,
-                        tool_in_fabric=machine.fabric_capable, zero_meaning=zero, travel_rad=machine.shaft_span_rad,
-                        linkage=tables, roles=(machine.shaft_joint, machine.zero_site))
+    return DriveNominal(
+        constants,
+        inertia_kgm2=tables.mean_inertia_kgm2,
+        coulomb_shaft_Nm=coulomb,
+        viscous_shaft_Nm_s_per_rad=viscous,
+        joint_ratios=tuple(others.items()),
+        supply_V=supply,
+        tool_in_fabric=machine.fabric_capable,
+        zero_meaning=zero,
+        travel_rad=machine.shaft_span_rad,
+        linkage=tables,
+        roles=(machine.shaft_joint, machine.zero_site),
+    )

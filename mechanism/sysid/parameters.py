@@ -31,7 +31,9 @@ class Parameter:
 
     def __post_init__(self):
         if not self.lower <= self.nominal <= self.upper:
-            raise ValueError(f"{self.name}: nominal {self.nominal} outside [{self.lower}, {self.upper}]")
+            raise ValueError(
+                f"{self.name}: nominal {self.nominal} outside [{self.lower}, {self.upper}]"
+            )
         if self.log and self.lower <= 0:
             raise ValueError(f"{self.name}: a log-scaled parameter needs a positive lower bound")
 
@@ -74,10 +76,18 @@ def prior_weights(params: Sequence[Parameter]) -> tuple[np.ndarray, np.ndarray, 
     """Indices, internal nominal values and internal 1-sigmas of the parameters with a prior."""
     index = [i for i, p in enumerate(params) if p.prior_sd > 0]
     centre = np.array([params[i].to_internal(params[i].nominal) for i in index], dtype=float)
-    sd = np.array([params[i].prior_sd if params[i].log else params[i].prior_sd / params[i].typical for i in index], dtype=float)
+    sd = np.array(
+        [
+            params[i].prior_sd if params[i].log else params[i].prior_sd / params[i].typical
+            for i in index
+        ],
+        dtype=float,
+    )
     return np.array(index, dtype=int), centre, sd
 
 
 def internal_derivative(params: Sequence[Parameter], x: np.ndarray) -> np.ndarray:
     """d(value)/d(internal) for each parameter, to carry uncertainties back to values."""
-    return np.array([p.typical * math.exp(v) if p.log else p.typical for p, v in zip(params, x)], dtype=float)
+    return np.array(
+        [p.typical * math.exp(v) if p.log else p.typical for p, v in zip(params, x)], dtype=float
+    )

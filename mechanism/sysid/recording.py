@@ -47,7 +47,6 @@ MAX_GAP_S = 0.05
 ENCODER_STEP_RAD = 2 * np.pi / 20000
 
 
-
 @dataclass
 class Recording:
     """A validated bench recording on a uniform time grid (SI units)."""
@@ -58,7 +57,9 @@ class Recording:
     current_A: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
     source: str = "<recording>"
-    reading: dict = field(default_factory=dict)  # what was read and done (format, columns, units, resampling)
+    reading: dict = field(
+        default_factory=dict
+    )  # what was read and done (format, columns, units, resampling)
 
     @property
     def dt(self) -> float:
@@ -96,10 +97,14 @@ def smoothed_velocity(angle: np.ndarray, dt: float, axis: int = -1) -> np.ndarra
     angle = np.asarray(angle, dtype=float)
     if angle.shape[axis] < window:
         return np.gradient(angle, dt, axis=axis)
-    return savgol_filter(angle, window, VELOCITY_POLYORDER, deriv=1, delta=dt, axis=axis, mode="interp")
+    return savgol_filter(
+        angle, window, VELOCITY_POLYORDER, deriv=1, delta=dt, axis=axis, mode="interp"
+    )
 
 
-def read_recording(path: str | os.PathLike, recording_map=None, motor_joint: str | None = None) -> Recording:
+def read_recording(
+    path: str | os.PathLike, recording_map=None, motor_joint: str | None = None
+) -> Recording:
     """Read and validate a recording (see the module docstring for the contract) in any
     format :mod:`mechanism.files.formats` reads, its columns taken by ``recording_map`` (a
     :class:`~mechanism.sysid.recording_map.RecordingMap`, a path to a ``--recording-map``
@@ -113,11 +118,21 @@ def read_recording(path: str | os.PathLike, recording_map=None, motor_joint: str
     path = Path(path)
     if recording_map is not None and not isinstance(recording_map, RecordingMap):
         recording_map = read_recording_map(recording_map)
-    columns = read_columns(path, "recording", records=recording_map.get("records") if recording_map else None)
+    columns = read_columns(
+        path, "recording", records=recording_map.get("records") if recording_map else None
+    )
     signals = apply_map(columns, recording_map, motor_joint)
-    return make_recording(signals.time_s, signals.voltage_V, signals.shaft_angle_rad, signals.current_A,
-                          metadata=signals.metadata, source=str(path), label=f"recording {path}", unwrap=signals.unwrap,
-                          reading=signals.reading)
+    return make_recording(
+        signals.time_s,
+        signals.voltage_V,
+        signals.shaft_angle_rad,
+        signals.current_A,
+        metadata=signals.metadata,
+        source=str(path),
+        label=f"recording {path}",
+        unwrap=signals.unwrap,
+        reading=signals.reading,
+    )
 
 
 def sampling_gaps(time: np.ndarray) -> tuple[float, list[tuple[float, float]]]:
@@ -129,8 +144,17 @@ def sampling_gaps(time: np.ndarray) -> tuple[float, list[tuple[float, float]]]:
     return dt, [(float(time[i]), float(steps[i])) for i in big]
 
 
-def make_recording(time, voltage, arm_angle, current=None, metadata=None, source="<recording>", label=None,
-                   unwrap: bool | None = None, reading: dict | None = None) -> Recording:
+def make_recording(
+    time,
+    voltage,
+    arm_angle,
+    current=None,
+    metadata=None,
+    source="<recording>",
+    label=None,
+    unwrap: bool | None = None,
+    reading: dict | None = None,
+) -> Recording:
     """Validate arrays as a recording (the same checks as for a file). ``unwrap``: True
     unwraps, False never does, None unwraps only an angle found wrapped (with a warning)."""
     label = label or f"recording {source}"
@@ -144,30 +168,46 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
         columns["current"] = current
     for name, values in columns.items():
         if values.ndim != 1 or len(values) != len(time):
-            raise UserError(f"{label}: column {name} has {values.size} values, time has {len(time)}")
+            raise UserError(
+                f"{label}: column {name} has {values.size} values, time has {len(time)}"
+            )
         if not np.all(np.isfinite(values)):
-            raise UserError(f"{label}: column {name}: NaN/inf not allowed, found at data row {int(np.flatnonzero(~np.isfinite(values))[0]) + 1}")
+            raise UserError(
+                f"{label}: column {name}: NaN/inf not allowed, found at data row {int(np.flatnonzero(~np.isfinite(values))[0]) + 1}"
+            )
     if len(time) < 2:
-        raise UserError(f"{label}: {len(time)} data row(s); at least {MIN_DURATION_S:g} s of data needed")
+        raise UserError(
+            f"{label}: {len(time)} data row(s); at least {MIN_DURATION_S:g} s of data needed"
+        )
     check_increasing(time, label)
     duration = time[-1] - time[0]
     if duration < MIN_DURATION_S:
-        raise UserError(f"{label}: only {duration:.3g} s of data; at least {MIN_DURATION_S:g} s needed")
+        raise UserError(
+            f"{label}: only {duration:.3g} s of data; at least {MIN_DURATION_S:g} s needed"
+        )
     steps = np.diff(time)
     dt, gaps = sampling_gaps(time)
     if gaps:
         at, length = max(gaps, key=lambda g: g[1])
-        raise UserError(f"{label}: {len(gaps)} gap(s) in the sampling, the longest {length:.3g} s after t = {at:.6g} s "
-                        f"(sampling is every {dt:.3g} s); a gap is not interpolated over: mechanism inspect-recording --split DIR "
-                        "cuts it into gap-free pieces (a fleet for diagnose --out)")
+        raise UserError(
+            f"{label}: {len(gaps)} gap(s) in the sampling, the longest {length:.3g} s after t = {at:.6g} s "
+            f"(sampling is every {dt:.3g} s); a gap is not interpolated over: mechanism inspect-recording --split DIR "
+            "cuts it into gap-free pieces (a fleet for diagnose --out)"
+        )
     if dt > 0.01:
-        raise UserError(f"{label}: sampled every {dt:.3g} s; at least 100 Hz needed to see the machine's dynamics (nominally 1 kHz)")
+        raise UserError(
+            f"{label}: sampled every {dt:.3g} s; at least 100 Hz needed to see the machine's dynamics (nominally 1 kHz)"
+        )
     jumps = np.abs(np.diff(arm_angle))
     if unwrap is None and jumps.max() > np.pi:
         # A wrapped angle (0..2pi) instead of the unwrapped one of the contract: unwrap it.
-        warnings.warn(f"{label}: shaft_angle jumps by more than pi between samples; treating it as wrapped and unwrapping it")
+        warnings.warn(
+            f"{label}: shaft_angle jumps by more than pi between samples; treating it as wrapped and unwrapping it"
+        )
         arm_angle = np.unwrap(arm_angle)
-        reading.setdefault("shaft_angle_rad", {})["unwrapped"] = "yes: found wrapped (jumps of more than pi)"
+        reading.setdefault("shaft_angle_rad", {})["unwrapped"] = (
+            "yes: found wrapped (jumps of more than pi)"
+        )
     deviation = float(np.max(np.abs(steps - dt)) / dt)
     # the grid's step: float rounding of large time stamps (epoch seconds or ms) moves the median
     # step by a whole rounding quantum (2.4e-7 s at 1.7e9 s: half a sample over a minute at
@@ -186,9 +226,12 @@ def make_recording(time, voltage, arm_angle, current=None, metadata=None, source
         current = np.interp(grid, time, current) if current is not None else None
         reading["resampling"] = {
             "method": "onto a uniform grid at the mean step: voltage held from the last sample (zero-order hold), "
-                      "shaft angle and current interpolated linearly",
-            "rate_Hz": 1.0 / dt, "samples_in": int(len(time)), "samples_out": int(len(grid)),
-            "largest_step_deviation_percent": 100 * deviation}
+            "shaft angle and current interpolated linearly",
+            "rate_Hz": 1.0 / dt,
+            "samples_in": int(len(time)),
+            "samples_out": int(len(grid)),
+            "largest_step_deviation_percent": 100 * deviation,
+        }
         time = grid
     else:
         reading["resampling"] = {"method": "none: steps uniform within 1 %", "rate_Hz": 1.0 / dt}
@@ -210,8 +253,15 @@ def at_fitting_rate(rec: Recording) -> Recording:
         return rec
     n = len(rec) // m * m
     current = rec.current_A[:n:m] if rec.current_A is not None else None
-    return Recording(rec.time_s[:n:m].copy(), rec.voltage_V[:n].reshape(-1, m).mean(axis=1), rec.arm_angle_rad[:n:m].copy(),
-                     current, dict(rec.metadata), rec.source, dict(rec.reading))
+    return Recording(
+        rec.time_s[:n:m].copy(),
+        rec.voltage_V[:n].reshape(-1, m).mean(axis=1),
+        rec.arm_angle_rad[:n:m].copy(),
+        current,
+        dict(rec.metadata),
+        rec.source,
+        dict(rec.reading),
+    )
 
 
 @dataclass
@@ -233,7 +283,11 @@ def check_excitation(rec: Recording) -> Excitation:
     spread = hi - lo
     levels = _voltage_levels(u)
     if spread < max(0.5, 0.05 * abs(np.median(u))):
-        return Excitation(False, f"the voltage is constant ({np.median(u):.3g} V, spread {spread:.2g} V): one operating point cannot separate inertia, viscous and Coulomb friction, nor tell any missing effect from another", levels)
+        return Excitation(
+            False,
+            f"the voltage is constant ({np.median(u):.3g} V, spread {spread:.2g} V): one operating point cannot separate inertia, viscous and Coulomb friction, nor tell any missing effect from another",
+            levels,
+        )
     # how much the motion determines is judged by the fit's information (mechanism.sysid.identifiability)
     return Excitation(True, "voltage varies between %.3g and %.3g V" % (lo, hi), levels)
 

@@ -30,14 +30,25 @@ from mechanism.errors import UserError, close_matches
 from mechanism.files.formats import Columns
 
 TIME_PER_S = {"s": 1.0, "ms": 1e3, "us": 1e6}  # divided by, as a hand conversion does (t_ms / 1000)
-ANGLE_TO_RAD = {"rad": 1.0, "deg": math.pi / 180.0, "rev": 2 * math.pi}  # counts, m, mm need a constant
+ANGLE_TO_RAD = {
+    "rad": 1.0,
+    "deg": math.pi / 180.0,
+    "rev": 2 * math.pi,
+}  # counts, m, mm need a constant
 MAX_MAP_BYTES = 1 << 16
 
 # default column names of each signal (the CSV contract and its unit-named aliases)
 DEFAULT_NAMES = {
     "time": ["time", "time_s", "t", "t_s"],
     "voltage": ["voltage", "voltage_V", "voltage_v", "U_V", "u_V"],
-    "shaft_angle": ["shaft_angle", "arm_angle", "shaft_angle_rad", "arm_angle_rad", "angle_rad", "arm_position_rad"],
+    "shaft_angle": [
+        "shaft_angle",
+        "arm_angle",
+        "shaft_angle_rad",
+        "arm_angle_rad",
+        "angle_rad",
+        "arm_position_rad",
+    ],
     "current": ["current", "current_A", "current_a", "I_A"],
 }
 # the counts-per-turn metadata lines other tools write
@@ -64,14 +75,20 @@ def _check_table(table, source: str) -> dict:
         raise UserError(f"{where} direction: must be 1 or -1")
     unit = checked.get("shaft_angle_unit", "rad")
     if unit == "counts" and "counts_per_rev" not in checked:
-        raise UserError(f"{where} shaft_angle_unit = \"counts\" needs counts_per_rev (encoder counts per shaft turn)")
+        raise UserError(
+            f'{where} shaft_angle_unit = "counts" needs counts_per_rev (encoder counts per shaft turn)'
+        )
     if unit in ("m", "mm") and "travel_per_rev_mm" not in checked:
-        raise UserError(f"{where} shaft_angle_unit = \"{unit}\" needs travel_per_rev_mm (travel per shaft turn: a screw's "
-                        "lead, a pulley's circumference)")
+        raise UserError(
+            f'{where} shaft_angle_unit = "{unit}" needs travel_per_rev_mm (travel per shaft turn: a screw\'s '
+            "lead, a pulley's circumference)"
+        )
     for key in ("time", "voltage", "shaft_angle", "current"):
         text = checked.get(key)
         if text is not None and _clearly_an_expression(text):
-            parse_expression(text, f"{where} {key}")  # anything else may be a file's column: checked when read
+            parse_expression(
+                text, f"{where} {key}"
+            )  # anything else may be a file's column: checked when read
     return checked
 
 
@@ -88,16 +105,23 @@ def read_recording_map(path: str | os.PathLike) -> RecordingMap:
         raise UserError(f"{source}: not valid TOML: {' '.join(str(exc).split())}") from None
     others = [k for k in data if k != "recording"]
     if "recording" not in data or others:
-        raise UserError(f"{source}: expected one [recording] table" + (f", found {', '.join(others)}" if others else ""))
+        raise UserError(
+            f"{source}: expected one [recording] table"
+            + (f", found {', '.join(others)}" if others else "")
+        )
     return RecordingMap(_check_table(data["recording"], source), source)
 
 
-def resolve_recording_map(description=None, map_path: str | os.PathLike | None = None) -> RecordingMap | None:
+def resolve_recording_map(
+    description=None, map_path: str | os.PathLike | None = None
+) -> RecordingMap | None:
     """The map file's table if given (it wins), else the description's ``[recording]``, else None."""
     if map_path is not None:
         return read_recording_map(map_path)
     if description is not None and description.section("recording"):
-        where = f"machine description {description.path}" if description.path else "machine description"
+        where = (
+            f"machine description {description.path}" if description.path else "machine description"
+        )
         return RecordingMap(_check_table(description.section("recording"), where), where)
     return None
 
@@ -105,8 +129,24 @@ def resolve_recording_map(description=None, map_path: str | os.PathLike | None =
 # -- expressions --------------------------------------------------------------------------------
 
 _QUOTED = re.compile(r"`([^`]+)`")
-_NOT_NAMES = (ast.BoolOp, ast.Compare, ast.Lambda, ast.IfExp, ast.NamedExpr, ast.Starred, ast.Dict, ast.Set, ast.List,
-              ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp, ast.JoinedStr, ast.Await, ast.Yield)
+_NOT_NAMES = (
+    ast.BoolOp,
+    ast.Compare,
+    ast.Lambda,
+    ast.IfExp,
+    ast.NamedExpr,
+    ast.Starred,
+    ast.Dict,
+    ast.Set,
+    ast.List,
+    ast.ListComp,
+    ast.SetComp,
+    ast.DictComp,
+    ast.GeneratorExp,
+    ast.JoinedStr,
+    ast.Await,
+    ast.Yield,
+)
 
 
 def _clearly_an_expression(text: str) -> bool:
@@ -140,21 +180,33 @@ def parse_expression(text: str, where: str) -> tuple[ast.Expression, dict[str, s
     try:
         tree = ast.parse(source.strip(), mode="eval")
     except SyntaxError:
-        raise UserError(f"{where}: {text!r} is neither a column name nor an expression of columns and numbers "
-                        "(write a column name with other characters in `backquotes`)") from None
+        raise UserError(
+            f"{where}: {text!r} is neither a column name nor an expression of columns and numbers "
+            "(write a column name with other characters in `backquotes`)"
+        ) from None
     for node in ast.walk(tree):
-        if isinstance(node, (ast.Expression, ast.Name, ast.Load, ast.Mult, ast.Div, ast.USub, ast.UAdd)):
+        if isinstance(
+            node, (ast.Expression, ast.Name, ast.Load, ast.Mult, ast.Div, ast.USub, ast.UAdd)
+        ):
             continue
         if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Mult, ast.Div)):
             continue
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             continue
-        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+        if (
+            isinstance(node, ast.Constant)
+            and isinstance(node.value, (int, float))
+            and not isinstance(node.value, bool)
+        ):
             continue
-        if isinstance(node, ast.Attribute) and _dotted(node) is not None:  # data.position: a nested field's column
+        if (
+            isinstance(node, ast.Attribute) and _dotted(node) is not None
+        ):  # data.position: a nested field's column
             continue
-        raise UserError(f"{where}: {text!r}: only products and quotients of columns and numbers are allowed "
-                        f"(found {type(node).__name__.lower()})")
+        raise UserError(
+            f"{where}: {text!r}: only products and quotients of columns and numbers are allowed "
+            f"(found {type(node).__name__.lower()})"
+        )
     return tree, names
 
 
@@ -168,7 +220,9 @@ def _dotted(node) -> str | None:
     return None
 
 
-def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.ndarray]) -> tuple[np.ndarray, list[str]]:
+def evaluate(
+    text: str, columns: Columns, where: str, prepared: dict[str, np.ndarray]
+) -> tuple[np.ndarray, list[str]]:
     """The expression's values and the columns it used."""
     if text in columns:
         return _column(columns, text, where, prepared), [text]
@@ -181,10 +235,14 @@ def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.nda
         if isinstance(node, ast.Constant):
             return float(node.value)
         if isinstance(node, (ast.Name, ast.Attribute)):
-            name = quoted.get(node.id, node.id) if isinstance(node, ast.Name) else str(_dotted(node))
+            name = (
+                quoted.get(node.id, node.id) if isinstance(node, ast.Name) else str(_dotted(node))
+            )
             if name not in columns:
-                raise UserError(f"{where}: no column {name!r} in {columns.label}; did you mean "
-                                f"{close_matches(name, columns.names)}? (columns: {', '.join(columns.names[:20])})")
+                raise UserError(
+                    f"{where}: no column {name!r} in {columns.label}; did you mean "
+                    f"{close_matches(name, columns.names)}? (columns: {', '.join(columns.names[:20])})"
+                )
             used.append(name)
             return _column(columns, name, where, prepared)
         if isinstance(node, ast.UnaryOp):
@@ -193,7 +251,11 @@ def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.nda
         left, right = value(node.left), value(node.right)
         if isinstance(node.op, ast.Mult):
             return left * right
-        if isinstance(right, np.ndarray) and np.any(right == 0) or (not isinstance(right, np.ndarray) and right == 0):
+        if (
+            isinstance(right, np.ndarray)
+            and np.any(right == 0)
+            or (not isinstance(right, np.ndarray) and right == 0)
+        ):
             raise UserError(f"{where}: {text!r} divides by zero")
         return left / right
 
@@ -202,7 +264,9 @@ def evaluate(text: str, columns: Columns, where: str, prepared: dict[str, np.nda
         raise UserError(f"{where}: {text!r} names no column")
     lengths = {name: columns.length(name) for name in used}
     if len(set(lengths.values())) > 1:
-        raise UserError(f"{where}: {text!r} combines columns of different lengths ({', '.join(f'{k} {v}' for k, v in lengths.items())})")
+        raise UserError(
+            f"{where}: {text!r} combines columns of different lengths ({', '.join(f'{k} {v}' for k, v in lengths.items())})"
+        )
     return np.asarray(result, dtype=float), used
 
 
@@ -218,11 +282,14 @@ def _signed(values: np.ndarray, bits: int, label: str) -> np.ndarray:
     bad = (values != np.round(values)) | (values < 0) | (values >= span)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
-        raise UserError(f"{label}: value {i + 1} is {values[i]:g}, not an unsigned {bits}-bit register value (0 to {span - 1:.0f})")
+        raise UserError(
+            f"{label}: value {i + 1} is {values[i]:g}, not an unsigned {bits}-bit register value (0 to {span - 1:.0f})"
+        )
     return np.where(values >= span / 2, values - span, values)
 
 
 # -- applying a map -----------------------------------------------------------------------------
+
 
 @dataclass
 class Signals:
@@ -238,23 +305,33 @@ class Signals:
 
 
 def _default_column(columns: Columns, signal: str, motor_joint: str | None = None) -> str | None:
-    names = DEFAULT_NAMES[signal] + ([f"{motor_joint}_V"] if signal == "voltage" and motor_joint else [])
+    names = DEFAULT_NAMES[signal] + (
+        [f"{motor_joint}_V"] if signal == "voltage" and motor_joint else []
+    )
     return next((name for name in names if name in columns), None)
 
 
-def apply_map(columns: Columns, mapping: RecordingMap | None, motor_joint: str | None = None) -> Signals:
+def apply_map(
+    columns: Columns, mapping: RecordingMap | None, motor_joint: str | None = None
+) -> Signals:
     """The four signals out of a file's columns by the map (or the default names)."""
     table = mapping.table if mapping else {}
     where = f"{mapping.source}: [recording]" if mapping else columns.label
     label = columns.label
     prepared: dict[str, np.ndarray] = {}
-    reading: dict = {"file_format": columns.format + (columns.compression or ""),
-                     "map": mapping.source if mapping else "none: the default column names",
-                     "columns_found": columns.names[:200]}
+    reading: dict = {
+        "file_format": columns.format + (columns.compression or ""),
+        "map": mapping.source if mapping else "none: the default column names",
+        "columns_found": columns.names[:200],
+    }
     for name, bits in table.get("signed_bits", {}).items():
         if name not in columns:
-            raise UserError(f"{where} signed_bits: no column {name!r} in {label}; did you mean {close_matches(name, columns.names)}?")
-        prepared[columns.find(name) or name] = _signed(columns.numeric(name), bits, f"{label}: column {name} (signed_bits {bits})")
+            raise UserError(
+                f"{where} signed_bits: no column {name!r} in {label}; did you mean {close_matches(name, columns.names)}?"
+            )
+        prepared[columns.find(name) or name] = _signed(
+            columns.numeric(name), bits, f"{label}: column {name} (signed_bits {bits})"
+        )
     if table.get("signed_bits"):
         reading["signed_bits"] = dict(table["signed_bits"])
 
@@ -263,18 +340,25 @@ def apply_map(columns: Columns, mapping: RecordingMap | None, motor_joint: str |
         if text is None:
             if not required:
                 return None, None
-            hint = (f"write [recording] {key} = \"COLUMN\" in a --recording-map FILE.toml or the machine description"
-                    if not mapping else f"add {key} = \"COLUMN\" to {mapping.source}")
+            hint = (
+                f'write [recording] {key} = "COLUMN" in a --recording-map FILE.toml or the machine description'
+                if not mapping
+                else f'add {key} = "COLUMN" to {mapping.source}'
+            )
             shown = "arm_angle (or shaft_angle)" if key == "shaft_angle" else key
-            raise UserError(f"{label}: missing required column(s) {shown}; columns found: "
-                            f"{', '.join(columns.names[:20]) or 'none'}; {hint}")
+            raise UserError(
+                f"{label}: missing required column(s) {shown}; columns found: "
+                f"{', '.join(columns.names[:20]) or 'none'}; {hint}"
+            )
         values, _ = evaluate(text, columns, f"{where} {key}" if key in table else label, prepared)
         return values, text
 
     time, time_from = signal("time")
     time_unit = table.get("time_unit", "s")
     reading["time_s"] = {"from": time_from, "unit": time_unit}
-    if len(time) and abs(time[0] / TIME_PER_S[time_unit]) > 1e6:  # epoch time stamps: seconds from the first sample
+    if (
+        len(time) and abs(time[0] / TIME_PER_S[time_unit]) > 1e6
+    ):  # epoch time stamps: seconds from the first sample
         reading["time_s"]["shifted_by_s"] = float(-time[0] / TIME_PER_S[time_unit])
         time = time - time[0]
     time = time / TIME_PER_S[time_unit]
@@ -298,14 +382,19 @@ def apply_map(columns: Columns, mapping: RecordingMap | None, motor_joint: str |
     if unwrap:
         before = angle
         angle = np.unwrap(angle)
-        angle_reading["unwrapped"] = f"yes: {int(np.count_nonzero(np.abs(np.diff(before)) > math.pi))} jump(s) of more than pi removed"
+        angle_reading["unwrapped"] = (
+            f"yes: {int(np.count_nonzero(np.abs(np.diff(before)) > math.pi))} jump(s) of more than pi removed"
+        )
     elif unwrap is False:
         angle_reading["unwrapped"] = "no (unwrap = false)"
     direction = table.get("direction", 1)
     offset = table.get("offset_rad", 0.0)
     angle = direction * angle + offset
-    angle_reading.update(direction=direction, offset_rad=offset,
-                         formula=f"shaft_angle_rad = {direction} * ({angle_from}) * {factor:.10g} + {offset:g}")
+    angle_reading.update(
+        direction=direction,
+        offset_rad=offset,
+        formula=f"shaft_angle_rad = {direction} * ({angle_from}) * {factor:.10g} + {offset:g}",
+    )
     reading["shaft_angle_rad"] = angle_reading
     current, current_from = signal("current", required=False)
     if current is not None:
@@ -320,5 +409,7 @@ def apply_map(columns: Columns, mapping: RecordingMap | None, motor_joint: str |
     if current is not None:
         lengths["current"] = len(current)
     if len(set(lengths.values())) > 1:
-        raise UserError(f"{label}: the mapped signals have different lengths ({', '.join(f'{k} {v}' for k, v in lengths.items())})")
+        raise UserError(
+            f"{label}: the mapped signals have different lengths ({', '.join(f'{k} {v}' for k, v in lengths.items())})"
+        )
     return Signals(time, voltage, angle, current, unwrap, metadata, reading)

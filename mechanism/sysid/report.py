@@ -80,18 +80,36 @@ def _plots(traces: Traces, folder: Path) -> list[tuple[str, str]]:
     for k in labels:
         r = residuals[k]
         axes[0, 0].plot(t, r, lw=0.4, label=k)
-        c, m, _ = _profile(np.mod(traces.arm_angle_rad[moving], 2 * np.pi), r[moving], 72, 0, 2 * np.pi)
+        c, m, _ = _profile(
+            np.mod(traces.arm_angle_rad[moving], 2 * np.pi), r[moving], 72, 0, 2 * np.pi
+        )
         axes[0, 1].plot(np.degrees(c), m, label=k)
-        c, m, _ = _profile(np.mod(traces.ratio * traces.arm_angle_rad[moving], 2 * np.pi), r[moving], 72, 0, 2 * np.pi)
+        c, m, _ = _profile(
+            np.mod(traces.ratio * traces.arm_angle_rad[moving], 2 * np.pi),
+            r[moving],
+            72,
+            0,
+            2 * np.pi,
+        )
         axes[1, 0].plot(np.degrees(c), m, label=k)
         c, _, rms = _profile(speed, r, 20, 0, top * 1.001)
         axes[1, 1].plot(c, rms, marker=".", label=k)
-    axes[0, 0].set(xlabel="time [s]", ylabel="velocity residual [rad/s]", title="residual over time")
-    axes[0, 1].set(xlabel=f"shaft angle [deg] (0 = {traces.zero_meaning})", ylabel="mean residual [rad/s]",
-                   title="phase-averaged over the shaft angle")
-    axes[1, 0].set(xlabel=f"motor angle [deg] ({traces.ratio:g} per shaft revolution)", ylabel="mean residual [rad/s]",
-                   title="phase-averaged over the motor angle")
-    axes[1, 1].set(xlabel="arm speed [rad/s]", ylabel="RMS residual [rad/s]", title="residual against speed")
+    axes[0, 0].set(
+        xlabel="time [s]", ylabel="velocity residual [rad/s]", title="residual over time"
+    )
+    axes[0, 1].set(
+        xlabel=f"shaft angle [deg] (0 = {traces.zero_meaning})",
+        ylabel="mean residual [rad/s]",
+        title="phase-averaged over the shaft angle",
+    )
+    axes[1, 0].set(
+        xlabel=f"motor angle [deg] ({traces.ratio:g} per shaft revolution)",
+        ylabel="mean residual [rad/s]",
+        title="phase-averaged over the motor angle",
+    )
+    axes[1, 1].set(
+        xlabel="arm speed [rad/s]", ylabel="RMS residual [rad/s]", title="residual against speed"
+    )
     for ax in axes.flat:
         ax.legend(fontsize=8)
     fig.tight_layout()
@@ -100,7 +118,9 @@ def _plots(traces: Traces, folder: Path) -> list[tuple[str, str]]:
 
     fig, ax = plt.subplots(figsize=(11, 3.5))
     dt = float(t[1] - t[0])
-    spectra = {k: welch(np.nan_to_num(residuals[k]), fs=1 / dt, nperseg=min(4096, len(t))) for k in labels}
+    spectra = {
+        k: welch(np.nan_to_num(residuals[k]), fs=1 / dt, nperseg=min(4096, len(t))) for k in labels
+    }
     # an exact fit leaves no power: a log axis would have nothing to show (and matplotlib says so)
     logarithmic = any(np.any(p > 0) for _, p in spectra.values())
     for k, (f, p) in spectra.items():
@@ -108,15 +128,21 @@ def _plots(traces: Traces, folder: Path) -> list[tuple[str, str]]:
             ax.semilogy(f, np.where(p > 0, p, np.nan), lw=0.8, label=k)
         else:
             ax.plot(f, p, lw=0.8, label=k)
-    ax.set(xlabel="frequency [Hz]", ylabel="PSD [(rad/s)^2/Hz]", title="residual spectrum (resonances, shaft-rate harmonics)")
+    ax.set(
+        xlabel="frequency [Hz]",
+        ylabel="PSD [(rad/s)^2/Hz]",
+        title="residual spectrum (resonances, shaft-rate harmonics)",
+    )
     ax.legend()
     save_figure(fig, folder / "spectrum.png")
     out.append(("spectrum.png", "Residual spectrum"))
     return out
 
 
-_STYLE = "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}td,th{padding:2px 10px;text-align:left}" \
-         "table{border-collapse:collapse}tr:nth-child(even){background:#f3f3f3}img{max-width:100%}code{background:#eee}"
+_STYLE = (
+    "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}td,th{padding:2px 10px;text-align:left}"
+    "table{border-collapse:collapse}tr:nth-child(even){background:#f3f3f3}img{max-width:100%}code{background:#eee}"
+)
 
 
 def _param_table(params: dict, unc: dict | None = None) -> str:
@@ -128,7 +154,13 @@ def _param_table(params: dict, unc: dict | None = None) -> str:
     return "<table>" + "".join(rows) + "</table>"
 
 
-def write_report(folder: str | os.PathLike, title: str, summary_json: dict, traces: Traces, sections: list[tuple[str, str]]) -> Path:
+def write_report(
+    folder: str | os.PathLike,
+    title: str,
+    summary_json: dict,
+    traces: Traces,
+    sections: list[tuple[str, str]],
+) -> Path:
     """Write ``folder/index.html`` with plots, ``sections`` (heading, HTML) and the JSON."""
     folder = Path(folder)
     with atomic_dir(folder) as tmp:
@@ -137,11 +169,20 @@ def write_report(folder: str | os.PathLike, title: str, summary_json: dict, trac
         for heading, content in sections:
             body.append(f"<h2>{html.escape(heading)}</h2>{content}")
         for name, caption in plots:
-            body.append(f"<h2>{html.escape(caption)}</h2><img src='{name}' alt='{html.escape(caption)}'>")
-        body.append(f"<h2>Result (JSON)</h2><pre>{html.escape(json.dumps(summary_json, indent=2, default=float))}</pre>")
-        (tmp / "index.html").write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-                                        f"<style>{_STYLE}</style></head><body>{''.join(body)}</body></html>", encoding="utf-8")
-        (tmp / "result.json").write_text(json.dumps(summary_json, indent=2, default=float), encoding="utf-8")
+            body.append(
+                f"<h2>{html.escape(caption)}</h2><img src='{name}' alt='{html.escape(caption)}'>"
+            )
+        body.append(
+            f"<h2>Result (JSON)</h2><pre>{html.escape(json.dumps(summary_json, indent=2, default=float))}</pre>"
+        )
+        (tmp / "index.html").write_text(
+            f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{_STYLE}</style></head><body>{''.join(body)}</body></html>",
+            encoding="utf-8",
+        )
+        (tmp / "result.json").write_text(
+            json.dumps(summary_json, indent=2, default=float), encoding="utf-8"
+        )
     return folder / "index.html"
 
 
@@ -150,31 +191,64 @@ def diagnosis_report(diagnosis, folder) -> Path:
     data = diagnosis.to_json()
     findings = diagnosis.findings
     if findings:
-        items = "".join(f"<li><b>{html.escape(f.effect.name)}</b>{' (generic)' if f.effect.generic else ''}: "
-                        f"{html.escape(f.evidence)}</li>" for f in findings)
+        items = "".join(
+            f"<li><b>{html.escape(f.effect.name)}</b>{' (generic)' if f.effect.generic else ''}: "
+            f"{html.escape(f.evidence)}</li>"
+            for f in findings
+        )
         verdict = f"<ol>{items}</ol>"
     else:
-        verdict = ("<p>Nothing is missing: no candidate effect lowered the validation error of the baseline "
-                   "by the required margin.</p>")
+        verdict = (
+            "<p>Nothing is missing: no candidate effect lowered the validation error of the baseline "
+            "by the required margin.</p>"
+        )
     base, final = diagnosis.baseline, diagnosis.final
-    rmse = (f"<p>Validation rmse: baseline {base.rmse_val:.4g} rad/s, final {final.rmse_val:.4g} rad/s "
-            f"(ratio {final.rmse_val / base.rmse_val:.2f}).</p>")
+    rmse = (
+        f"<p>Validation rmse: baseline {base.rmse_val:.4g} rad/s, final {final.rmse_val:.4g} rad/s "
+        f"(ratio {final.rmse_val / base.rmse_val:.2f}).</p>"
+    )
     rounds = ""
     for i, r in enumerate(diagnosis.rounds, 1):
-        cells = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.4g}</td></tr>" for k, v in sorted(r.items(), key=lambda kv: kv[1]))
+        cells = "".join(
+            f"<tr><td>{html.escape(k)}</td><td>{v:.4g}</td></tr>"
+            for k, v in sorted(r.items(), key=lambda kv: kv[1])
+        )
         rounds += f"<h3>round {i}</h3><table><tr><th>candidate</th><th>validation rmse [rad/s]</th></tr>{cells}</table>"
     left = diagnosis.unexplained
     if left is not None:
-        rmse += (f"<h3>What is left unexplained</h3><p>The final residual, {left.rmse:.3g} rad/s, is "
-                 f"{left.rmse / left.floor.rmse:.1f} times the recording's own noise floor ({left.floor.rmse:.2g} rad/s: "
-                 f"encoder quantisation and sensor scatter). It shows {html.escape(left.sentence)}.</p>")
-    sections = [("What is missing", verdict + rmse), ("Baseline parameters", _param_table(base.values, base.uncertainties)),
-                ("Final parameters", _param_table(final.values, final.uncertainties)), ("Candidates tried", rounds)]
-    return write_report(folder, f"Diagnosis of {Path(diagnosis.recording.source).name}", data, diagnosis.traces, sections)
+        rmse += (
+            f"<h3>What is left unexplained</h3><p>The final residual, {left.rmse:.3g} rad/s, is "
+            f"{left.rmse / left.floor.rmse:.1f} times the recording's own noise floor ({left.floor.rmse:.2g} rad/s: "
+            f"encoder quantisation and sensor scatter). It shows {html.escape(left.sentence)}.</p>"
+        )
+    sections = [
+        ("What is missing", verdict + rmse),
+        ("Baseline parameters", _param_table(base.values, base.uncertainties)),
+        ("Final parameters", _param_table(final.values, final.uncertainties)),
+        ("Candidates tried", rounds),
+    ]
+    return write_report(
+        folder,
+        f"Diagnosis of {Path(diagnosis.recording.source).name}",
+        data,
+        diagnosis.traces,
+        sections,
+    )
 
 
 def identification_report(result, folder) -> Path:
     data = result.to_json()
-    sections = [("Fitted parameters", _param_table(result.fit.values, result.fit.uncertainties) +
-                 f"<p>Validation rmse {result.fit.rmse_val:.4g} rad/s (fit part {result.fit.rmse_fit:.4g}).</p>")]
-    return write_report(folder, f"Identification of {Path(result.recording.source).name}", data, result.traces, sections)
+    sections = [
+        (
+            "Fitted parameters",
+            _param_table(result.fit.values, result.fit.uncertainties)
+            + f"<p>Validation rmse {result.fit.rmse_val:.4g} rad/s (fit part {result.fit.rmse_fit:.4g}).</p>",
+        )
+    ]
+    return write_report(
+        folder,
+        f"Identification of {Path(result.recording.source).name}",
+        data,
+        result.traces,
+        sections,
+    )

@@ -25,7 +25,12 @@ import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from mechanism.errors import UserError
-from mechanism.sysid.recording import VELOCITY_POLYORDER, Recording, smoothed_velocity, velocity_coefficients
+from mechanism.sysid.recording import (
+    VELOCITY_POLYORDER,
+    Recording,
+    smoothed_velocity,
+    velocity_coefficients,
+)
 
 # A residual counts as unexplained above this multiple of the noise floor. Clean virtual-bench
 # recordings (1 kHz, 250 Hz-5 kHz, 2500-20000 counts) end at 0.9-1.7x; a missed effect or
@@ -46,8 +51,12 @@ class NoiseFloor:
         return math.hypot(self.quantisation_rad_s, self.scatter_rad_s)
 
     def to_json(self) -> dict:
-        return {"rmse_rad_s": self.rmse, "encoder_counts_per_rev": self.counts_per_rev,
-                "quantisation_rad_s": self.quantisation_rad_s, "angle_scatter_rad_s": self.scatter_rad_s}
+        return {
+            "rmse_rad_s": self.rmse,
+            "encoder_counts_per_rev": self.counts_per_rev,
+            "quantisation_rad_s": self.quantisation_rad_s,
+            "angle_scatter_rad_s": self.scatter_rad_s,
+        }
 
 
 def encoder_counts(rec: Recording) -> int | None:
@@ -58,7 +67,9 @@ def encoder_counts(rec: Recording) -> int | None:
         try:
             counts = int(float(text))
         except ValueError:
-            raise UserError(f"recording {rec.source}: counts_per_rev {text!r} is not a number") from None
+            raise UserError(
+                f"recording {rec.source}: counts_per_rev {text!r} is not a number"
+            ) from None
         if counts < 16:
             raise UserError(f"recording {rec.source}: counts_per_rev {counts} is below 16")
         return counts
@@ -95,7 +106,9 @@ def noise_floor(rec: Recording) -> NoiseFloor:
     if len(angle) < 4 * window:
         return NoiseFloor(counts, 0.0, 0.0)
     smooth = savgol_filter(angle, window, VELOCITY_POLYORDER)
-    requantised = np.floor(smooth / (2 * math.pi / counts)) * (2 * math.pi / counts) if counts else smooth
+    requantised = (
+        np.floor(smooth / (2 * math.pi / counts)) * (2 * math.pi / counts) if counts else smooth
+    )
     error = smoothed_velocity(requantised, rec.dt) - smoothed_velocity(smooth, rec.dt)
     quantisation = float(np.sqrt(np.mean(error[window:-window] ** 2)))
     speed = np.abs(rec.velocity_rad_s)
@@ -113,6 +126,7 @@ def noise_floor(rec: Recording) -> NoiseFloor:
 
 # ----------------------------------------------------------------------------- signature
 
+
 @dataclass
 class Periodic:
     shaft: str
@@ -124,9 +138,15 @@ class Periodic:
     kind: str  # "torque-like", "sensor-like", "mixed"
 
     def to_json(self) -> dict:
-        return {"shaft": self.shaft, "turns_per_shaft_turn": self.ratio, "orders": self.orders,
-                "amplitudes_rad_s": self.amplitudes_rad_s, "variance_share": self.share,
-                "speed_exponent": self.speed_exponent, "scales_like": self.kind}
+        return {
+            "shaft": self.shaft,
+            "turns_per_shaft_turn": self.ratio,
+            "orders": self.orders,
+            "amplitudes_rad_s": self.amplitudes_rad_s,
+            "variance_share": self.share,
+            "speed_exponent": self.speed_exponent,
+            "scales_like": self.kind,
+        }
 
 
 @dataclass
@@ -147,10 +167,14 @@ class Signature:
         return {
             "periodic": self.periodic.to_json() if self.periodic else None,
             "acceleration_share": self.delay_share,
-            "change_at_s": self.step_time_s, "change_rad_s": self.step_rad_s, "change_share": self.step_share,
+            "change_at_s": self.step_time_s,
+            "change_rad_s": self.step_rad_s,
+            "change_share": self.step_share,
             "drift_share": self.drift_share,
-            "after_voltage_rise_rms_rad_s": self.after_rise_rms, "after_voltage_fall_rms_rad_s": self.after_fall_rms,
-            "steady_rms_rad_s": self.steady_rms, "low_speed_rms_rad_s": self.low_speed_rms,
+            "after_voltage_rise_rms_rad_s": self.after_rise_rms,
+            "after_voltage_fall_rms_rad_s": self.after_fall_rms,
+            "steady_rms_rad_s": self.steady_rms,
+            "low_speed_rms_rad_s": self.low_speed_rms,
         }
 
 
@@ -210,11 +234,21 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
     # about as much, say the motor (its orders are the drive's), then the described shaft
     strongest = max(f[2] for f in found)
     preference = {"motor": 0, "shaft": 1}
-    name, orders, share, ratio, amps = min((f for f in found if f[2] > 0.8 * strongest),
-                                          key=lambda f: (preference.get(f[0], 2), min(f[1])))
+    name, orders, share, ratio, amps = min(
+        (f for f in found if f[2] > 0.8 * strongest),
+        key=lambda f: (preference.get(f[0], 2), min(f[1])),
+    )
     exponent = _speed_exponent(rr, ratio * th, sp, orders[0])
     kind = "sensor-like" if exponent > 0.5 else ("torque-like" if exponent < -0.4 else "mixed")
-    return Periodic(name, float(ratio), orders, [float(amps[k]) for k in orders], min(share, 1.0), exponent, kind)
+    return Periodic(
+        name,
+        float(ratio),
+        orders,
+        [float(amps[k]) for k in orders],
+        min(share, 1.0),
+        exponent,
+        kind,
+    )
 
 
 def _speed_exponent(r, phase, speed, order) -> float:
@@ -260,7 +294,7 @@ def _step_change(t, r, steady) -> tuple[float | None, float, float, float]:
     i = int(np.argmax(gain))
     total = float(np.dot(rr, rr))
     share = float(gain[i] / total) if total > 0 else 0.0
-    size = float(rr[i + 1:].mean() - rr[: i + 1].mean())
+    size = float(rr[i + 1 :].mean() - rr[: i + 1].mean())
     _, drift = _explained(rr, t[idx] - t[idx].mean())
     return float(t[idx[i + 1]]), size, share, drift
 
@@ -283,7 +317,7 @@ def signature(rec: Recording, r: np.ndarray, shafts: dict[str, float]) -> Signat
     rise, fall = np.zeros(len(r), bool), np.zeros(len(r), bool)
     span = max(int(0.15 / dt), 1)
     for k in np.flatnonzero(np.abs(jumps) > 0.5):
-        (rise if jumps[k] > 0 else fall)[k + 1:k + 1 + span] = True
+        (rise if jumps[k] > 0 else fall)[k + 1 : k + 1 + span] = True
     steady = ~(rise | fall) & (np.abs(u) > 0.5)
     # plateau means removed: a change or drift shows within each voltage level
     level = np.round(u / 0.5)
@@ -300,20 +334,37 @@ def signature(rec: Recording, r: np.ndarray, shafts: dict[str, float]) -> Signat
     def rms(mask):
         return float(np.sqrt(np.mean(r[mask] ** 2))) if mask.any() else 0.0
 
-    return Signature(periodic, -b, delay_share, step_t, step, step_share, drift, rms(rise), rms(fall), rms(steady), rms(low))
+    return Signature(
+        periodic,
+        -b,
+        delay_share,
+        step_t,
+        step,
+        step_share,
+        drift,
+        rms(rise),
+        rms(fall),
+        rms(steady),
+        rms(low),
+    )
 
 
 def _shaft_words(p: Periodic, shafts: dict[str, float]) -> str:
     main = p.orders[0]
     name = "shaft" if p.shaft == "shaft" else p.shaft.replace("_", " ")
     equivalent = main * p.ratio
-    also = (f" ({equivalent:g} per turn of the described shaft)" if p.shaft != "shaft" and abs(equivalent - round(equivalent)) < 1e-6
-            else "")
+    also = (
+        f" ({equivalent:g} per turn of the described shaft)"
+        if p.shaft != "shaft" and abs(equivalent - round(equivalent)) < 1e-6
+        else ""
+    )
     others = [o for o in p.orders[1:]]
     extra = f", with orders {', '.join(map(str, others))} of the same shaft" if others else ""
-    amplitude = {"torque-like": "its velocity ripple falls with speed as an inertia filters a torque of constant amplitude",
-                 "sensor-like": "it grows with speed, as an error of the angle sensor does",
-                 "mixed": "its size changes little with speed"}[p.kind]
+    amplitude = {
+        "torque-like": "its velocity ripple falls with speed as an inertia filters a torque of constant amplitude",
+        "sensor-like": "it grows with speed, as an error of the angle sensor does",
+        "mixed": "its size changes little with speed",
+    }[p.kind]
     return f"a residual {main} times per {name} turn{also}{extra}; {amplitude}"
 
 
@@ -321,23 +372,47 @@ def describe(sig: Signature, shafts: dict[str, float]) -> str:
     """One sentence for a mechanism engineer: what the residual looks like."""
     parts = []
     if sig.periodic is not None:
-        parts.append(f"{_shaft_words(sig.periodic, shafts)} ({100 * sig.periodic.share:.0f}% of the residual)")
+        parts.append(
+            f"{_shaft_words(sig.periodic, shafts)} ({100 * sig.periodic.share:.0f}% of the residual)"
+        )
     if sig.delay_share > 0.3:
-        parts.append(f"an error shaped like the acceleration and its rate of change ({100 * sig.delay_share:.0f}% of the "
-                     f"residual): a timing error, a phase lag that grows with frequency (a delay in the log, a lag in the drive)")
-    if sig.step_share > 0.3 and sig.step_share > 1.5 * sig.drift_share and sig.step_time_s is not None:
-        parts.append(f"a change at t = {sig.step_time_s:.1f} s: the speed error steps by {sig.step_rad_s:+.2g} rad/s "
-                     f"at the same voltages ({100 * sig.step_share:.0f}% of the steady residual)")
+        parts.append(
+            f"an error shaped like the acceleration and its rate of change ({100 * sig.delay_share:.0f}% of the "
+            f"residual): a timing error, a phase lag that grows with frequency (a delay in the log, a lag in the drive)"
+        )
+    if (
+        sig.step_share > 0.3
+        and sig.step_share > 1.5 * sig.drift_share
+        and sig.step_time_s is not None
+    ):
+        parts.append(
+            f"a change at t = {sig.step_time_s:.1f} s: the speed error steps by {sig.step_rad_s:+.2g} rad/s "
+            f"at the same voltages ({100 * sig.step_share:.0f}% of the steady residual)"
+        )
     elif sig.drift_share > 0.3:
-        parts.append(f"a drift over the recording ({100 * sig.drift_share:.0f}% of the steady residual)")
+        parts.append(
+            f"a drift over the recording ({100 * sig.drift_share:.0f}% of the steady residual)"
+        )
     if max(sig.after_rise_rms, sig.after_fall_rms) > 2.5 * max(sig.steady_rms, 1e-12):
         falls = sig.after_fall_rms > 1.5 * sig.after_rise_rms
-        which = "falls" if falls else ("rises" if sig.after_rise_rms > 1.5 * sig.after_fall_rms else "changes")
-        where = ", where the load on the transmission reverses (the motor brakes the shaft)" if falls else ""
-        parts.append(f"concentrated after the voltage {which} ({max(sig.after_rise_rms, sig.after_fall_rms):.2g} rad/s rms against "
-                     f"{sig.steady_rms:.2g} in steady running){where}")
+        which = (
+            "falls"
+            if falls
+            else ("rises" if sig.after_rise_rms > 1.5 * sig.after_fall_rms else "changes")
+        )
+        where = (
+            ", where the load on the transmission reverses (the motor brakes the shaft)"
+            if falls
+            else ""
+        )
+        parts.append(
+            f"concentrated after the voltage {which} ({max(sig.after_rise_rms, sig.after_fall_rms):.2g} rad/s rms against "
+            f"{sig.steady_rms:.2g} in steady running){where}"
+        )
     if sig.low_speed_rms > 2.5 * max(sig.steady_rms, 1e-12):
         parts.append(f"largest at low speed ({sig.low_speed_rms:.2g} rad/s rms)")
     if not parts:
-        parts.append("no structure the signature recognises: broadband, in no shaft's angle, time or speed")
+        parts.append(
+            "no structure the signature recognises: broadband, in no shaft's angle, time or speed"
+        )
     return "; ".join(parts)

@@ -54,9 +54,13 @@ def fit_steady_state(voltage_V, arm_speed_rpm, motor: MotorConstants) -> SteadyS
     u = np.asarray(voltage_V, float)
     w = np.asarray(arm_speed_rpm, float) * RPM
     if u.shape != w.shape or u.ndim != 1:
-        raise UserError("steady-state fit: voltages and speeds must be two lists of the same length")
+        raise UserError(
+            "steady-state fit: voltages and speeds must be two lists of the same length"
+        )
     if len(np.unique(np.round(u, 6))) < 2:
-        raise UserError("steady-state fit: at least two different voltages are needed to separate viscous from Coulomb friction")
+        raise UserError(
+            "steady-state fit: at least two different voltages are needed to separate viscous from Coulomb friction"
+        )
     available = motor.gain_arm * u - motor.emf_damping_arm * w  # torque left for friction [Nm]
     X = np.column_stack([w, np.ones_like(w)])
     coef, *_ = np.linalg.lstsq(X, available, rcond=None)
@@ -64,8 +68,14 @@ def fit_steady_state(voltage_V, arm_speed_rpm, motor: MotorConstants) -> SteadyS
     dof = max(len(u) - 2, 1)
     cov = np.linalg.inv(X.T @ X) * float(r @ r) / dof
     n2 = motor.ratio**2
-    return SteadyStateFit(float(coef[0] / n2), float(coef[1]), float(math.sqrt(cov[0, 0]) / n2),
-                          float(math.sqrt(cov[1, 1])), float(math.sqrt(np.mean(r * r))), motor)
+    return SteadyStateFit(
+        float(coef[0] / n2),
+        float(coef[1]),
+        float(math.sqrt(cov[0, 0]) / n2),
+        float(math.sqrt(cov[1, 1])),
+        float(math.sqrt(np.mean(r * r))),
+        motor,
+    )
 
 
 @dataclass
@@ -115,7 +125,16 @@ def table2(table: dict, motor: MotorConstants, valid_below_V: float) -> dict[str
         current = (needed - motor.back_emf_V_s_per_rad * motor.ratio * w) / motor.resistance_ohm
         c = motor.emf_damping_arm + motor.ratio**2 * fit.viscous_motor_side_Nm_s_per_rad
         extra = float(motor.gain_arm * voltage[high] - c * w - fit.coulomb_arm_Nm)
-        out[name.removeprefix("rpm_")] = Table2Column(name.removeprefix("rpm_"), fit, voltage[valid], rpm[valid],
-                                                      float(voltage[high]), float(rpm[high]), predicted, deficit,
-                                                      float(deficit / current), extra)
+        out[name.removeprefix("rpm_")] = Table2Column(
+            name.removeprefix("rpm_"),
+            fit,
+            voltage[valid],
+            rpm[valid],
+            float(voltage[high]),
+            float(rpm[high]),
+            predicted,
+            deficit,
+            float(deficit / current),
+            extra,
+        )
     return out

@@ -13,4 +13,12 @@ stick-slip), randomised per seed, plus any of the effects in :data:`EFFECTS`.
 from mechanism.testbench.recording import Recording, make_recording, truth_path_for, write_recording
 from mechanism.testbench.truth import ANGLE_STEP_RAD, EFFECTS, parse_effects
 
-__all__ = ["ANGLE_STEP_RAD", "EFFECTS", "Recording", "make_recording", "parse_effects", "truth_path_for", "write_recording"]
+__all__ = [
+    "ANGLE_STEP_RAD",
+    "EFFECTS",
+    "Recording",
+    "make_recording",
+    "parse_effects",
+    "truth_path_for",
+    "write_recording",
+]

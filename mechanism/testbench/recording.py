@@ -55,10 +55,16 @@ class Recording:
         return list(self.truth["effects"])
 
     def columns(self) -> dict[str, np.ndarray]:
-        return {"time": self.time, "voltage": self.voltage, "arm_angle": self.arm_angle, "current": self.current}
+        return {
+            "time": self.time,
+            "voltage": self.voltage,
+            "arm_angle": self.arm_angle,
+            "current": self.current,
+        }
 
 
 # --- voltage profile --------------------------------------------------------------------
+
 
 def draw_plateaus(seed: int, duration_s: float) -> list[tuple[float, float]]:
     """(duration [s], commanded voltage [V]) steps: rest, then 4-20 V plateaus of 2-6 s in a
@@ -109,20 +115,36 @@ def applied_voltage(logged: np.ndarray, params: dict | None) -> np.ndarray:
 
 # --- truth model assembly ------------------------------------------------------------------
 
-def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_hz: float = SAMPLE_RATE_HZ) -> tuple[dict, dict]:
+
+def _model_parameters(
+    base: dict, effects: dict[str, dict], substeps: int, rate_hz: float = SAMPLE_RATE_HZ
+) -> tuple[dict, dict]:
     """Integrator parameters (simulate.PARAM_FIELDS) and the derived truth values."""
     ratio = base["belt_ratio"]
     total = base["inertia_motor_side_kgm2"]
     r, rod = base["crank_radius_m"], base["rod_length_m"]
     p = dict.fromkeys(sim.PARAM_FIELDS, 0.0)
     p.update(
-        dt=1.0 / rate_hz, n_sub=float(substeps), R=base["resistance_ohm"], L=base["inductance_H"],
-        Kt=base["torque_constant_Nm_per_A"], Ke=base["back_emf_constant_V_s_per_rad"], ratio=ratio,
-        d_motor=base["viscous_motor_side_Nm_s_per_rad"], coulomb=base["coulomb_arm_Nm"], lk_r=r, lk_l=rod,
-        rp_nc=12.0, st_velocity=1.0, st_exponent=1.0, th_tau_cool=1.0,
+        dt=1.0 / rate_hz,
+        n_sub=float(substeps),
+        R=base["resistance_ohm"],
+        L=base["inductance_H"],
+        Kt=base["torque_constant_Nm_per_A"],
+        Ke=base["back_emf_constant_V_s_per_rad"],
+        ratio=ratio,
+        d_motor=base["viscous_motor_side_Nm_s_per_rad"],
+        coulomb=base["coulomb_arm_Nm"],
+        lk_r=r,
+        lk_l=rod,
+        rp_nc=12.0,
+        st_velocity=1.0,
+        st_exponent=1.0,
+        th_tau_cool=1.0,
     )
     derived: dict[str, dict] = {}
-    belt = effects.get("belt_compliance") or effects.get("backlash")  # backlash: a belt with free play
+    belt = effects.get("belt_compliance") or effects.get(
+        "backlash"
+    )  # backlash: a belt with free play
     motor_share = belt["motor_inertia_fraction"] if belt else 0.0
     arm_side = ratio**2 * (1.0 - motor_share) * total  # mean inertia carried by the arm shaft
     link = effects.get("linkage_dynamics")
@@ -131,41 +153,72 @@ def _model_parameters(base: dict, effects: dict[str, dict], substeps: int, rate_
         p["lk_mass"], p["gravity"] = link["reciprocating_mass_kg"], link["gravity_m_s2"]
         p["J_arm0"] = arm_side - link["reciprocating_mass_kg"] * mean_square_slider_speed(r, rod)
         if p["J_arm0"] <= 0:
-            raise UserError("linkage_dynamics: the reciprocating mass carries more inertia than the whole machine")
+            raise UserError(
+                "linkage_dynamics: the reciprocating mass carries more inertia than the whole machine"
+            )
     if belt:
         motor = ratio**2 * motor_share * total  # rotor inertia seen from the arm
         stiffness = (TWO_PI * belt["resonance_Hz"]) ** 2 / (1.0 / motor + 1.0 / arm_side)
         reduced = motor * arm_side / (motor + arm_side)
-        p.update(belt=1.0, J_motor=motor_share * total, belt_k=stiffness,
-                 belt_c=2.0 * belt["damping_ratio"] * math.sqrt(stiffness * reduced))
+        p.update(
+            belt=1.0,
+            J_motor=motor_share * total,
+            belt_k=stiffness,
+            belt_c=2.0 * belt["damping_ratio"] * math.sqrt(stiffness * reduced),
+        )
         derived["belt_compliance" if "belt_compliance" in effects else "backlash"] = {
-            "stiffness_arm_side_Nm_per_rad": stiffness, "damping_arm_side_Nm_s_per_rad": p["belt_c"],
-            "rotor_inertia_arm_side_kgm2": motor, "arm_inertia_kgm2": arm_side}
+            "stiffness_arm_side_Nm_per_rad": stiffness,
+            "damping_arm_side_Nm_s_per_rad": p["belt_c"],
+            "rotor_inertia_arm_side_kgm2": motor,
+            "arm_inertia_kgm2": arm_side,
+        }
     if "backlash" in effects:
         p["bl_gap"] = 0.5 * effects["backlash"]["free_play_rad"]
     if "torque_ripple" in effects:
         e = effects["torque_ripple"]
-        p.update(rp_a1=e["once_per_motor_rev_Nm"], rp_p1=e["once_per_motor_rev_phase_rad"], rp_ac=e["cogging_Nm"],
-                 rp_pc=e["cogging_phase_rad"], rp_nc=float(e["cogging_per_motor_rev"]))
+        p.update(
+            rp_a1=e["once_per_motor_rev_Nm"],
+            rp_p1=e["once_per_motor_rev_phase_rad"],
+            rp_ac=e["cogging_Nm"],
+            rp_pc=e["cogging_phase_rad"],
+            rp_nc=float(e["cogging_per_motor_rev"]),
+        )
     if "position_friction" in effects:
         e = effects["position_friction"]
-        p.update(pf_a1=e["first_harmonic_fraction"], pf_p1=e["first_harmonic_phase_rad"],
-                 pf_a2=e["second_harmonic_fraction"], pf_p2=e["second_harmonic_phase_rad"])
+        p.update(
+            pf_a1=e["first_harmonic_fraction"],
+            pf_p1=e["first_harmonic_phase_rad"],
+            pf_a2=e["second_harmonic_fraction"],
+            pf_p2=e["second_harmonic_phase_rad"],
+        )
         derived["position_friction"] = position_friction_shape(e)
     if "stribeck" in effects:
         e = effects["stribeck"]
         if e["model"] not in ("tustin", "hess_soom"):
             raise UserError(f"stribeck model must be tustin or hess_soom, not {e['model']!r}")
-        p.update(st_model=sim.STRIBECK_MODELS[e["model"]], st_excess=e["static_over_kinetic_fraction"],
-                 st_velocity=e["stribeck_velocity_arm_rad_s"], st_exponent=e["tustin_exponent"])
+        p.update(
+            st_model=sim.STRIBECK_MODELS[e["model"]],
+            st_excess=e["static_over_kinetic_fraction"],
+            st_velocity=e["stribeck_velocity_arm_rad_s"],
+            st_exponent=e["tustin_exponent"],
+        )
     if "thermal_drift" in effects:
         e = effects["thermal_drift"]
-        p.update(th_coulomb_drop=e["coulomb_drop_fraction"], th_viscous_drop=e["viscous_drop_fraction"],
-                 th_tau_warm=e["warm_up_time_constant_s"], th_tau_cool=e["cool_down_time_constant_s"])
+        p.update(
+            th_coulomb_drop=e["coulomb_drop_fraction"],
+            th_viscous_drop=e["viscous_drop_fraction"],
+            th_tau_warm=e["warm_up_time_constant_s"],
+            th_tau_cool=e["cool_down_time_constant_s"],
+        )
     if "needle_penetration" in effects:
         e = effects["needle_penetration"]
-        p.update(nd_force_per_m=e["force_per_layer_N"] / e["layer_thickness_m"], nd_fabric=e["layers"] * e["layer_thickness_m"],
-                 nd_point=e["point_length_m"], nd_sliding=e["sliding_fraction"], nd_depth_bdc=e["needle_depth_below_plate_at_bdc_m"])
+        p.update(
+            nd_force_per_m=e["force_per_layer_N"] / e["layer_thickness_m"],
+            nd_fabric=e["layers"] * e["layer_thickness_m"],
+            nd_point=e["point_length_m"],
+            nd_sliding=e["sliding_fraction"],
+            nd_depth_bdc=e["needle_depth_below_plate_at_bdc_m"],
+        )
         derived["needle_penetration"] = {"entry_arm_angle_rad": needle_entry_angle(e, r, rod)}
     return p, derived
 
@@ -193,16 +246,26 @@ def _rocking_truth(params: dict, nominal, derived: dict) -> np.ndarray | None:
         rotor = share * (total + float(found[2][:, 0].min()))
         arm = total - rotor
         stiffness = omega2 / (1.0 / rotor + 1.0 / arm)
-        params.update(J_motor=rotor / (n * n), J_arm0=arm, belt_k=stiffness,
-                      belt_c=2.0 * zeta * math.sqrt(stiffness * rotor * arm / (rotor + arm)))
+        params.update(
+            J_motor=rotor / (n * n),
+            J_arm0=arm,
+            belt_k=stiffness,
+            belt_c=2.0 * zeta * math.sqrt(stiffness * rotor * arm / (rotor + arm)),
+        )
         for values in derived.values():
             if "stiffness_arm_side_Nm_per_rad" in values:
-                values.update(stiffness_arm_side_Nm_per_rad=stiffness, damping_arm_side_Nm_s_per_rad=params["belt_c"],
-                              rotor_inertia_arm_side_kgm2=rotor, arm_inertia_kgm2=arm)
+                values.update(
+                    stiffness_arm_side_Nm_per_rad=stiffness,
+                    damping_arm_side_Nm_s_per_rad=params["belt_c"],
+                    rotor_inertia_arm_side_kgm2=rotor,
+                    arm_inertia_kgm2=arm,
+                )
     return found[2]
 
 
-def _chunk_stepper(params: dict, solver_name: str, table, nonlinearity: dict | None, heat: dict | None, rate: float):
+def _chunk_stepper(
+    params: dict, solver_name: str, table, nonlinearity: dict | None, heat: dict | None, rate: float
+):
     """step(logged voltage chunk, state, end) for the rocking bench's controller: the truth over
     one control period (the winding's resistance held over it when it heats)."""
     kelvin = [0.0]
@@ -211,12 +274,17 @@ def _chunk_stepper(params: dict, solver_name: str, table, nonlinearity: dict | N
         applied = applied_voltage(logged, nonlinearity)
         chunk = params
         if heat is not None:
-            chunk = {**params, "R": params["R"] * (1.0 + heat["copper_coefficient_per_K"] * kelvin[0])}
+            chunk = {
+                **params,
+                "R": params["R"] * (1.0 + heat["copper_coefficient_per_K"] * kelvin[0]),
+            }
         out = sim.simulate(chunk, applied, state, prefer=solver_name, table=table, end=end)
         if heat is not None:
             power = float(np.mean(out["current_A"] ** 2)) * chunk["R"]
             decay = math.exp(-len(logged) / rate / heat["thermal_time_constant_s"])
-            kelvin[0] = kelvin[0] * decay + power * heat["thermal_resistance_K_per_W"] * (1.0 - decay)
+            kelvin[0] = kelvin[0] * decay + power * heat["thermal_resistance_K_per_W"] * (
+                1.0 - decay
+            )
             out["winding_resistance_ohm"] = np.full(len(logged), chunk["R"])
         out["applied_voltage_V"] = applied
         return out
@@ -224,17 +292,31 @@ def _chunk_stepper(params: dict, solver_name: str, table, nonlinearity: dict | N
     return step
 
 
-HEATING_CHUNK_S = 0.1  # the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
+HEATING_CHUNK_S = (
+    0.1  # the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
+)
 
 
-def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_name: str, heat: dict, rate: float,
-                      table: np.ndarray | None = None) -> dict:
+def _simulate_heating(
+    params: dict,
+    voltage: np.ndarray,
+    state: dict,
+    solver_name: str,
+    heat: dict,
+    rate: float,
+    table: np.ndarray | None = None,
+) -> dict:
     """The truth model with the winding's resistance following its copper temperature:
     dT/dt = (I^2 R - T / R_th) / C_th, R = R0 (1 + alpha T), integrated chunk by chunk (the
     resistance held over each 0.1 s chunk, the temperature updated from the chunk's I^2 R)."""
     n = len(voltage)
     chunk = max(1, int(round(HEATING_CHUNK_S * rate)))
-    r0, rth, tau, alpha = params["R"], heat["thermal_resistance_K_per_W"], heat["thermal_time_constant_s"], heat["copper_coefficient_per_K"]
+    r0, rth, tau, alpha = (
+        params["R"],
+        heat["thermal_resistance_K_per_W"],
+        heat["thermal_time_constant_s"],
+        heat["copper_coefficient_per_K"],
+    )
     kelvin = 0.0
     parts: list[dict] = []
     resistance = np.empty(n)
@@ -242,10 +324,13 @@ def _simulate_heating(params: dict, voltage: np.ndarray, state: dict, solver_nam
         k1 = min(n, k0 + chunk)
         r = r0 * (1.0 + alpha * kelvin)
         # one sample more than the chunk: its first trace row is the state the next chunk starts from
-        u = voltage[k0:k1 + 1]
+        u = voltage[k0 : k1 + 1]
         out = sim.simulate({**params, "R": r}, u, state, prefer=solver_name, table=table)
         if k1 < n:
-            state = {name: float(out[trace][k1 - k0]) for name, trace in zip(sim.STATE_FIELDS, sim.TRACE_NAMES)}
+            state = {
+                name: float(out[trace][k1 - k0])
+                for name, trace in zip(sim.STATE_FIELDS, sim.TRACE_NAMES)
+            }
         parts.append({key: value[: k1 - k0] for key, value in out.items()})
         resistance[k0:k1] = r
         power = float(np.mean(out["current_A"][: k1 - k0] ** 2)) * r
@@ -267,7 +352,9 @@ def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> d
                 raise UserError(f"override for effect '{key}' must be a dict of its parameters")
             unknown = set(value) - set(effects[key])
             if unknown:
-                raise UserError(f"{key} has no parameter {sorted(unknown)[0]!r}; it has {', '.join(effects[key])}")
+                raise UserError(
+                    f"{key} has no parameter {sorted(unknown)[0]!r}; it has {', '.join(effects[key])}"
+                )
             effects[key].update(value)
         elif key in OPTIONS:
             options[key] = value
@@ -277,11 +364,21 @@ def _apply_overrides(effects: dict[str, dict], base: dict, overrides: dict) -> d
     return options
 
 
-OPTIONS = ("randomize_baseline", "voltage_plateaus", "start_angle_rad", "current_noise_A", "substeps_per_ms", "integrator",
-           "sample_rate_hz", "encoder_counts_per_rev")
+OPTIONS = (
+    "randomize_baseline",
+    "voltage_plateaus",
+    "start_angle_rad",
+    "current_noise_A",
+    "substeps_per_ms",
+    "integrator",
+    "sample_rate_hz",
+    "encoder_counts_per_rev",
+)
 
 
-def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nominal, **overrides) -> Recording:
+def make_recording(
+    effects=(), seed: int = 0, duration_s: float = 60.0, *, nominal, **overrides
+) -> Recording:
     """A bench recording (1 kHz unless ``sample_rate_hz``) of the truth model of the described
     drive ``nominal`` (a :class:`~mechanism.dynamics.lumped.DriveNominal`) with the named
     concealed effects.
@@ -332,8 +429,10 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     plateaus = options.get("voltage_plateaus") or ([] if rocks else draw_plateaus(seed, duration_s))
     plateaus = [(float(d), float(v)) for d, v in plateaus]
     if any(d <= 0 or not math.isfinite(v) or (v < 0 and not rocks) for d, v in plateaus):
-        raise UserError("voltage plateaus need positive durations and non-negative voltages"
-                        + ("" if rocks else " (a shaft that turns whole revolutions runs forward)"))
+        raise UserError(
+            "voltage plateaus need positive durations and non-negative voltages"
+            + ("" if rocks else " (a shaft that turns whole revolutions runs forward)")
+        )
 
     sensors = stream(seed, "sensors")
     if rocks:
@@ -341,20 +440,39 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     else:
         start = float(options.get("start_angle_rad", sensors.uniform(0.0, TWO_PI)))
     noise = float(options.get("current_noise_A", sensors.uniform(0.01, 0.03)))
-    state = dict(theta_arm=start, omega_arm=0.0, theta_motor=base["belt_ratio"] * start, omega_motor=0.0, current=0.0, warmth=0.0)
+    state = dict(
+        theta_arm=start,
+        omega_arm=0.0,
+        theta_motor=base["belt_ratio"] * start,
+        omega_motor=0.0,
+        current=0.0,
+        warmth=0.0,
+    )
     solver_name = options.get("integrator", "native")
     nonlinearity = effect_params.get("voltage_nonlinearity")
     moves: list[dict] = []
     if rocks and not plateaus:
-        stepper = _chunk_stepper(params, solver_name, table, nonlinearity, effect_params.get("winding_heating"), rate)
-        logged_voltage, chunks, moves = rocking.run(stepper, n, rate, state, stream(seed, "profile"), nominal, base["supply_V"])
+        stepper = _chunk_stepper(
+            params, solver_name, table, nonlinearity, effect_params.get("winding_heating"), rate
+        )
+        logged_voltage, chunks, moves = rocking.run(
+            stepper, n, rate, state, stream(seed, "profile"), nominal, base["supply_V"]
+        )
         traces = {key: np.concatenate([c[key] for c in chunks]) for key in chunks[0]}
         motor_voltage = traces.pop("applied_voltage_V")
     else:
         logged_voltage = voltage_samples(plateaus, n, rate)
         motor_voltage = applied_voltage(logged_voltage, nonlinearity)
         if "winding_heating" in effect_params:
-            traces = _simulate_heating(params, motor_voltage, state, solver_name, effect_params["winding_heating"], rate, table)
+            traces = _simulate_heating(
+                params,
+                motor_voltage,
+                state,
+                solver_name,
+                effect_params["winding_heating"],
+                rate,
+                table,
+            )
         else:
             traces = sim.simulate(params, motor_voltage, state, prefer=solver_name, table=table)
     traces["applied_voltage_V"] = motor_voltage
@@ -367,9 +485,14 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     if "encoder_eccentricity" in effect_params:
         e = effect_params["encoder_eccentricity"]
         # the count is reset at the index pulse (needle TDC), so the error vanishes there
-        sensed = true_angle + e["amplitude_rad"] * (np.sin(true_angle + e["phase_rad"]) - math.sin(e["phase_rad"]))
+        sensed = true_angle + e["amplitude_rad"] * (
+            np.sin(true_angle + e["phase_rad"]) - math.sin(e["phase_rad"])
+        )
     arm_angle = np.floor(sensed / step) * step
-    current = np.round((traces["current_A"] + sensors.normal(0.0, noise, n)) / CURRENT_RESOLUTION_A) * CURRENT_RESOLUTION_A
+    current = (
+        np.round((traces["current_A"] + sensors.normal(0.0, noise, n)) / CURRENT_RESOLUTION_A)
+        * CURRENT_RESOLUTION_A
+    )
 
     truth = {
         "format": TRUTH_FORMAT,
@@ -393,10 +516,21 @@ def make_recording(effects=(), seed: int = 0, duration_s: float = 60.0, *, nomin
     }
     if rocks:
         lo, hi = nominal.travel_rad
-        truth["rocking"] = {"stops_rad": [lo, hi], "safe_band_rad": list(rocking.safe_band(nominal)),
-                            "linkage_table": table is not None, "moves": moves}
-    return Recording(time, logged_voltage, arm_angle, current, truth, traces,
-                     zero_meaning=getattr(nominal, "zero_meaning", ZERO_MEANING))
+        truth["rocking"] = {
+            "stops_rad": [lo, hi],
+            "safe_band_rad": list(rocking.safe_band(nominal)),
+            "linkage_table": table is not None,
+            "moves": moves,
+        }
+    return Recording(
+        time,
+        logged_voltage,
+        arm_angle,
+        current,
+        truth,
+        traces,
+        zero_meaning=getattr(nominal, "zero_meaning", ZERO_MEANING),
+    )
 
 
 RECORDING_ENDINGS = {".csv": "csv", ".csv.gz": "csv.gz", ".parquet": "parquet", ".mat": "mat"}
@@ -419,7 +553,9 @@ def truth_path_for(csv_path: str | Path) -> Path:
     return csv_path.with_name(csv_path.name[: -len(ending)] + ".truth.json")
 
 
-def write_recording(recording: Recording, csv_path: str | Path, fmt: str | None = None) -> tuple[Path, Path]:
+def write_recording(
+    recording: Recording, csv_path: str | Path, fmt: str | None = None
+) -> tuple[Path, Path]:
     """Write the recording (contract columns only) in the format its name ends in (``fmt``,
     when given, must agree) and its truth JSON next to it, atomically."""
     from mechanism.files.formats import write_columns
@@ -438,7 +574,13 @@ def write_recording(recording: Recording, csv_path: str | Path, fmt: str | None 
         f"counts_per_rev: {counts}",
     ]
     with transaction():  # both files or neither; a failure never touches the previous pair
-        write_columns(csv_path, recording.columns(), comments=comments, fmt=named, metadata={"counts_per_rev": str(counts)})
+        write_columns(
+            csv_path,
+            recording.columns(),
+            comments=comments,
+            fmt=named,
+            metadata={"counts_per_rev": str(counts)},
+        )
         with atomic_file(truth_path) as handle:
             json.dump(_jsonable(truth), handle, indent=2)
             handle.write("\n")

@@ -27,10 +27,17 @@ from mechanism.errors import UserError
 CONTROL_PERIOD_S = 0.01  # the bench's position check (100 Hz)
 SAFE_MARGIN = 0.15  # targets stay this share of the travel clear of each stop
 MIN_MOVE = 0.25  # a move covers at least this share of the safe band
-CROSSING_S = (0.6, 4.0)  # a move crosses the safe band in this time at its target speed (log-uniform)
+CROSSING_S = (
+    0.6,
+    4.0,
+)  # a move crosses the safe band in this time at its target speed (log-uniform)
 REST_S = (0.2, 1.2)  # the rest at 0 V after each move
-BREAKAWAY_WAIT_S = 0.3  # a shaft slower than a tenth of its target speed this long after a move starts ...
-BREAKAWAY_STEP = 1.15  # ... gets 15 % more voltage, again after as long (up to the supply): few voltage steps
+BREAKAWAY_WAIT_S = (
+    0.3  # a shaft slower than a tenth of its target speed this long after a move starts ...
+)
+BREAKAWAY_STEP = (
+    1.15  # ... gets 15 % more voltage, again after as long (up to the supply): few voltage steps
+)
 VOLTAGE_RESOLUTION_V = 0.01
 
 # Effects whose physics needs a shaft or motor that turns whole revolutions (or the sewing
@@ -54,14 +61,22 @@ def refuse_effects(names, nominal) -> None:
     low, top = working_voltages(nominal)
     for name in names:
         why = NEEDS_TURNING.get(name)
-        if why is None and name in NEEDS_MOTOR_TURNS and (name == "encoder_eccentricity" or motor_span < 2 * math.pi):
+        if (
+            why is None
+            and name in NEEDS_MOTOR_TURNS
+            and (name == "encoder_eccentricity" or motor_span < 2 * math.pi)
+        ):
             why = NEEDS_MOTOR_TURNS[name]
         if name == "voltage_nonlinearity" and top < PWM_ANCHORS_V[0]:
-            why = (f"its switch distortion is anchored at {PWM_ANCHORS_V[0]:g} and {PWM_ANCHORS_V[1]:g} V, and the bench "
-                   f"moves this drive with {low:.2g}-{top:.2g} V, where the extrapolated loss would swallow most of the voltage")
+            why = (
+                f"its switch distortion is anchored at {PWM_ANCHORS_V[0]:g} and {PWM_ANCHORS_V[1]:g} V, and the bench "
+                f"moves this drive with {low:.2g}-{top:.2g} V, where the extrapolated loss would swallow most of the voltage"
+            )
         if why:
-            raise UserError(f"effect {name} does not apply to a shaft that rocks between "
-                            f"{math.degrees(lo):.4g} and {math.degrees(hi):.4g} deg: {why}")
+            raise UserError(
+                f"effect {name} does not apply to a shaft that rocks between "
+                f"{math.degrees(lo):.4g} and {math.degrees(hi):.4g} deg: {why}"
+            )
 
 
 def linkage_table(nominal) -> tuple[float, float, np.ndarray] | None:
@@ -71,7 +86,13 @@ def linkage_table(nominal) -> tuple[float, float, np.ndarray] | None:
     if tables is None:
         return None
     angle = np.asarray(tables.angle_rad, dtype=float)
-    rows = np.column_stack([tables.inertia_variation_kgm2, 0.5 * np.asarray(tables.dinertia_drad), tables.gravity_torque_Nm])
+    rows = np.column_stack(
+        [
+            tables.inertia_variation_kgm2,
+            0.5 * np.asarray(tables.dinertia_drad),
+            tables.gravity_torque_Nm,
+        ]
+    )
     grid = np.linspace(angle[0], angle[-1], len(angle))
     if not np.allclose(grid, angle, rtol=0, atol=1e-12 * max(1.0, abs(angle[-1]))):
         rows = np.column_stack([np.interp(grid, angle, rows[:, j]) for j in range(3)])
@@ -92,14 +113,24 @@ def safe_band(nominal) -> tuple[float, float]:
 def working_voltages(nominal) -> tuple[float, float]:
     """The bench's move voltages for the described drive: slowest and fastest crossing [V]."""
     lo, hi = safe_band(nominal)
-    return tuple(voltage_for_speed(nominal, (hi - lo) / crossing) for crossing in sorted(CROSSING_S, reverse=True))  # type: ignore[return-value]
+    return tuple(
+        voltage_for_speed(nominal, (hi - lo) / crossing)
+        for crossing in sorted(CROSSING_S, reverse=True)
+    )  # type: ignore[return-value]
 
 
 def voltage_for_speed(nominal, speed: float) -> float:
     """The described drive's steady voltage for ``speed`` [rad/s, shaft] against its friction scale."""
     m, n = nominal.motor, nominal.ratio
-    damping = m.torque_constant_Nm_per_A * m.back_emf_V_s_per_rad * n * n / m.resistance_ohm + nominal.viscous_motor_side * n * n
-    return m.resistance_ohm / (m.torque_constant_Nm_per_A * n) * (nominal.torque_scale_Nm + speed * damping)
+    damping = (
+        m.torque_constant_Nm_per_A * m.back_emf_V_s_per_rad * n * n / m.resistance_ohm
+        + nominal.viscous_motor_side * n * n
+    )
+    return (
+        m.resistance_ohm
+        / (m.torque_constant_Nm_per_A * n)
+        * (nominal.torque_scale_Nm + speed * damping)
+    )
 
 
 def run(step, n: int, rate: float, state: dict, rng, nominal, supply_V: float):
@@ -136,7 +167,9 @@ def run(step, n: int, rate: float, state: dict, rng, nominal, supply_V: float):
             speed = span / math.exp(rng.uniform(*np.log(CROSSING_S)))
             volts = direction * min(voltage_for_speed(nominal, speed), supply_V)
             mode, move_start = "move", t
-            moves.append({"time_s": t, "from_rad": theta, "target_rad": target, "speed_rad_s": speed})
+            moves.append(
+                {"time_s": t, "from_rad": theta, "target_rad": target, "speed_rad_s": speed}
+            )
         volts = round(volts / VOLTAGE_RESOLUTION_V) * VOLTAGE_RESOLUTION_V
         logged[k0:k1] = volts
         end: dict = {}

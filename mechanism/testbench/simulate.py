@@ -20,22 +20,64 @@ SUBSTEPS_PER_MS = 20  # 50 us: belt resonances up to ~100 Hz, 1 ms electrical ti
 
 # Field order mirrors ``tb_params`` in mechanism/native/testbench.c (all doubles).
 PARAM_FIELDS = (
-    "dt", "n_sub", "belt",
-    "R", "L", "Kt", "Ke", "ratio",
-    "J_motor", "J_arm0", "d_motor", "coulomb",
-    "pf_a1", "pf_p1", "pf_a2", "pf_p2",
-    "st_model", "st_excess", "st_velocity", "st_exponent",
-    "th_coulomb_drop", "th_viscous_drop", "th_tau_warm", "th_tau_cool",
-    "rp_a1", "rp_p1", "rp_ac", "rp_pc", "rp_nc", "motor_phase0",
-    "lk_mass", "lk_r", "lk_l", "gravity",
-    "nd_force_per_m", "nd_fabric", "nd_point", "nd_sliding", "nd_depth_bdc",
-    "belt_k", "belt_c",
+    "dt",
+    "n_sub",
+    "belt",
+    "R",
+    "L",
+    "Kt",
+    "Ke",
+    "ratio",
+    "J_motor",
+    "J_arm0",
+    "d_motor",
+    "coulomb",
+    "pf_a1",
+    "pf_p1",
+    "pf_a2",
+    "pf_p2",
+    "st_model",
+    "st_excess",
+    "st_velocity",
+    "st_exponent",
+    "th_coulomb_drop",
+    "th_viscous_drop",
+    "th_tau_warm",
+    "th_tau_cool",
+    "rp_a1",
+    "rp_p1",
+    "rp_ac",
+    "rp_pc",
+    "rp_nc",
+    "motor_phase0",
+    "lk_mass",
+    "lk_r",
+    "lk_l",
+    "gravity",
+    "nd_force_per_m",
+    "nd_fabric",
+    "nd_point",
+    "nd_sliding",
+    "nd_depth_bdc",
+    "belt_k",
+    "belt_c",
     "bl_gap",
-    "stop_on", "stop_lo", "stop_hi",
-    "tb_n", "tb_lo", "tb_hi",
+    "stop_on",
+    "stop_lo",
+    "stop_hi",
+    "tb_n",
+    "tb_lo",
+    "tb_hi",
 )
 STATE_FIELDS = ("theta_arm", "omega_arm", "theta_motor", "omega_motor", "current", "warmth")
-TRACE_NAMES = ("arm_angle_rad", "arm_velocity_rad_s", "motor_angle_rad", "motor_velocity_rad_s", "current_A", "warmth")
+TRACE_NAMES = (
+    "arm_angle_rad",
+    "arm_velocity_rad_s",
+    "motor_angle_rad",
+    "motor_velocity_rad_s",
+    "current_A",
+    "warmth",
+)
 STRIBECK_MODELS = {"none": 0.0, "tustin": 1.0, "hess_soom": 2.0}
 
 
@@ -48,7 +90,9 @@ class Solver:
     """The integrator in use: ``native`` (C) or ``python``."""
 
     name: str
-    function: Callable[..., object]  # the C tb_simulate (through ctypes) or _simulate_python; their results are unused
+    function: Callable[
+        ..., object
+    ]  # the C tb_simulate (through ctypes) or _simulate_python; their results are unused
 
 
 _SOLVER: Solver | None = None
@@ -68,14 +112,26 @@ def solver(prefer: str = "native") -> Solver:
         else:
             function = library.tb_simulate
             pointer = ctypes.POINTER(ctypes.c_double)
-            function.argtypes = (ctypes.POINTER(_Params), ctypes.c_int, pointer, pointer, *(pointer,) * 7)
+            function.argtypes = (
+                ctypes.POINTER(_Params),
+                ctypes.c_int,
+                pointer,
+                pointer,
+                *(pointer,) * 7,
+            )
             function.restype = ctypes.c_int
             _SOLVER = Solver("native", function)
     return _SOLVER
 
 
-def simulate(params: dict[str, float], applied_voltage: np.ndarray, state: dict[str, float], prefer: str = "native",
-             table: np.ndarray | None = None, end: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+def simulate(
+    params: dict[str, float],
+    applied_voltage: np.ndarray,
+    state: dict[str, float],
+    prefer: str = "native",
+    table: np.ndarray | None = None,
+    end: dict[str, float] | None = None,
+) -> dict[str, np.ndarray]:
     """Integrate from ``state`` with ``applied_voltage[k]`` held over sample k.
 
     ``params`` holds every name in PARAM_FIELDS. Returns the state at each sample time
@@ -99,8 +155,12 @@ def simulate(params: dict[str, float], applied_voltage: np.ndarray, state: dict[
         struct = _Params(**{name: float(params[name]) for name in PARAM_FIELDS})
         pointer = ctypes.POINTER(ctypes.c_double)
         chosen.function(
-            ctypes.byref(struct), n, u.ctypes.data_as(pointer), state_array.ctypes.data_as(pointer),
-            *(array.ctypes.data_as(pointer) for array in outputs), flat.ctypes.data_as(pointer),
+            ctypes.byref(struct),
+            n,
+            u.ctypes.data_as(pointer),
+            state_array.ctypes.data_as(pointer),
+            *(array.ctypes.data_as(pointer) for array in outputs),
+            flat.ctypes.data_as(pointer),
         )
     else:
         _simulate_python(params, u, state_array, outputs, flat)
@@ -110,6 +170,7 @@ def simulate(params: dict[str, float], applied_voltage: np.ndarray, state: dict[
 
 
 # --- the Python twin of testbench.c (same operations in the same order) ---------------
+
 
 def _slider(p, th):
     s, c, r = math.sin(th), math.cos(th), p["lk_r"]
@@ -146,7 +207,9 @@ def _needle_torque(p, th):
 
 def _friction_levels(p, th, speed, warmth):
     level = p["coulomb"] * (1.0 - p["th_coulomb_drop"] * warmth)
-    level *= 1.0 + p["pf_a1"] * math.cos(th - p["pf_p1"]) + p["pf_a2"] * math.cos(2.0 * th - p["pf_p2"])
+    level *= (
+        1.0 + p["pf_a1"] * math.cos(th - p["pf_p1"]) + p["pf_a2"] * math.cos(2.0 * th - p["pf_p2"])
+    )
     decay = 0.0
     if p["st_model"] == 1.0:
         decay = math.exp(-math.pow(speed / p["st_velocity"], p["st_exponent"]))
@@ -166,7 +229,9 @@ def _belt_torque(p, twist, rate):
 
 
 def _ripple(p, thm):
-    return p["rp_a1"] * math.sin(thm + p["rp_p1"]) + p["rp_ac"] * math.sin(p["rp_nc"] * thm + p["rp_pc"])
+    return p["rp_a1"] * math.sin(thm + p["rp_p1"]) + p["rp_ac"] * math.sin(
+        p["rp_nc"] * thm + p["rp_pc"]
+    )
 
 
 def _linkage_table(p, table, th):
@@ -175,7 +240,7 @@ def _linkage_table(p, table, th):
     x = min(max(x, 0.0), float(n - 1))
     i = min(int(x), n - 2)
     f = x - i
-    row, nxt = table[3 * i: 3 * i + 3], table[3 * i + 3: 3 * i + 6]
+    row, nxt = table[3 * i : 3 * i + 3], table[3 * i + 3 : 3 * i + 6]
     return tuple(float(a + f * (b - a)) for a, b in zip(row, nxt))
 
 
@@ -198,7 +263,14 @@ def _simulate_python(p, u, state, outputs, table=None):
         uk = float(u[k])
         if p["L"] <= 0.0:
             cur = (uk - p["Ke"] * wm) / p["R"]
-        out_tha[k], out_wa[k], out_thm[k], out_wm[k], out_cur[k], out_x[k] = tha, wa, thm, wm, cur, x
+        out_tha[k], out_wa[k], out_thm[k], out_wm[k], out_cur[k], out_x[k] = (
+            tha,
+            wa,
+            thm,
+            wm,
+            cur,
+            x,
+        )
         for _ in range(n_sub):
             if mass > 0.0:
                 _, dz, ddz = _slider(p, tha)
@@ -229,7 +301,9 @@ def _simulate_python(p, u, state, outputs, table=None):
             tha += h * wa
             thm += h * wm
             if p["stop_on"] != 0.0 and (tha > p["stop_hi"] or tha < p["stop_lo"]):
-                tha = p["stop_hi"] if tha > p["stop_hi"] else p["stop_lo"]  # inelastic: the arm stops at the stop
+                tha = (
+                    p["stop_hi"] if tha > p["stop_hi"] else p["stop_lo"]
+                )  # inelastic: the arm stops at the stop
                 if (tha == p["stop_hi"] and wa > 0.0) or (tha == p["stop_lo"] and wa < 0.0):
                     wa = 0.0
                 if p["belt"] == 0.0:

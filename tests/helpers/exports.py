@@ -25,10 +25,30 @@ def rotation(axis, angle: float) -> np.ndarray:
 def box_stl(path: Path, low, high) -> None:
     """A binary STL box between two corners (in whatever unit the caller uses)."""
     low, high = np.asarray(low, float), np.asarray(high, float)
-    corners = np.array([[low[0] if i & 1 == 0 else high[0], low[1] if i & 2 == 0 else high[1],
-                         low[2] if i & 4 == 0 else high[2]] for i in range(8)])
-    faces = [(0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6), (0, 1, 4), (1, 5, 4),
-             (2, 6, 3), (3, 6, 7), (0, 4, 2), (2, 4, 6), (1, 3, 5), (3, 7, 5)]
+    corners = np.array(
+        [
+            [
+                low[0] if i & 1 == 0 else high[0],
+                low[1] if i & 2 == 0 else high[1],
+                low[2] if i & 4 == 0 else high[2],
+            ]
+            for i in range(8)
+        ]
+    )
+    faces = [
+        (0, 2, 1),
+        (1, 2, 3),
+        (4, 5, 6),
+        (5, 7, 6),
+        (0, 1, 4),
+        (1, 5, 4),
+        (2, 6, 3),
+        (3, 6, 7),
+        (0, 4, 2),
+        (2, 4, 6),
+        (1, 3, 5),
+        (3, 7, 5),
+    ]
     data = bytearray(b"test box".ljust(80, b" ") + struct.pack("<I", len(faces)))
     for a, b, c in faces:
         normal = np.cross(corners[b] - corners[a], corners[c] - corners[a])
@@ -39,10 +59,15 @@ def box_stl(path: Path, low, high) -> None:
 
 def bar_inertia(mass: float, length: float, width: float, thickness: float) -> np.ndarray:
     """Uniform box about its centre, x along the length."""
-    return mass / 12 * np.diag([width**2 + thickness**2, length**2 + thickness**2, length**2 + width**2])
+    return (
+        mass
+        / 12
+        * np.diag([width**2 + thickness**2, length**2 + thickness**2, length**2 + width**2])
+    )
 
 
 # -- first generation --------------------------------------------------------------------------
+
 
 def _numbers(values) -> str:
     return ",".join(f"{v:.12g}" for v in np.asarray(values, dtype=float).ravel())
@@ -120,15 +145,40 @@ class Gen1Export:
         self._owners: dict[str, Gen1Body | None] = {}
 
     def _frame(self, name, position, rotation=None, **extra) -> Gen1Frame:
-        return Gen1Frame(name, np.asarray(position, float), np.eye(3) if rotation is None else rotation,
-                         length_unit=self.length_unit, **extra)
+        return Gen1Frame(
+            name,
+            np.asarray(position, float),
+            np.eye(3) if rotation is None else rotation,
+            length_unit=self.length_unit,
+            **extra,
+        )
 
-    def body(self, name, mass_g, cg_mm, inertia_cg_g_mm2, cg_rotation=None, part_origin_mm=(0, 0, 0),
-             part_rotation=None, geometry="", named_frames=()) -> Gen1Body:
-        frames = [self._frame(f"CS{i + 2}", p, display_name=n) for i, (n, p) in enumerate(named_frames)]
-        body = Gen1Body(name, mass_g, self._frame("CG", cg_mm, cg_rotation), np.asarray(inertia_cg_g_mm2, float),
-                        self._frame("CS1", part_origin_mm, part_rotation), geometry, frames,
-                        mass_unit=self.mass_unit, length_unit=self.length_unit)
+    def body(
+        self,
+        name,
+        mass_g,
+        cg_mm,
+        inertia_cg_g_mm2,
+        cg_rotation=None,
+        part_origin_mm=(0, 0, 0),
+        part_rotation=None,
+        geometry="",
+        named_frames=(),
+    ) -> Gen1Body:
+        frames = [
+            self._frame(f"CS{i + 2}", p, display_name=n) for i, (n, p) in enumerate(named_frames)
+        ]
+        body = Gen1Body(
+            name,
+            mass_g,
+            self._frame("CG", cg_mm, cg_rotation),
+            np.asarray(inertia_cg_g_mm2, float),
+            self._frame("CS1", part_origin_mm, part_rotation),
+            geometry,
+            frames,
+            mass_unit=self.mass_unit,
+            length_unit=self.length_unit,
+        )
         self.bodies.append(body)
         return body
 
@@ -142,12 +192,17 @@ class Gen1Export:
             owner.frames.append(frame)
         return ref
 
-    def joint(self, name: str, base: Gen1Body | None, follower: Gen1Body, at_mm, primitives) -> None:
+    def joint(
+        self, name: str, base: Gen1Body | None, follower: Gen1Body, at_mm, primitives
+    ) -> None:
         """``primitives``: [(kind, axis_world)] with kind revolute/prismatic/spherical/weld; ``base=None`` is ground."""
         base_ref = self._frame_on(base, at_mm)
         follower_ref = self._frame_on(follower, at_mm)
-        prims = "\n".join(f"""<Primitive><name>"{kind}"</name><nodeID>""</nodeID>
-<referenceFrame>"WORLD"</referenceFrame><axis>{_numbers(axis)}</axis></Primitive>""" for kind, axis in primitives)
+        prims = "\n".join(
+            f"""<Primitive><name>"{kind}"</name><nodeID>""</nodeID>
+<referenceFrame>"WORLD"</referenceFrame><axis>{_numbers(axis)}</axis></Primitive>"""
+            for kind, axis in primitives
+        )
         self.joints.append(f"""<SimpleJoint>
 <name>"{name}"</name><nodeID>"{name}"</nodeID><status>""</status>
 <base><JointSide><name>""</name><connection><Frame ref="{base_ref}"></Frame></connection></JointSide></base>
@@ -156,13 +211,17 @@ class Gen1Export:
 </SimpleJoint>""")
 
     def weld_to_ground(self, body: Gen1Body, at_mm=(0, 0, 0)) -> None:
-        self.joint(f"RootGround--{body.name}", None, body, at_mm, [("weld", (0.57735, 0.57735, 0.57735))])
+        self.joint(
+            f"RootGround--{body.name}", None, body, at_mm, [("weld", (0.57735, 0.57735, 0.57735))]
+        )
 
     def root_part(self, body: Gen1Body, at_mm=(0, 0, 0)) -> Gen1Body:
         """Ground ``body`` as Pro/E's SimMechanics Link does: through a massless ``RootPart`` body
         welded to ``body`` and to the ground."""
         root = self.body("RootPart", 0.0, at_mm, np.zeros((3, 3)))
-        self.joint(f"RootPart--{body.name}", root, body, at_mm, [("weld", (0.57735, 0.57735, 0.57735))])
+        self.joint(
+            f"RootPart--{body.name}", root, body, at_mm, [("weld", (0.57735, 0.57735, 0.57735))]
+        )
         self.weld_to_ground(root, at_mm)
         return root
 
@@ -196,6 +255,7 @@ class Gen1Export:
 
 # -- a planar four-bar, plane rotated away from the world axes --------------------------------
 
+
 @dataclass
 class FourBar:
     """Crank-rocker four-bar in a tilted plane (lengths in mm)."""
@@ -205,7 +265,9 @@ class FourBar:
     rocker: float = 50.0
     ground: float = 55.0
     crank_angle0: float = math.radians(60.0)
-    plane: np.ndarray = field(default_factory=lambda: rotation((0, 0, 1), 0.7) @ rotation((1, 0, 0), 1.1))
+    plane: np.ndarray = field(
+        default_factory=lambda: rotation((0, 0, 1), 0.7) @ rotation((1, 0, 0), 1.1)
+    )
     origin_mm: np.ndarray = field(default_factory=lambda: np.array([30.0, -20.0, 100.0]))
 
     def world(self, u: float, v: float, w: float = 0.0) -> np.ndarray:
@@ -234,7 +296,12 @@ class FourBar:
         b = o4 + self.rocker * np.array([math.cos(theta4), math.sin(theta4)])
         return o2, o4, a, b
 
-    WIDTH, THICKNESS, DENSITY, FRAME_MASS = 6.0, 3.0, 7.85e-3, 500.0  # mm, mm, g/mm^3, g (or the export's units)
+    WIDTH, THICKNESS, DENSITY, FRAME_MASS = (
+        6.0,
+        3.0,
+        7.85e-3,
+        500.0,
+    )  # mm, mm, g/mm^3, g (or the export's units)
 
     def links(self):
         """(name, start pin, end pin, layer) of the moving links, in plane coordinates."""
@@ -243,12 +310,22 @@ class FourBar:
 
     def masses(self) -> dict[str, float]:
         """Every body's mass as the export states it (g, or ``mass_unit``)."""
-        bars = {name: self.DENSITY * float(np.linalg.norm(end - start)) * self.WIDTH * self.THICKNESS
-                for name, start, end, _ in self.links()}
+        bars = {
+            name: self.DENSITY * float(np.linalg.norm(end - start)) * self.WIDTH * self.THICKNESS
+            for name, start, end, _ in self.links()
+        }
         return {"frame": self.FRAME_MASS, **bars}
 
-    def export(self, folder: Path, with_geometry: bool = True, *, length_unit: str = "mm", mass_unit: str = "g",
-               root_part: bool = False, write_meshes: bool = True) -> Path:
+    def export(
+        self,
+        folder: Path,
+        with_geometry: bool = True,
+        *,
+        length_unit: str = "mm",
+        mass_unit: str = "g",
+        root_part: bool = False,
+        write_meshes: bool = True,
+    ) -> Path:
         """Write ``fourbar.xml`` and its STL links into ``folder``. Numbers are the same in any
         ``length_unit``/``mass_unit``; ``root_part``: grounded through a massless RootPart as Pro/E
         writes it; ``write_meshes=False`` names geometry files it does not write."""
@@ -257,9 +334,15 @@ class FourBar:
         doc = Gen1Export(length_unit, mass_unit)
         width, thickness, masses = self.WIDTH, self.THICKNESS, self.masses()
         write_meshes = with_geometry and write_meshes
-        base = doc.body("frame", masses["frame"], self.world(*(0.5 * (o2 + o4))), np.diag([2e5, 2e5, 2e5]),
-                        part_origin_mm=self.world(0, 0), part_rotation=self.plane,
-                        geometry="frame.stl" if with_geometry else "")
+        base = doc.body(
+            "frame",
+            masses["frame"],
+            self.world(*(0.5 * (o2 + o4))),
+            np.diag([2e5, 2e5, 2e5]),
+            part_origin_mm=self.world(0, 0),
+            part_rotation=self.plane,
+            geometry="frame.stl" if with_geometry else "",
+        )
         if write_meshes:
             box_stl(folder / "frame.stl", (-5, -5, -12), (self.ground + 5, 5, -9))
         if root_part:
@@ -270,15 +353,32 @@ class FourBar:
         for name, start, end, layer in self.links():
             length = float(np.linalg.norm(end - start))
             angle = math.atan2(*(end - start)[::-1])
-            link_rotation = self.plane @ rotation((0, 0, 1), angle)  # x along the link, z along the normal
+            link_rotation = self.plane @ rotation(
+                (0, 0, 1), angle
+            )  # x along the link, z along the normal
             mass = masses[name]
             mid = self.world(*(0.5 * (start + end)), layer * 4.0)
-            named = [(f"{name}_start", self.world(*start, layer * 4.0)), (f"{name}_end", self.world(*end, layer * 4.0))]
-            links[name] = doc.body(name, mass, mid, bar_inertia(mass, length, width, thickness), cg_rotation=link_rotation,
-                                   part_origin_mm=self.world(*start, layer * 4.0), part_rotation=link_rotation,
-                                   geometry=f"{name}.stl" if with_geometry else "", named_frames=named)
+            named = [
+                (f"{name}_start", self.world(*start, layer * 4.0)),
+                (f"{name}_end", self.world(*end, layer * 4.0)),
+            ]
+            links[name] = doc.body(
+                name,
+                mass,
+                mid,
+                bar_inertia(mass, length, width, thickness),
+                cg_rotation=link_rotation,
+                part_origin_mm=self.world(*start, layer * 4.0),
+                part_rotation=link_rotation,
+                geometry=f"{name}.stl" if with_geometry else "",
+                named_frames=named,
+            )
             if write_meshes:
-                box_stl(folder / f"{name}.stl", (0, -width / 2, -thickness / 2), (length, width / 2, thickness / 2))
+                box_stl(
+                    folder / f"{name}.stl",
+                    (0, -width / 2, -thickness / 2),
+                    (length, width / 2, thickness / 2),
+                )
         revolute = [("revolute", normal)]
         doc.joint("ground--crank", base, links["crank"], self.world(*o2), revolute)
         doc.joint("crank--coupler", links["crank"], links["coupler"], self.world(*a), revolute)
@@ -289,36 +389,72 @@ class FourBar:
 
 # -- second generation -------------------------------------------------------------------------
 
+
 def gen2_transform(rotation_matrix=None, translation=(0, 0, 0)) -> str:
     r = np.eye(3) if rotation_matrix is None else np.asarray(rotation_matrix)
-    return (f"<Transform><Rotation>{' '.join(f'{v:.12g}' for v in r.ravel())}</Rotation>"
-            f"<Translation>{' '.join(f'{v:.12g}' for v in translation)}</Translation></Transform>")
+    return (
+        f"<Transform><Rotation>{' '.join(f'{v:.12g}' for v in r.ravel())}</Rotation>"
+        f"<Translation>{' '.join(f'{v:.12g}' for v in translation)}</Translation></Transform>"
+    )
 
 
-def gen2_part(name: str, uid: str, mass: float, com, inertia_xx_yy_zz_yz_zx_xy, geometry: str = "", extra: str = "") -> str:
+def gen2_part(
+    name: str,
+    uid: str,
+    mass: float,
+    com,
+    inertia_xx_yy_zz_yz_zx_xy,
+    geometry: str = "",
+    extra: str = "",
+) -> str:
     """``extra``: XML written before the mass properties (e.g. the part's own ``<ModelUnits>``)."""
-    geometry_xml = f'<GeometryFile name="{geometry}" type="{"STL" if geometry.lower().endswith("stl") else "STEP"}"/>' if geometry else ""
-    return (f'<Part name="{name}" uid="{uid}">{extra}<MassProperties><Mass>{mass:.12g}</Mass>'
-            f"<CenterOfMass>{' '.join(f'{v:.12g}' for v in com)}</CenterOfMass>"
-            f"<Inertia>{' '.join(f'{v:.12g}' for v in inertia_xx_yy_zz_yz_zx_xy)}</Inertia></MassProperties>"
-            f'{geometry_xml}<VisualProperties><Diffuse a="1" b="0.5" g="0.5" r="0.5"/></VisualProperties></Part>')
+    geometry_xml = (
+        f'<GeometryFile name="{geometry}" type="{"STL" if geometry.lower().endswith("stl") else "STEP"}"/>'
+        if geometry
+        else ""
+    )
+    return (
+        f'<Part name="{name}" uid="{uid}">{extra}<MassProperties><Mass>{mass:.12g}</Mass>'
+        f"<CenterOfMass>{' '.join(f'{v:.12g}' for v in com)}</CenterOfMass>"
+        f"<Inertia>{' '.join(f'{v:.12g}' for v in inertia_xx_yy_zz_yz_zx_xy)}</Inertia></MassProperties>"
+        f'{geometry_xml}<VisualProperties><Diffuse a="1" b="0.5" g="0.5" r="0.5"/></VisualProperties></Part>'
+    )
 
 
-def gen2_joint(kind: str, name: str, base_path, base_transform: str, follower_path, follower_transform: str) -> str:
+def gen2_joint(
+    kind: str, name: str, base_path, base_transform: str, follower_path, follower_transform: str
+) -> str:
     def frame(tag, path, transform):
         uids = "".join(f"<Uid>{u}</Uid>" for u in path)
         return f"<{tag}><InstancePath>{uids}</InstancePath>{transform}</{tag}>"
-    return (f'<{kind} name="{name}">{frame("BaseFrame", base_path, base_transform)}'
-            f'{frame("FollowerFrame", follower_path, follower_transform)}</{kind}>')
+
+    return (
+        f'<{kind} name="{name}">{frame("BaseFrame", base_path, base_transform)}'
+        f"{frame('FollowerFrame', follower_path, follower_transform)}</{kind}>"
+    )
 
 
-def gen2_export(instances: str, joints: str, parts: str, assemblies: str = "", length="meter", mass="kilogram",
-                constraints: str = "", *, model_units=None, data_units: bool = True, legacy: bool = False) -> str:
+def gen2_export(
+    instances: str,
+    joints: str,
+    parts: str,
+    assemblies: str = "",
+    length="meter",
+    mass="kilogram",
+    constraints: str = "",
+    *,
+    model_units=None,
+    data_units: bool = True,
+    legacy: bool = False,
+) -> str:
     """Numbers in ``length``/``mass`` (the ``DataUnits``). ``model_units``: (length, mass) of the CAD
     document, default the same; ``data_units=False`` leaves ``DataUnits`` out and writes ``length``/
     ``mass`` as the ``ModelUnits`` (Creo); ``legacy``: SimMechanics Link 4.x's ``SimMechanicsImportXML`` 1.0."""
-    root, namespace, version = (("SimMechanicsImportXML", "urn:mathworks:simmechanics:import", "1.0") if legacy else
-                                ("SimscapeMultibodyImportXML", "urn:mathworks:SimscapeMultibody:import", "2.0"))
+    root, namespace, version = (
+        ("SimMechanicsImportXML", "urn:mathworks:simmechanics:import", "1.0")
+        if legacy
+        else ("SimscapeMultibodyImportXML", "urn:mathworks:SimscapeMultibody:import", "2.0")
+    )
     model_length, model_mass = model_units or (length, mass)
     data = f'<DataUnits length="{length}" mass="{mass}"/>' if data_units else ""
     return f"""<?xml version="1.0" encoding="utf-8"?>
@@ -341,29 +477,47 @@ def gen2_assembly(uid: str, constraints: str = "", joints: str = "") -> str:
 def gen2_mate(tag: str, name: str, first, second) -> str:
     """A CAD mate as SolidWorks writes it: ``first``/``second`` = (geomType, [instance uids],
     position in that instance's frame, axis or None), numbers in the export's length unit."""
+
     def geometry(shape, path, position, axis):
         uids = "".join(f"<Uid>{u}</Uid>" for u in path)
         axis_xml = "" if axis is None else f"<Axis>{' '.join(f'{v:.12g}' for v in axis)}</Axis>"
-        return (f'<ConstraintGeometry geomType="{shape}"><InstancePath>{uids}</InstancePath>'
-                f"<Position>{' '.join(f'{v:.12g}' for v in position)}</Position>{axis_xml}</ConstraintGeometry>")
+        return (
+            f'<ConstraintGeometry geomType="{shape}"><InstancePath>{uids}</InstancePath>'
+            f"<Position>{' '.join(f'{v:.12g}' for v in position)}</Position>{axis_xml}</ConstraintGeometry>"
+        )
+
     return f'<{tag} name="{name}">{geometry(*first)}{geometry(*second)}</{tag}>'
 
 
-def gen2_instance(name: str, entity: str, rotation_matrix=None, translation=(0, 0, 0), grounded=False, extra="",
-                  children="", uid: str | None = None) -> str:
+def gen2_instance(
+    name: str,
+    entity: str,
+    rotation_matrix=None,
+    translation=(0, 0, 0),
+    grounded=False,
+    extra="",
+    children="",
+    uid: str | None = None,
+) -> str:
     flag = ' grounded="true"' if grounded else ""
-    return (f'<Instance name="{name}" uid="{uid or name}"{flag}{extra} entityUid="{entity}">'
-            f"{gen2_transform(rotation_matrix, translation)}{children}</Instance>")
+    return (
+        f'<Instance name="{name}" uid="{uid or name}"{flag}{extra} entityUid="{entity}">'
+        f"{gen2_transform(rotation_matrix, translation)}{children}</Instance>"
+    )
 
 
 def gen2_unknown(name: str, first_path, second_path) -> str:
     """A mate the exporter could not describe (SolidWorks lock, width, symmetric): no positions."""
-    sides = "".join(f'<ConstraintGeometry geomType="Unknown"><InstancePath>{"".join(f"<Uid>{u}</Uid>" for u in path)}'
-                    f"</InstancePath></ConstraintGeometry>" for path in (first_path, second_path))
+    sides = "".join(
+        f'<ConstraintGeometry geomType="Unknown"><InstancePath>{"".join(f"<Uid>{u}</Uid>" for u in path)}'
+        f"</InstancePath></ConstraintGeometry>"
+        for path in (first_path, second_path)
+    )
     return f'<UnknownConstraint name="{name}">{sides}</UnknownConstraint>'
 
 
 # -- mates written from world geometry ---------------------------------------------------------
+
 
 def in_frame(pose, point=None, axis=None) -> np.ndarray:
     """A world point (or axis) in the frame of an instance at ``pose`` = (rotation, origin)."""
@@ -386,16 +540,31 @@ def instance_path(key: str, within: str = "") -> list[str]:
 def mate_side(shape: str, key: str, pose, point, axis=None, within: str = ""):
     """One side of a mate for ``gen2_mate``: world ``point``/``axis`` written in the frame of the
     instance ``key`` at ``pose``."""
-    return shape, instance_path(key, within), in_frame(pose, point), None if axis is None else in_frame(pose, axis=axis)
+    return (
+        shape,
+        instance_path(key, within),
+        in_frame(pose, point),
+        None if axis is None else in_frame(pose, axis=axis),
+    )
 
 
 def pin_mates(name: str, a: str, b: str, poses: dict, point, normal, within: str = "") -> list[str]:
     """Concentric bores and touching faces: a revolute about ``normal`` through ``point``."""
     normal = np.asarray(normal, float)
-    return [gen2_mate("Concentric", f"{name}_bore", mate_side("cylinder", a, poses[a], point, normal, within),
-                      mate_side("cylinder", b, poses[b], point, -normal, within)),
-            gen2_mate("Coincident", f"{name}_face", mate_side("plane", a, poses[a], point, normal, within),
-                      mate_side("plane", b, poses[b], point, -normal, within))]
+    return [
+        gen2_mate(
+            "Concentric",
+            f"{name}_bore",
+            mate_side("cylinder", a, poses[a], point, normal, within),
+            mate_side("cylinder", b, poses[b], point, -normal, within),
+        ),
+        gen2_mate(
+            "Coincident",
+            f"{name}_face",
+            mate_side("plane", a, poses[a], point, normal, within),
+            mate_side("plane", b, poses[b], point, -normal, within),
+        ),
+    ]
 
 
 @dataclass
@@ -418,10 +587,21 @@ def instance_tree(instances, poses: dict, parent=None, prefix: str = "") -> str:
     xml = []
     for inst in instances:
         key = "/".join(filter(None, (prefix, inst.uid.replace("/", SLASH))))
-        world = (np.eye(3) if inst.rotation is None else np.asarray(inst.rotation, float), np.asarray(inst.origin, float))
+        world = (
+            np.eye(3) if inst.rotation is None else np.asarray(inst.rotation, float),
+            np.asarray(inst.origin, float),
+        )
         poses[key] = world
         children = instance_tree(inst.children, poses, world, key)
-        xml.append(gen2_instance(inst.name or inst.uid, inst.entity, parent_rotation.T @ world[0],
-                                 in_frame((parent_rotation, parent_origin), world[1]), extra=inst.attrs,
-                                 children=children, uid=inst.uid))
+        xml.append(
+            gen2_instance(
+                inst.name or inst.uid,
+                inst.entity,
+                parent_rotation.T @ world[0],
+                in_frame((parent_rotation, parent_origin), world[1]),
+                extra=inst.attrs,
+                children=children,
+                uid=inst.uid,
+            )
+        )
     return "".join(xml)

@@ -41,7 +41,9 @@ class Injector:
             return
         self.fired = True
         if self.fault.startswith("SIG"):
-            os.kill(os.getpid(), getattr(signal, self.fault))  # the handler runs at the next bytecode
+            os.kill(
+                os.getpid(), getattr(signal, self.fault)
+            )  # the handler runs at the next bytecode
             return
         number = getattr(errno, self.fault)
         raise OSError(number, os.strerror(number), os.fsdecode(path))
@@ -88,20 +90,27 @@ def injected(root, fail_at: int, fault: str):
     def opener(real):
         def wrapped(file, mode="r", *args, **kwargs):
             handle = real(file, mode, *args, **kwargs)
-            if any(flag in mode for flag in "wax+") and not isinstance(file, int) and injector.under(file):
+            if (
+                any(flag in mode for flag in "wax+")
+                and not isinstance(file, int)
+                and injector.under(file)
+            ):
                 return _File(handle, injector, file)
             return handle
+
         return wrapped
 
     def on_target(function, position):
         def wrapped(*args, **kwargs):
             injector.event(args[position])
             return function(*args, **kwargs)
+
         return wrapped
 
     builtins.open = opener(real_open)
     io.open = opener(real_io_open)
     os.rename, os.replace, os.link = (on_target(saved[n], 1) for n in ("rename", "replace", "link"))
+
     def mkdir(path, *args, **kwargs):
         if not os.path.lexists(path):  # an existing folder fails with EEXIST whatever the disk
             injector.event(path)

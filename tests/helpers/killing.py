@@ -20,6 +20,7 @@ def kill_before_rename(kill_at: int, exchange: bool = True) -> None:
                 os.kill(os.getpid(), signal.SIGKILL)
             calls[0] += 1
             return function(*args, **kwargs)
+
         return wrapper
 
     os.rename, os.replace = counted(os.rename), counted(os.replace)

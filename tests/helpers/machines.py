@@ -27,11 +27,17 @@ def with_model(model_path):
 def thesis_motor(**options) -> DCMotor:
     """The thesis's Domel 482.501 (Table 3 / section 3.1.1), independent of any description."""
     data = thesis()["main_motor"]
-    return DCMotor(resistance_ohm=data["resistance_ohm"], torque_constant_Nm_A=data["torque_constant_Nm_per_A"],
-                   back_emf_V_s_rad=data["back_emf_constant_V_s_per_rad"], **options)
+    return DCMotor(
+        resistance_ohm=data["resistance_ohm"],
+        torque_constant_Nm_A=data["torque_constant_Nm_per_A"],
+        back_emf_V_s_rad=data["back_emf_constant_V_s_per_rad"],
+        **options,
+    )
 
 
-def velocities_with_passive(machine, passive, control, seconds: float, every: int = 2) -> list[float]:
+def velocities_with_passive(
+    machine, passive, control, seconds: float, every: int = 2
+) -> list[float]:
     """Shaft velocities every ``every`` steps of ``machine`` from rest at angle 0 with the
     passive-force callback ``passive`` installed instead of the compiled one; ``control(t)``
     is the motor voltage. Puts the compiled callback back afterwards."""

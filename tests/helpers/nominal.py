@@ -21,9 +21,17 @@ SAPPHIRE = sapphire_nominal()
 
 # A press: 20x the inertia, a 12:1 gear, a stronger motor (0.5 ohm, Kt = Ke 0.05), 6x the
 # Coulomb friction and viscous friction a tenth of the back-emf damping (as in the sewing machine)
-PRESS = replace(SAPPHIRE.scaled(inertia=20.0, ratio=12.0, torque=6.0, resistance_ohm=0.5,
-                                torque_constant_Nm_per_A=0.05, back_emf_V_s_per_rad=0.05),
-                viscous_shaft_Nm_s_per_rad=0.072)
+PRESS = replace(
+    SAPPHIRE.scaled(
+        inertia=20.0,
+        ratio=12.0,
+        torque=6.0,
+        resistance_ohm=0.5,
+        torque_constant_Nm_per_A=0.05,
+        back_emf_V_s_per_rad=0.05,
+    ),
+    viscous_shaft_Nm_s_per_rad=0.072,
+)
 
 
 def bench_recording(*args, nominal: DriveNominal = SAPPHIRE, **kwargs):

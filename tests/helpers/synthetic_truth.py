@@ -36,7 +36,9 @@ def voltage_profile(rng: np.random.Generator, duration: float, fs: float = 1000.
     return u
 
 
-def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strength=1.0, smooth_friction=0.0):
+def simulate_truth(
+    effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strength=1.0, smooth_friction=0.0
+):
     """``smooth_friction`` > 0: Coulomb friction as Fc tanh(w / smooth_friction) without
     stick-slip (what an ODE-solver truth model often does), else Karnopp stick-slip."""
     rng = np.random.default_rng(seed)
@@ -50,11 +52,11 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
     fc = FC_ARM * rng.uniform(0.85, 1.15)
     # effects
     s = strength
-    ripple_amp = 0.006 * s * rng.uniform(0.8, 1.2)      # motor side, Nm
+    ripple_amp = 0.006 * s * rng.uniform(0.8, 1.2)  # motor side, Nm
     ripple_phase = rng.uniform(0, 2 * math.pi)
-    crank_r, rod_l, bar_mass = 0.016, 0.045, 0.35 * s       # slider-crank needle bar
+    crank_r, rod_l, bar_mass = 0.016, 0.045, 0.35 * s  # slider-crank needle bar
     pf_amp, pf_phase = 0.09 * s * fc, rng.uniform(0, 2 * math.pi)
-    fs_excess, ws = 0.35 * s * fc, 2.0                 # Hess-Soom
+    fs_excess, ws = 0.35 * s * fc, 2.0  # Hess-Soom
     heat_drop_visc, heat_drop_coul, heat_tau = 0.5 * s, 0.3 * s, 40.0
     needle_load, needle_start, needle_len = 0.35 * s, math.pi - 0.9, 0.8
     belt_f, belt_zeta, motor_share = 18.0, 0.04, 0.3
@@ -72,8 +74,11 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
         st, ct = math.sin(theta), math.cos(theta)
         root = math.sqrt(rod_l**2 - (crank_r * st) ** 2)
         dx = -crank_r * st - crank_r**2 * st * ct / root
-        ddx = (-crank_r * ct - crank_r**2 * (ct * ct - st * st) / root
-               - crank_r**4 * st * st * ct * ct / root**3)
+        ddx = (
+            -crank_r * ct
+            - crank_r**2 * (ct * ct - st * st) / root
+            - crank_r**4 * st * st * ct * ct / root**3
+        )
         return dx, ddx
 
     def coulomb(theta, temp):
@@ -98,8 +103,8 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
         return f
 
     theta = rng.uniform(0, 2 * math.pi)
-    w = 0.0          # arm velocity
-    wm = 0.0         # motor velocity (arm units) for the belt
+    w = 0.0  # arm velocity
+    wm = 0.0  # motor velocity (arm units) for the belt
     twist = 0.0
     temp = 0.0
     stuck = True
@@ -117,8 +122,8 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
             if "linkage_dynamics" in effects:
                 dx, ddx = crank(theta)
                 j_lin = bar_mass * dx * dx
-                grav = bar_mass * 9.81 * dx          # potential energy m g x
-                quad = bar_mass * dx * ddx           # 1/2 dJ/dtheta
+                grav = bar_mass * 9.81 * dx  # potential energy m g x
+                quad = bar_mass * dx * ddx  # 1/2 dJ/dtheta
             visc = viscous(temp) * N * N
             if belt:
                 jmot = motor_share * j_arm_total
@@ -158,11 +163,17 @@ def simulate_truth(effects=(), seed=0, duration=60.0, fs=1000.0, sub=10, strengt
         angle = angle + ecc * np.cos(angle - ecc_phase)
     angle = np.floor(angle / STEP) * STEP + rng.normal(0, 0.3 * STEP, n_samples)
     t = np.arange(n_samples) / fs
-    truth = {"inertia_motor_side_kgm2": jm, "viscous_motor_side_Nm_s_per_rad": dm, "coulomb_arm_Nm": fc}
+    truth = {
+        "inertia_motor_side_kgm2": jm,
+        "viscous_motor_side_Nm_s_per_rad": dm,
+        "coulomb_arm_Nm": fc,
+    }
     return t, u_log, angle, truth
 
 
-def write_csv(path, t, u, angle, extra_comment="synthetic truth (tests/helpers/synthetic_truth.py)"):
+def write_csv(
+    path, t, u, angle, extra_comment="synthetic truth (tests/helpers/synthetic_truth.py)"
+):
     with open(path, "w", encoding="utf-8") as f:
         f.write(f"# {extra_comment}\n")
         f.write("time,voltage,arm_angle\n")

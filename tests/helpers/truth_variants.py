@@ -67,30 +67,88 @@ class Variant:
     time_offset_s: float = 0.0  # the logger's clock does not start at 0
 
 
-VARIANTS: dict[str, Variant] = {v.name: v for v in (
-    # RK4 at exactly 1 kHz, smooth friction, no inductance, consistent SI motor, no current
-    Variant("rk4_tanh", integrator="rk4_tanh", substeps=1, tanh_speed_arm_rad_s=0.1, inductance_H=0.0,
-            motor_constants="geometric", profile="plateaus", quantiser="round", current_column=False),
-    # event stick-slip, a large winding inductance, few long plateaus, floor quantiser
-    Variant("event_long_L", integrator="event", substeps=4, inductance_H=3e-3, motor_constants="thesis",
-            profile="long", quantiser="floor", current_column=True, time_offset_s=12.5),
-    # ramps instead of steps, SI motor, edge jitter
-    Variant("ramps", integrator="event", substeps=4, inductance_H=0.5e-3, motor_constants="geometric",
-            profile="ramps", quantiser="floor", angle_jitter_counts=0.4, current_column=True),
-    # a staircase, a noisy and late voltage log, sharper tanh friction with small steps
-    Variant("stairs_noisy", integrator="rk4_tanh", substeps=4, tanh_speed_arm_rad_s=0.02, inductance_H=1e-3,
-            motor_constants="thesis", profile="staircase", quantiser="round", voltage_noise_V=0.03,
-            voltage_delay_samples=1, angle_jitter_counts=0.3, current_column=False),
-    # the duty cycle logged as 24 V x duty in 1 % steps, SI motor, event stick-slip
-    Variant("pwm_duty", integrator="event", substeps=4, inductance_H=0.2e-3, motor_constants="geometric",
-            profile="pwm", quantiser="floor", current_column=True),
-)}
+VARIANTS: dict[str, Variant] = {
+    v.name: v
+    for v in (
+        # RK4 at exactly 1 kHz, smooth friction, no inductance, consistent SI motor, no current
+        Variant(
+            "rk4_tanh",
+            integrator="rk4_tanh",
+            substeps=1,
+            tanh_speed_arm_rad_s=0.1,
+            inductance_H=0.0,
+            motor_constants="geometric",
+            profile="plateaus",
+            quantiser="round",
+            current_column=False,
+        ),
+        # event stick-slip, a large winding inductance, few long plateaus, floor quantiser
+        Variant(
+            "event_long_L",
+            integrator="event",
+            substeps=4,
+            inductance_H=3e-3,
+            motor_constants="thesis",
+            profile="long",
+            quantiser="floor",
+            current_column=True,
+            time_offset_s=12.5,
+        ),
+        # ramps instead of steps, SI motor, edge jitter
+        Variant(
+            "ramps",
+            integrator="event",
+            substeps=4,
+            inductance_H=0.5e-3,
+            motor_constants="geometric",
+            profile="ramps",
+            quantiser="floor",
+            angle_jitter_counts=0.4,
+            current_column=True,
+        ),
+        # a staircase, a noisy and late voltage log, sharper tanh friction with small steps
+        Variant(
+            "stairs_noisy",
+            integrator="rk4_tanh",
+            substeps=4,
+            tanh_speed_arm_rad_s=0.02,
+            inductance_H=1e-3,
+            motor_constants="thesis",
+            profile="staircase",
+            quantiser="round",
+            voltage_noise_V=0.03,
+            voltage_delay_samples=1,
+            angle_jitter_counts=0.3,
+            current_column=False,
+        ),
+        # the duty cycle logged as 24 V x duty in 1 % steps, SI motor, event stick-slip
+        Variant(
+            "pwm_duty",
+            integrator="event",
+            substeps=4,
+            inductance_H=0.2e-3,
+            motor_constants="geometric",
+            profile="pwm",
+            quantiser="floor",
+            current_column=True,
+        ),
+    )
+}
 
 
 # ----------------------------------------------------------------------------- effects
 
-EFFECT_NAMES = ("torque_ripple", "linkage_dynamics", "position_friction", "stribeck", "thermal_drift",
-                "needle_penetration", "belt_compliance", "voltage_nonlinearity", "encoder_eccentricity")
+EFFECT_NAMES = (
+    "torque_ripple",
+    "linkage_dynamics",
+    "position_friction",
+    "stribeck",
+    "thermal_drift",
+    "needle_penetration",
+    "belt_compliance",
+    "voltage_nonlinearity",
+    "encoder_eccentricity",
+)
 
 FLAVOURS: dict[str, tuple[str, ...]] = {
     "torque_ripple": ("once_per_motor_rev", "cogging_12", "speed_falling", "one_and_two"),
@@ -191,15 +249,23 @@ def _draw_effect(name: str, flavour: str | None, seed: int) -> dict:
 
 # ----------------------------------------------------------------------------- machine and profile
 
+
 def draw_machine(seed: int, variant: Variant) -> dict:
     rng = _rng(seed, "machine")
     if variant.motor_constants == "geometric":
         kt = ke = math.sqrt(0.017 * 0.021)
     else:
         kt, ke = 0.017, 0.021
-    return {"J_motor_kgm2": rng.uniform(1.5e-5, 4e-5), "viscous_motor_Nm_s": rng.uniform(1e-5, 4e-5),
-            "coulomb_arm_Nm": rng.uniform(0.12, 0.25), "Kt": kt, "Ke": ke, "R": R_OHM,
-            "L": variant.inductance_H, "rest_angle_rad": rng.uniform(0, TWO_PI)}
+    return {
+        "J_motor_kgm2": rng.uniform(1.5e-5, 4e-5),
+        "viscous_motor_Nm_s": rng.uniform(1e-5, 4e-5),
+        "coulomb_arm_Nm": rng.uniform(0.12, 0.25),
+        "Kt": kt,
+        "Ke": ke,
+        "R": R_OHM,
+        "L": variant.inductance_H,
+        "rest_angle_rad": rng.uniform(0, TWO_PI),
+    }
 
 
 def voltage_profile(kind: str, seed: int, duration_s: float) -> np.ndarray:
@@ -254,9 +320,11 @@ def voltage_profile(kind: str, seed: int, duration_s: float) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- the model
 
+
 def _slider_crank(crank: float, rod: float):
     """Needle-bar height x(theta) (TDC at 0) and its first two derivatives by central
     differences of the exact position (no closed-form derivative to get wrong)."""
+
     def x(th):
         s = math.sin(th)
         return crank * math.cos(th) + math.sqrt(rod * rod - (crank * s) ** 2)
@@ -307,26 +375,43 @@ class Case:
     arm_angle_rad: np.ndarray  # as the encoder reports it
     current_A: np.ndarray | None
     truth: dict = field(default_factory=dict)
-    sensed_angle_rad: np.ndarray | None = None  # what the sensor reports before jitter and quantisation
+    sensed_angle_rad: np.ndarray | None = (
+        None  # what the sensor reports before jitter and quantisation
+    )
 
     def write_csv(self, path) -> None:
-        cols = ["time", "voltage", "arm_angle"] + (["current"] if self.current_A is not None else [])
-        data = [self.time_s, self.voltage_V, self.arm_angle_rad] + ([self.current_A] if self.current_A is not None else [])
+        cols = ["time", "voltage", "arm_angle"] + (
+            ["current"] if self.current_A is not None else []
+        )
+        data = [self.time_s, self.voltage_V, self.arm_angle_rad] + (
+            [self.current_A] if self.current_A is not None else []
+        )
         with open(path, "w", encoding="utf-8") as f:
             f.write(f"# truth_variants: variant {self.variant.name}, seed {self.seed}\n")
             f.write(",".join(cols) + "\n")
-            fmt = ",".join(["%.4f", "%.3f", "%.7f", "%.3f"][:len(cols)])
+            fmt = ",".join(["%.4f", "%.3f", "%.7f", "%.3f"][: len(cols)])
             np.savetxt(f, np.column_stack(data), fmt=fmt)
 
     def recording(self):
         from mechanism.sysid.recording import make_recording
 
-        return make_recording(self.time_s, self.voltage_V, self.arm_angle_rad, self.current_A,
-                              source=f"variants:{self.variant.name}:{'+'.join(self.effects) or 'none'}:{self.seed}")
+        return make_recording(
+            self.time_s,
+            self.voltage_V,
+            self.arm_angle_rad,
+            self.current_A,
+            source=f"variants:{self.variant.name}:{'+'.join(self.effects) or 'none'}:{self.seed}",
+        )
 
 
-def make_case(effects: Sequence[str] | str = (), seed: int = 0, variant: str | Variant = "rk4_tanh",
-              duration_s: float = 60.0, flavours: dict | None = None, scale: float = 1.0) -> Case:
+def make_case(
+    effects: Sequence[str] | str = (),
+    seed: int = 0,
+    variant: str | Variant = "rk4_tanh",
+    duration_s: float = 60.0,
+    flavours: dict | None = None,
+    scale: float = 1.0,
+) -> Case:
     """Simulate one recording. ``flavours`` pins an effect's flavour ({name: flavour});
     ``scale`` multiplies every effect's magnitude (for detectability studies)."""
     if isinstance(effects, str):
@@ -349,8 +434,14 @@ def make_case(effects: Sequence[str] | str = (), seed: int = 0, variant: str | V
         sensed = sensed + scale * p["amp_rad"] * np.sin(theta + p["phase_rad"])
     measured = sensed
     if variant.angle_jitter_counts > 0:
-        measured = measured + rng.normal(0.0, variant.angle_jitter_counts * ENCODER_STEP, len(measured))
-    counts = np.floor(measured / ENCODER_STEP) if variant.quantiser == "floor" else np.round(measured / ENCODER_STEP)
+        measured = measured + rng.normal(
+            0.0, variant.angle_jitter_counts * ENCODER_STEP, len(measured)
+        )
+    counts = (
+        np.floor(measured / ENCODER_STEP)
+        if variant.quantiser == "floor"
+        else np.round(measured / ENCODER_STEP)
+    )
     angle = counts * ENCODER_STEP
     logged = u_cmd.copy()
     if variant.voltage_delay_samples:
@@ -377,10 +468,14 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
     vn = params.get("voltage_nonlinearity")
     if vn is not None:
         if vn["flavour"] == "table2_curve":
-            ratio_at = np.interp(np.abs(u_cmd), TABLE2_LOGGED_V, np.array(TABLE2_MOTOR_V) / TABLE2_LOGGED_V)
+            ratio_at = np.interp(
+                np.abs(u_cmd), TABLE2_LOGGED_V, np.array(TABLE2_MOTOR_V) / TABLE2_LOGGED_V
+            )
             applied = u_cmd * (1 + scale * (ratio_at - 1))
         elif vn["flavour"] == "dead_band":
-            applied = np.sign(u_cmd) * np.maximum(np.abs(u_cmd) * (1 + scale * (vn["gain"] - 1)) - scale * vn["dead_band_V"], 0.0)
+            applied = np.sign(u_cmd) * np.maximum(
+                np.abs(u_cmd) * (1 + scale * (vn["gain"] - 1)) - scale * vn["dead_band_V"], 0.0
+            )
         else:
             applied = u_cmd - scale * vn["sag_per_V2"] * u_cmd * np.abs(u_cmd)
     else:
@@ -398,7 +493,11 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
             rel = (grid - pf["phase_rad"] + math.pi) % TWO_PI - math.pi
             coulomb_shape = 1 + a * np.exp(-0.5 * (rel / pf["width_rad"]) ** 2)
         else:
-            coulomb_shape = 1 + a * np.cos(grid - pf["phase_rad"]) + scale * pf["amp3_fraction"] * np.cos(3 * grid - pf["phase3_rad"])
+            coulomb_shape = (
+                1
+                + a * np.cos(grid - pf["phase_rad"])
+                + scale * pf["amp3_fraction"] * np.cos(3 * grid - pf["phase3_rad"])
+            )
     coulomb_table = _Table(fc_arm * coulomb_shape)
     fabric = np.zeros_like(grid)
     nd = params.get("needle_penetration")
@@ -409,18 +508,28 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
         if nd["flavour"] == "smooth_window":
             rel = (grid - nd["centre_rad"] + math.pi) % TWO_PI - math.pi
             inside = np.abs(rel) < nd["half_width_rad"]
-            fabric = np.where(inside, 0.5 * (1 + np.cos(math.pi * rel / nd["half_width_rad"])), 0.0) * nd["peak_arm_Nm_per_layer"] * layers
+            fabric = (
+                np.where(inside, 0.5 * (1 + np.cos(math.pi * rel / nd["half_width_rad"])), 0.0)
+                * nd["peak_arm_Nm_per_layer"]
+                * layers
+            )
         elif nd["flavour"] == "sharp_pulse":
             rel = (grid - nd["entry_rad"]) % TWO_PI
             w = nd["pulse_width_rad"]
-            fabric = np.where(rel < w, np.sin(math.pi * rel / w) ** 2, 0.0) * nd["peak_arm_Nm_per_layer"] * layers
+            fabric = (
+                np.where(rel < w, np.sin(math.pi * rel / w) ** 2, 0.0)
+                * nd["peak_arm_Nm_per_layer"]
+                * layers
+            )
         else:
             rc = nd["crank_m"]
             z_tip = rc * (1 + np.cos(grid))  # tip height above its lowest point (pure crank)
             depth = nd["tip_depth_m"] - z_tip  # how far below the fabric top the tip is
             fabric_thickness = layers * nd["layer_thickness_m"]
             in_fabric = np.clip(depth, 0.0, None)
-            engaged = np.minimum(in_fabric, fabric_thickness) / nd["layer_thickness_m"]  # layers the shank is in
+            engaged = (
+                np.minimum(in_fabric, fabric_thickness) / nd["layer_thickness_m"]
+            )  # layers the shank is in
             lever = rc * np.abs(np.sin(grid))  # |dz/dtheta|
             fabric = nd["force_N_per_layer"] * engaged * lever
         fabric = scale * fabric
@@ -429,8 +538,12 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
     ld = params.get("linkage_dynamics")
     if ld is not None:
         _, d1, d2 = _slider_crank(ld["crank_m"], ld["rod_m"])
-        mass = scale * (ld["mass_kg"] + 0.5 * ld["rod_mass_kg"])  # rod mass: about half reciprocates
-        rotating = scale * 0.5 * ld["rod_mass_kg"] * ld["crank_m"] ** 2  # the rest turns with the pin
+        mass = scale * (
+            ld["mass_kg"] + 0.5 * ld["rod_mass_kg"]
+        )  # rod mass: about half reciprocates
+        rotating = (
+            scale * 0.5 * ld["rod_mass_kg"] * ld["crank_m"] ** 2
+        )  # the rest turns with the pin
         link_j = _Table(mass * d1 * d1 + rotating)
         link_q = _Table(mass * d1 * d2)  # 1/2 dJ/dtheta
         link_g = _Table(mass * G * d1)
@@ -480,8 +593,15 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
             return a * math.sin(12 * phi_motor + tr["phase_rad"])
         if fl == "speed_falling":
             w_arm = abs(w_motor) / N
-            return a * tr["fall_speed_arm_rad_s"] / (tr["fall_speed_arm_rad_s"] + w_arm) * math.sin(phi_motor + tr["phase_rad"])
-        return a * math.sin(phi_motor + tr["phase_rad"]) + scale * tr["amp2_motor_Nm"] * math.sin(2 * phi_motor + tr["phase2_rad"])
+            return (
+                a
+                * tr["fall_speed_arm_rad_s"]
+                / (tr["fall_speed_arm_rad_s"] + w_arm)
+                * math.sin(phi_motor + tr["phase_rad"])
+            )
+        return a * math.sin(phi_motor + tr["phase_rad"]) + scale * tr["amp2_motor_Nm"] * math.sin(
+            2 * phi_motor + tr["phase2_rad"]
+        )
 
     # belt: rotor (motor side, its own share of the inertia) and arm side joined by a spring
     if belt is not None:
@@ -556,7 +676,10 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
             k3, _, _ = deriv(s3, u, t + 0.5 * h, stuck)
             s4 = [a + h * b for a, b in zip(s, k3)]
             k4, _, _ = deriv(s4, u, t + h, stuck)
-            new = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4)]
+            new = [
+                a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
+                for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4)
+            ]
             if stuck:
                 new[0], new[1] = s[0], 0.0
             elif not smooth and s[1] != 0.0 and new[1] * s[1] <= 0.0:
@@ -575,6 +698,7 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
 
 # ----------------------------------------------------------------------------- detectability
 
+
 def detectability(sensed_a: np.ndarray, sensed_b: np.ndarray, window_s: float = 2.0) -> float:
     """RMS difference [rad/s] of the speed the sensor reports (noise-free, unquantised,
     through the tool's differentiator) between two recordings of the same seed, over the most
@@ -587,5 +711,15 @@ def detectability(sensed_a: np.ndarray, sensed_b: np.ndarray, window_s: float = 
     return float(np.sqrt(power.max()))
 
 
-__all__ = ["Case", "EFFECT_NAMES", "FLAVOURS", "VARIANTS", "Variant", "detectability", "draw_machine", "make_case", "simulate_truth",
-           "voltage_profile"]
+__all__ = [
+    "Case",
+    "EFFECT_NAMES",
+    "FLAVOURS",
+    "VARIANTS",
+    "Variant",
+    "detectability",
+    "draw_machine",
+    "make_case",
+    "simulate_truth",
+    "voltage_profile",
+]

@@ -19,14 +19,21 @@ import numpy as np
 
 HERE = Path(__file__).parent
 BAM_COMMIT = "af2260462471ff45ac18af159b1327ea51d8db15"  # branch xl330: "new identification values"
-BAM_LOGS = ["2026-01-15_10h28m10", "2026-01-15_10h28m49", "2026-01-15_10h29m37", "2026-01-15_10h30m02"]
+BAM_LOGS = [
+    "2026-01-15_10h28m10",
+    "2026-01-15_10h28m49",
+    "2026-01-15_10h29m37",
+    "2026-01-15_10h30m02",
+]
 EMPS_COMMIT = "93afc131780fb1d5477472935a18ac8405683890"
 EMPS_SECONDS = 12.4  # the first half of the estimation experiment
 EMPS_RADIUS_M = 0.01  # the linear axis as a virtual shaft: angle = position / radius
 
 
 def show(repo: str, commit: str, path: str) -> bytes:
-    return subprocess.run(["git", "-C", repo, "show", f"{commit}:{path}"], check=True, capture_output=True).stdout
+    return subprocess.run(
+        ["git", "-C", repo, "show", f"{commit}:{path}"], check=True, capture_output=True
+    ).stdout
 
 
 def xl330(repo: str) -> None:
@@ -38,12 +45,16 @@ def xl330(repo: str) -> None:
         t = np.array([e["timestamp"] for e in entries])
         q = np.array([e["position"] for e in entries])
         raw = np.array([e["load"] for e in entries], dtype=float)  # the present PWM, raw counts
-        duty = np.clip(np.where(raw > 2**15 - 1, raw - 2**16, raw) / 885.0, -1.0, 1.0)  # 885 counts = full duty
+        duty = np.clip(
+            np.where(raw > 2**15 - 1, raw - 2**16, raw) / 885.0, -1.0, 1.0
+        )  # 885 counts = full duty
         volts = duty * np.array([e["input_volts"] for e in entries])
-        header = (f"# source: github.com/Rhoban/bam@{BAM_COMMIT} bam/data.bak/processed/{name}.json (Apache-2.0)\n"
-                  f"# motor: {log['motor']}; pendulum mass_kg: {log['mass']}; length_m: {log['length']}; "
-                  f"kp: {log['kp']}; trajectory: {log['trajectory']}\n"
-                  "# voltage = present PWM duty x measured supply voltage; arm_angle = output shaft, 0 = pendulum down\n")
+        header = (
+            f"# source: github.com/Rhoban/bam@{BAM_COMMIT} bam/data.bak/processed/{name}.json (Apache-2.0)\n"
+            f"# motor: {log['motor']}; pendulum mass_kg: {log['mass']}; length_m: {log['length']}; "
+            f"kp: {log['kp']}; trajectory: {log['trajectory']}\n"
+            "# voltage = present PWM duty x measured supply voltage; arm_angle = output shaft, 0 = pendulum down\n"
+        )
         with open(out / f"{name}.csv", "w") as handle:
             handle.write(header + "time,voltage,arm_angle\n")
             for row in zip(t, volts, q):
@@ -56,10 +67,12 @@ def emps(repo: str) -> None:
     data = loadmat(io.BytesIO(show(repo, EMPS_COMMIT, "examples/EMPS/data/DATA_EMPS.mat")))
     t, q, vir = (data[k].ravel() for k in ("t", "qm", "vir"))
     keep = t <= EMPS_SECONDS
-    header = (f"# source: github.com/forgi86/sysid-neural-continuous@{EMPS_COMMIT} examples/EMPS/data/DATA_EMPS.mat "
-              f"(Apache-2.0; data set: Janot, Gautier, Brunot, EMPS, nonlinearbenchmark.org, 2019)\n"
-              f"# first {EMPS_SECONDS:g} s; voltage = vir (force = gtau vir, gtau = {float(data['gtau'][0, 0]):.8g} N/V); "
-              f"arm_angle = qm / {EMPS_RADIUS_M:g} m (the axis as a virtual shaft)\n")
+    header = (
+        f"# source: github.com/forgi86/sysid-neural-continuous@{EMPS_COMMIT} examples/EMPS/data/DATA_EMPS.mat "
+        f"(Apache-2.0; data set: Janot, Gautier, Brunot, EMPS, nonlinearbenchmark.org, 2019)\n"
+        f"# first {EMPS_SECONDS:g} s; voltage = vir (force = gtau vir, gtau = {float(data['gtau'][0, 0]):.8g} N/V); "
+        f"arm_angle = qm / {EMPS_RADIUS_M:g} m (the axis as a virtual shaft)\n"
+    )
     with open(HERE / "emps.csv", "w") as handle:
         handle.write(header + "time,voltage,arm_angle\n")
         for row in zip(t[keep], vir[keep], q[keep] / EMPS_RADIUS_M):
