@@ -121,9 +121,8 @@ def event_count(tmp_path: Path, args: list[str], root: Path) -> int:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "fault, spread", [("ENOSPC", 3), ("EDQUOT", 1), ("EFBIG", 1)]
-)  # points tried
+# spread: the points tried
+@pytest.mark.parametrize("fault, spread", [("ENOSPC", 3), ("EDQUOT", 1), ("EFBIG", 1)])
 def test_a_full_disk_at_any_write_keeps_the_old_outputs(tmp_path, capfd, fault, spread):
     """The fault at the first write of the run, in its middle and at the last rename of
     publishing (the fault suite, test_fault_fuzz.py, draws other points at random): one line
@@ -221,7 +220,9 @@ def survivors(pids: set[int], grace_s: float = 2.0) -> dict[int, str]:
     return {pid: command(pid) for pid in pids if not gone(pid)}
 
 
-def start_sweep(tmp_path: Path, workers: int = 2):
+def sweep_command(tmp_path: Path, *options: str) -> tuple[list[str], Path, dict]:
+    """A sweep of 3000 variants (long enough to interrupt) writing under ``tmp_path / "out"``:
+    its command line, its output folder and what that folder held before."""
     variants = tmp_path / "v.csv"
     variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
     out = tmp_path / "out"
@@ -235,13 +236,14 @@ def start_sweep(tmp_path: Path, workers: int = 2):
         str(variants),
         "--duration",
         "2",
-        "--workers",
-        str(workers),
-        "--csv",
-        str(out / "run.csv"),
-        "--plot",
-        str(out / "run.png"),
     ]
+    return [*args, *options, "--csv", str(out / "run.csv")], out, before
+
+
+def start_sweep(tmp_path: Path, workers: int = 2):
+    args, out, before = sweep_command(
+        tmp_path, "--workers", str(workers), "--plot", str(tmp_path / "out" / "run.png")
+    )
     proc = subprocess.Popen(
         args, env=environment(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
@@ -485,9 +487,8 @@ def marked(mark: str) -> dict[int, str]:
 
 
 @pytest.mark.slow
-@pytest.mark.xdist_group(
-    "ray"
-)  # one Ray instance at a time on this machine (make test runs two workers)
+# one Ray instance at a time on this machine (make test runs two workers)
+@pytest.mark.xdist_group("ray")
 @pytest.mark.parametrize("moment", ["while ray.init starts it", "while its workers run"])
 def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     """``--backend ray`` without an address starts a private Ray instance (raylet, GCS, workers):
@@ -495,26 +496,7 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     without the run's cleanup) and while tasks run (where a forced cancel racing a reply aborted
     the driver inside Ray with exit 1)."""
     pytest.importorskip("ray")
-    variants = tmp_path / "v.csv"
-    variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
-    out = tmp_path / "out"
-    before = old_outputs(out)
-    args = [
-        sys.executable,
-        "-m",
-        "mechanism",
-        "sweep",
-        "--variants",
-        str(variants),
-        "--duration",
-        "2",
-        "--backend",
-        "ray",
-        "--workers",
-        "1",
-        "--csv",
-        str(out / "run.csv"),
-    ]
+    args, out, before = sweep_command(tmp_path, "--backend", "ray", "--workers", "1")
     mark = f"{tmp_path.name}-{os.getpid()}-{time.monotonic_ns()}"
     proc = subprocess.Popen(
         args,
