@@ -285,31 +285,12 @@ def diagnose(
 
 def drive_nominal(machine: Machine | None):
     """The machine's lumped drive numbers (:class:`~mechanism.dynamics.lumped.DriveNominal`) that
-    identification, diagnosis and the test bench scale from: a machine's from its description
-    and CAD model (mechanism.sysid.nominal); without one, the shipped machine's whole-machine
-    lumped numbers (its description's ``[lumped]``: parts the CAD lacks included), on which the
-    earlier issues' recordings and tests were calibrated."""
+    identification, diagnosis and the test bench scale from, from its description and CAD model
+    (mechanism.sysid.nominal; a description's ``[lumped]`` section, the whole machine as a lumped
+    model identified it, gives inertia and friction). None: the shipped default machine's."""
     from mechanism.sysid.nominal import machine_drive_nominal
 
-    if machine is not None:
-        return machine_drive_nominal(machine)
-    from mechanism.dynamics.lumped import DriveNominal, MotorConstants
-
-    shipped = load_machine()
-    description, n = shipped.description, shipped.motor_ratio
-    lumped, motor = description.section("lumped"), description.motor
-    constants = MotorConstants(
-        motor["resistance_ohm"], motor["torque_constant_Nm_per_A"], motor["back_emf_V_s_per_rad"], n
-    )
-    return DriveNominal(
-        constants,
-        inertia_kgm2=lumped["inertia_motor_side_kgm2"] * n**2,
-        coulomb_shaft_Nm=lumped["coulomb_shaft_Nm"],
-        viscous_shaft_Nm_s_per_rad=lumped["viscous_motor_side_Nm_s_per_rad"] * n**2,
-        joint_ratios=machine_drive_nominal(shipped).joint_ratios,
-        supply_V=description.section("supply")["voltage_V"],
-        zero_meaning="needle top dead centre",
-    )
+    return machine_drive_nominal(machine if machine is not None else load_machine())
 
 
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:

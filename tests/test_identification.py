@@ -288,3 +288,19 @@ def test_identification_switches_no_process_wide_numeric_or_warning_state():
     for path in (Path(__file__).resolve().parent.parent / "mechanism" / "sysid").glob("*.py"):
         text = path.read_text()
         assert not re.search(r"catch_warnings|simplefilter|np\.seterr\(", text), path.name
+
+
+def test_no_machine_and_the_default_machine_loaded_give_the_same_fit(clean_bench):
+    """One front door: ``identify(None, ...)`` is ``identify(load_machine(), ...)`` number for
+    number (the description's ``[lumped]`` numbers either way), and the drive's words come from
+    the description, not from code."""
+    from mechanism import api, load_machine
+
+    csv, _ = clean_bench
+    implicit, explicit = api.identify(None, csv), api.identify(load_machine(), csv)
+    assert implicit.params == explicit.params and implicit.rmse == explicit.rmse
+    lumped = load_machine().description.section("lumped")
+    nominal = api.drive_nominal(load_machine())
+    ratio = nominal.ratio
+    assert nominal.inertia_kgm2 == pytest.approx(lumped["inertia_motor_side_kgm2"] * ratio**2)
+    assert nominal.linkage is None  # the lumped inertia replaces the CAD's tables

@@ -96,6 +96,9 @@ class DriveNominal:
     # described roles (shaft joint, zero site) that name the shaft in its MJCF.
     linkage: LinkageTables | None = field(default=None, compare=False, repr=False)
     roles: tuple[str, str] | None = field(default=None, compare=False)
+    # the MJCF that the roles name: a drive given by its lumped numbers (no linkage here) still
+    # has its machine's model for the multibody baseline
+    model_path: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
         if isinstance(self.joint_ratios, dict):

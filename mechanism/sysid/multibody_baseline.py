@@ -168,7 +168,7 @@ def linkage_tables(nominal, model_path=None):
 
         roles = resolve_description(None)
         shaft, zero = roles.shaft_joint, roles.zero_site
-    model = load_model(model_path)
+    model = load_model(model_path or getattr(nominal, "model_path", None))
     joints = [model.joint(i).name for i in range(model.njnt)]
     if shaft not in joints:
         raise UserError(

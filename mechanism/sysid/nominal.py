@@ -3,7 +3,9 @@
 Identification, diagnosis and the virtual bench scale every bound, start and truth range
 from a :class:`~mechanism.dynamics.lumped.DriveNominal`; this builds it for any described
 machine: the motor's datasheet, the motor-to-shaft ratio and the mean inertia at the shaft
-from the model (motor reflected), and the described friction referred to the shaft.
+from the model (motor reflected), and the described friction referred to the shaft; or, where
+the description has a ``[lumped]`` section (the whole machine as a lumped model identified it),
+those numbers for inertia and friction.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from mechanism.dynamics.lumped import DriveNominal, MotorConstants
+from mechanism.kinematics.linkage import LinkageTables
 from mechanism.machine.machine import Machine
 
 CONSTANT_RATIO = 1e-6  # a shaft geared to the main one keeps its ratio over a turn
@@ -46,9 +49,19 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
         )
     else:
         zero = f"{machine.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
+    inertia = tables.mean_inertia_kgm2
+    linkage: LinkageTables | None = tables
+    lumped = description.section("lumped")
+    # the whole machine as a lumped model identified it (parts the CAD lacks included): its
+    # numbers; its inertia replaces the linkage tables, whose shape belongs to the CAD's
+    if "inertia_motor_side_kgm2" in lumped:
+        inertia, linkage = lumped["inertia_motor_side_kgm2"] * ratio**2, None
+    coulomb = lumped.get("coulomb_shaft_Nm", coulomb)
+    if "viscous_motor_side_Nm_s_per_rad" in lumped:
+        viscous = lumped["viscous_motor_side_Nm_s_per_rad"] * ratio**2
     return DriveNominal(
         constants,
-        inertia_kgm2=tables.mean_inertia_kgm2,
+        inertia_kgm2=inertia,
         coulomb_shaft_Nm=coulomb,
         viscous_shaft_Nm_s_per_rad=viscous,
         joint_ratios=tuple(others.items()),
@@ -56,6 +69,7 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
         tool_in_fabric=machine.fabric_capable,
         zero_meaning=zero,
         travel_rad=machine.shaft_span_rad,
-        linkage=tables,
+        linkage=linkage,
         roles=(machine.shaft_joint, machine.zero_site),
+        model_path=str(machine.model_path),
     )
