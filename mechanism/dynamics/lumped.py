@@ -297,6 +297,20 @@ class Drive:
     motor_inertia_kgm2: float = 0.0  # motor-side share of the inertia (arm units), belt mode
     belt_gap_rad: float = 0.0  # half the belt's free play (backlash), belt mode
 
+    def per_sample(self) -> tuple[np.ndarray, ...]:
+        """The per-sample arrays in the kernel's argument order (lumped.c): voltage, motor-side
+        and arm-side torques, Coulomb, static excess, viscous, inertia, quadratic."""
+        return (
+            self.voltage_V,
+            self.tau_motor_Nm,
+            self.tau_arm_Nm,
+            self.coulomb_Nm,
+            self.static_excess_Nm,
+            self.viscous_Nm_s,
+            self.inertia_kgm2,
+            self.quadratic_Nm_s2,
+        )
+
     @classmethod
     def constant(
         cls, signals: Signals, voltage: np.ndarray, inertia: float, viscous: float, coulomb: float
@@ -425,19 +439,7 @@ def simulate(
     kernel = _kernel() if use_native else None
     if kernel is None:
         return simulate_numpy(drive, motor, segments, w0, dt, substeps)
-    arrays = [
-        np.ascontiguousarray(a, dtype=np.float64)
-        for a in (
-            drive.voltage_V,
-            drive.tau_motor_Nm,
-            drive.tau_arm_Nm,
-            drive.coulomb_Nm,
-            drive.static_excess_Nm,
-            drive.viscous_Nm_s,
-            drive.inertia_kgm2,
-            drive.quadratic_Nm_s2,
-        )
-    ]
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in drive.per_sample()]
     n_seg = len(segments)
     out = np.empty((n_seg, segments.length), dtype=np.float64)
     starts = np.ascontiguousarray(segments.starts, dtype=np.int32)
@@ -492,16 +494,7 @@ def simulate_numpy(
     n_seg, length = idx.shape
     out = np.empty((n_seg, length))
     gain, c_emf = motor.gain_arm, motor.emf_damping_arm
-    u, tm, ta, fk, fx, cv, jt, q = (
-        drive.voltage_V,
-        drive.tau_motor_Nm,
-        drive.tau_arm_Nm,
-        drive.coulomb_Nm,
-        drive.static_excess_Nm,
-        drive.viscous_Nm_s,
-        drive.inertia_kgm2,
-        drive.quadratic_Nm_s2,
-    )
+    u, tm, ta, fk, fx, cv, jt, q = drive.per_sample()
     w = np.array(w0, dtype=float)
     if drive.belt_stiffness_Nm_rad > 0:
         return _simulate_belt_numpy(drive, motor, idx, w, dt, substeps)
@@ -537,16 +530,7 @@ def _simulate_belt_numpy(
     out = np.empty((n_seg, length))
     gain, c_emf = motor.gain_arm, motor.emf_damping_arm
     jm, kb, cb = drive.motor_inertia_kgm2, drive.belt_stiffness_Nm_rad, drive.belt_damping_Nm_s
-    u, tm, ta, fk, fx, cv, jt, q = (
-        drive.voltage_V,
-        drive.tau_motor_Nm,
-        drive.tau_arm_Nm,
-        drive.coulomb_Nm,
-        drive.static_excess_Nm,
-        drive.viscous_Nm_s,
-        drive.inertia_kgm2,
-        drive.quadratic_Nm_s2,
-    )
+    u, tm, ta, fk, fx, cv, jt, q = drive.per_sample()
     k0 = idx[:, 0]
     wr = np.sqrt(kb * (1 / jm + 1 / (jt[k0] - jm)))
     nsub = int(max(substeps, np.ceil(np.max(wr) * dt / 0.25)))
