@@ -1,7 +1,6 @@
-"""The described drive's numbers for identify, diagnose and testbench: the machine of
-``--machine`` (its description and CAD model), or, without it, the shipped Sapphire 870's
-lumped numbers as the thesis identified them (the recordings and tests of the earlier
-issues were calibrated on those)."""
+"""The described drive's numbers for identify, diagnose and testbench: those of the machine of
+``--machine``, or without it of the default shipped machine (:func:`mechanism.api.drive_nominal`:
+its description and CAD model, or its ``[lumped]`` numbers where it has them)."""
 
 from __future__ import annotations
 
