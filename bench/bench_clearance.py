@@ -138,9 +138,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as scratch:
         variants = _variants(count, timing, Path(scratch))
         subset = _subset(variants, min(len(variants), 60))
+        # warm-up: imports, first calls
         run_variants(
             model, _subset(variants, 4), pairs, driver="arm_shaft", workers=1, progress=False
-        )  # warm-up: imports, first calls
+        )
         (one, cpu_one), (two, cpu_two) = (
             _timed(model, subset, pairs, workers) for workers in (1, 2)
         )

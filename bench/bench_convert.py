@@ -39,9 +39,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as scratch:
         scratch = Path(scratch)
         exports = list(_exports(scratch))
-        convert(
-            exports[0][1], scratch / "warm-up"
-        )  # imports and first-call costs are not conversion time
+        # imports and first-call costs are not conversion time
+        convert(exports[0][1], scratch / "warm-up")
         for label, export in exports:
             out = scratch / label.split()[0]
             total = _seconds(lambda: convert(export, out))

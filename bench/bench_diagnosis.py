@@ -29,9 +29,8 @@ def _cases(seeds: list[int]) -> list[tuple[str, int]]:
     from mechanism.api import drive_nominal
     from mechanism.sysid.effects import library
 
-    cases = [
-        (name, seed) for seed in seeds for name in library(drive_nominal(None))
-    ]  # the bench machine's candidates
+    # the bench machine's candidates
+    cases = [(name, seed) for seed in seeds for name in library(drive_nominal(None))]
     cases += [("none", seed) for seed in seeds] + [("none", seeds[-1] + 100)]
     cases += [
         (pair, seed) for seed in seeds for pair in PAIRS[: 3 if len(seeds) == 1 else len(PAIRS)]

@@ -57,9 +57,8 @@ def _load_or_make(cache: Path, variant, seed, effects, flavours, duration):
     from tests.helpers import truth_variants
     from tests.helpers.truth_variants import detectability, make_case
 
-    version = (
-        zlib.crc32(Path(truth_variants.__file__).read_bytes()) % 10**6
-    )  # a changed truth model makes new files
+    # a changed truth model makes new files
+    version = zlib.crc32(Path(truth_variants.__file__).read_bytes()) % 10**6
     key = f"{variant}_{seed}_{'+'.join(effects) or 'none'}_{'_'.join(flavours.get(e, '') for e in effects)}_{int(duration)}_{version}"
     path = cache / f"{key}.npz"
     if path.exists():
@@ -84,9 +83,8 @@ def _load_or_make(cache: Path, variant, seed, effects, flavours, duration):
 
 
 def _window(effect: str) -> float:
-    return (
-        0.2 if effect == "belt_compliance" else 2.0
-    )  # the belt rings for a fraction of a second after steps
+    # the belt rings for a fraction of a second after steps
+    return 0.2 if effect == "belt_compliance" else 2.0
 
 
 def _member_detectability(cache, variant, seed, effects, member, truth, duration):

@@ -45,12 +45,13 @@ def _reduced(machine, count: int) -> None:
     options = SweepOptions(duration_s=2.0)
     from dataclasses import replace
 
+    # warm-up: native library, caches
     run_sweep(
         machine,
         replace(variants, names=variants.names[:50], values=variants.values[:50]),
         options,
         progress=False,
-    )  # warm-up: native library, caches
+    )
     times = {}
     for workers in (1, 2):
         start = time.perf_counter()

@@ -45,9 +45,8 @@ class Part:
     volume: float | None = None  # m^3 when the export states it
     frames: list[NamedFrame] = field(default_factory=list)
     virtual: bool = False  # a helper node (sub-assembly origin): no geoms, no site
-    inertia_resolution: float = (
-        0.0  # kg*m^2 the export rounds inertias to (0: relative precision only)
-    )
+    # kg*m^2 the export rounds inertias to (0: relative precision only)
+    inertia_resolution: float = 0.0
 
 
 @dataclass
@@ -74,9 +73,8 @@ class Joint:
     follower_frame: Pose  # the joint frame on the follower part, world, at the assembly pose
     primitives: list[Primitive] = field(default_factory=list)
     synthetic: bool = False  # made by a reader (grounding, rigid sub-assembly), not a CAD joint
-    sources: list[str] = field(
-        default_factory=list
-    )  # the CAD mates it was found from (mate inference)
+    # the CAD mates it was found from (mate inference)
+    sources: list[str] = field(default_factory=list)
 
     @property
     def is_weld(self) -> bool:

@@ -36,15 +36,13 @@ class ConversionReport:
     n_loop_closures: int
     n_couplings: int
     n_meshes: int
-    degrees_of_freedom: (
-        int  # joint DOF minus independent loop and coupling constraints, at the assembly pose
-    )
+    # joint DOF minus independent loop and coupling constraints, at the assembly pose
+    degrees_of_freedom: int
     total_mass_kg: float  # of the compiled model (export masses plus any repair, see warnings)
     export_mass_kg: float  # sum of the part masses as the export states them
     warnings: list[str] = field(default_factory=list)
-    joint_origins: list[str] = field(
-        default_factory=list
-    )  # per export joint: what it came from, what it became
+    # per export joint: what it came from, what it became
+    joint_origins: list[str] = field(default_factory=list)
 
     @property
     def n_joints(self) -> int:

@@ -48,9 +48,8 @@ from mechanism.converters.safety import MAX_DEPTH, numbers, resolve_inside
 from mechanism.converters.units import length_factor, mass_factor
 
 ROOT_TAG = "SimscapeMultibodyImportXML"
-LEGACY_ROOT_TAG = (
-    "SimMechanicsImportXML"  # the same format as SimMechanics Link 4.x (2013-2016) wrote it
-)
+# the same format as SimMechanics Link 4.x (2013-2016) wrote it
+LEGACY_ROOT_TAG = "SimMechanicsImportXML"
 
 _P = {
     "Px": (SLIDE, 0),

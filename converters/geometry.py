@@ -21,9 +21,8 @@ from mechanism.converters.assembly import Assembly, Part
 from mechanism.converters.names import Namer
 from mechanism.converters.safety import MAX_GEOMETRY_BYTES
 
-STEP_LINEAR_DEFLECTION_MM = (
-    0.05  # tessellation chord error: 0.05 mm is below CAD tolerances of machined parts
-)
+# tessellation chord error: 0.05 mm is below CAD tolerances of machined parts
+STEP_LINEAR_DEFLECTION_MM = 0.05
 STEP_ANGULAR_DEFLECTION_RAD = 0.5
 CONVEX_VOLUME_RATIO = 0.99
 PLAUSIBLE_DENSITY = (20.0, 30000.0)  # kg/m^3: foam to tungsten; outside it a mesh unit is wrong

@@ -15,9 +15,8 @@ from mechanism.converters.safety import parse_xml
 
 READERS = {
     gen1.ROOT_TAG: gen1.read,
-    **{
-        tag: gen1.read for tag in gen1.MODEL_TAGS
-    },  # a first-generation model element without its wrapper
+    # a first-generation model element without its wrapper
+    **{tag: gen1.read for tag in gen1.MODEL_TAGS},
     gen2.ROOT_TAG: gen2.read,
     gen2.LEGACY_ROOT_TAG: gen2.read,
 }

@@ -312,9 +312,8 @@ def freedoms(mates: list[tuple[str, MateGeometry, MateGeometry]]) -> Freedoms:
     anchor = _rotation_centre(rotations, translations, slides, spin_basis, centre)
     if r == 1:
         axis = _canonical(spin_basis[:, 0])
-        anchor = (
-            anchor + ((centre - anchor) @ axis) * axis
-        )  # the point of the axis nearest the mates
+        # the point of the axis nearest the mates
+        anchor = anchor + ((centre - anchor) @ axis) * axis
         along = [i for i in range(slides.shape[1]) if abs(slides[:, i] @ axis) > 0.999]
         across = _orthonormal_columns(slides - np.outer(axis, axis @ slides))
         if not slides.shape[1]:

@@ -36,9 +36,8 @@ EQUALITY_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
 CARRIER_MASS_FRACTION = 0.1  # of the follower body's mass properties, lent to a loop's carrier body
 LIGHT_CARRIER_FRACTION = 1e-3  # of a donor's mass when the follower has none to share
 MISSING_MASS_FRACTION = 1e-3  # a massless moving body gets this fraction of the lightest real part (lent by a neighbour)
-LOOP_SPACING_FRACTION = (
-    0.1  # revolute closures: connect points this fraction of the model size apart
-)
+# revolute closures: connect points this fraction of the model size apart
+LOOP_SPACING_FRACTION = 0.1
 LOOP_SPACING_LIMITS_M = (0.005, 0.1)
 SIGNIFICANT_DIGITS = 10  # every number written is rounded: bytes do not depend on last-bit noise
 
@@ -144,9 +143,8 @@ class _Writer:
         self.built = Built(spec=self.spec)
         self.spec.modelname = model_name
         self.spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
-        self.spec.compiler.balanceinertia = (
-            True  # only float-level A + B < C is left after the repairs here
-        )
+        # only float-level A + B < C is left after the repairs here
+        self.spec.compiler.balanceinertia = True
         self.spec.compiler.meshdir = meshdir
         self.spec.option.timestep = TIMESTEP_S
         self.spec.option.integrator = INTEGRATOR

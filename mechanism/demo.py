@@ -22,16 +22,18 @@ import mechanism
 
 DEMO_EFFECT = "torque_ripple"  # the concealed effect of the demo's bench recording
 DEMO_SEED = 3
+# fractions of the top voltage
 STEPS_V = (
     np.array([0.0, 1.5, 3.0, 4.5, 5.5]),
     np.array([0.2, 0.5, 0.8, 0.0, 0.3]),
-)  # fractions of the top voltage
+)
 TOP_VOLTAGE_V = 24.0
+# added inertia up to 4x the shaft side's own
 FLYWHEEL_MULTIPLE, FLYWHEEL_STEPS, FLYWHEEL_RUN_S = (
     4.0,
     9,
     3.0,
-)  # added inertia up to 4x the shaft side's own
+)
 
 
 class _Steps:
@@ -185,9 +187,8 @@ def _flywheel(machine: mechanism.Machine, out: Path) -> dict | None:
 def _diagnose(machine: mechanism.Machine, out: Path) -> dict:
     recording = out / f"bench_{DEMO_EFFECT}_seed{DEMO_SEED}.csv"
     truth = mechanism.write_bench_recording(machine, [DEMO_EFFECT], DEMO_SEED, recording)
-    result = mechanism.diagnose(
-        machine, recording, recording_name=recording.name
-    )  # beside the outputs, not in staging
+    # beside the outputs, not in staging
+    result = mechanism.diagnose(machine, recording, recording_name=recording.name)
     document = result.to_json()
     (out / "diagnosis.json").write_text(json.dumps(document, indent=2), encoding="utf-8")
     mechanism.diagnosis_report(result, out / "diagnosis")

@@ -70,9 +70,8 @@ def test_local_pool_orders_results_and_sets_up_once_per_worker(start_method):
     )
     assert [r["value"] for r in results] == [i + 1000 for i in items]
     assert sorted(seen) == items  # every result streamed once
-    assert all(
-        r["setups_here"] == 1 for r in results
-    )  # the payload was prepared once per worker, not per item
+    # the payload was prepared once per worker, not per item
+    assert all(r["setups_here"] == 1 for r in results)
     assert 1 <= len({r["pid"] for r in results}) <= 2 and os.getpid() not in {
         r["pid"] for r in results
     }
@@ -92,9 +91,8 @@ def test_a_user_error_in_an_item_reaches_the_caller_after_the_bar(workers, capsy
     with pytest.raises(UserError, match="item 7 is bad"):
         run_batch(_refuse_seven, range(20), workers=workers, chunk_size=4)
     err = capsys.readouterr().err
-    assert err == "" or err.endswith(
-        "\n"
-    )  # the bar's line is ended: an error line printed next stands alone
+    # the bar's line is ended: an error line printed next stands alone
+    assert err == "" or err.endswith("\n")
 
 
 def test_bad_options_and_missing_ray(monkeypatch, capsys):
@@ -182,9 +180,8 @@ def ray_cluster(tmp_path_factory):
     token = tmp_path_factory.mktemp("ray-auth") / "auth_token"
     token.write_text(secrets.token_hex(32))
     token.chmod(0o600)
-    temp_dir = tempfile.mkdtemp(
-        prefix="rayc-", dir="/tmp"
-    )  # short: Ray's socket paths must fit 107 bytes
+    # short: Ray's socket paths must fit 107 bytes
+    temp_dir = tempfile.mkdtemp(prefix="rayc-", dir="/tmp")
     ray_cli = _ray_cli()
     driver_env = {
         "RAY_AUTH_MODE": "token",
@@ -233,9 +230,8 @@ def ray_cluster(tmp_path_factory):
 
 def _running(pid):
     try:
-        return (
-            Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
-        )  # a zombie has ended
+        # a zombie has ended
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
     except OSError:
         return False
 
@@ -369,17 +365,15 @@ def _rerun_a_dead_workers_items(shared):
 @pytest.mark.xdist_group("ray")  # one Ray test at a time (see conftest)
 def test_ray_reruns_the_items_of_a_worker_that_died(on_cluster, tmp_path, monkeypatch):
     pytest.importorskip("ray")
-    monkeypatch.setenv(
-        "RAY_ADDRESS", on_cluster
-    )  # the cluster named by the environment, not the argument
+    # the cluster named by the environment, not the argument
+    monkeypatch.setenv("RAY_ADDRESS", on_cluster)
     results, seen, still_connected = _in_a_process_of_its_own(
         _rerun_a_dead_workers_items, str(tmp_path)
     )
     items = list(range(12))
     assert (tmp_path / "died_5").exists()  # a worker process really died mid-batch
-    assert [square for square, _ in results] == [
-        i * i for i in items
-    ]  # nothing lost, in item order
+    # nothing lost, in item order
+    assert [square for square, _ in results] == [i * i for i in items]
     assert {address.rpartition(":")[2] for _, address in results} == {on_cluster.rpartition(":")[2]}
     assert sorted(seen) == items
     assert not still_connected  # disconnected from the cluster it did not start

@@ -78,9 +78,8 @@ def test_a_damaged_model_entry_is_rebuilt_with_a_warning(tmp_path, damage):
     assert rebuilt == mjcf
     assert len(said) == 1 and "rebuilding" in said[0] and str(mjcf.parent) in said[0], said
     assert entry_files(mjcf.parent) == whole
-    assert not [
-        p for p in mjcf.parent.parent.iterdir() if p.name.startswith(".")
-    ]  # no temporary, no lock
+    # no temporary, no lock
+    assert not [p for p in mjcf.parent.parent.iterdir() if p.name.startswith(".")]
 
 
 def test_a_damaged_compiled_kernel_is_rebuilt_with_a_warning(own_cache):

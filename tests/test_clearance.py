@@ -139,9 +139,8 @@ def test_all_pairs_skip_parts_joined_to_each_other(needle_model):
     assert frozenset(("rod", "needle_bar")) not in pairs  # closed by the loop connects
     assert frozenset(("crank", "rod")) not in pairs  # the crank pin joint
     assert frozenset(("needle", "needle_bar")) not in pairs  # same body
-    assert (
-        frozenset(("needle_bar", "needle_plate")) in pairs
-    )  # the frame holds more than the bushing
+    # the frame holds more than the bushing
+    assert frozenset(("needle_bar", "needle_plate")) in pairs
 
 
 def test_a_long_clearance_check_shows_its_progress(monkeypatch):

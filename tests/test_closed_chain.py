@@ -130,9 +130,8 @@ def test_prismatic_loop_closure_uses_a_carrier_and_slides_freely(tmp_path):
     """A slider on two parallel rails: one rail is a tree slide, the other closes the loop
     through a carrier body. Down a 30 degree incline it must accelerate at g sin(30)."""
     doc = Gen1Export()
-    rail = rotation((0, 1, 0), math.radians(30)) @ np.array(
-        [1.0, 0, 0]
-    )  # x tilted down by 30 degrees
+    # x tilted down by 30 degrees
+    rail = rotation((0, 1, 0), math.radians(30)) @ np.array([1.0, 0, 0])
     base = doc.body("base", 1000, (0, 0, 0), np.diag([1e6] * 3))
     doc.weld_to_ground(base)
     slider = doc.body(
@@ -184,10 +183,11 @@ def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
     r, l, q0 = 30.0, 100.0, math.radians(40)
     a = np.array([r * math.cos(q0), r * math.sin(q0), 0.0])
     b = np.array([r * math.cos(q0) + math.sqrt(l * l - (r * math.sin(q0)) ** 2), 0.0, 0.0])
+    # an arbitrary part frame
     slider_pose = (
         rotation((0, 0, 1), math.radians(30)),
         b + np.array([0, 0, 5.0]),
-    )  # an arbitrary part frame
+    )
 
     def in_slider(point, frame_rotation=np.eye(3)):
         rot, origin = slider_pose
@@ -237,9 +237,8 @@ def test_gen2_slider_crank_follows_its_analytic_stroke(tmp_path):
     for step in range(steps):
         model.eq_data[drive, 0] = 2 * math.pi * step / steps
         mujoco.mj_step(model, data)
-        mujoco.mj_kinematics(
-            model, data
-        )  # positions of the new qpos (mj_step leaves those of the old one)
+        # positions of the new qpos (mj_step leaves those of the old one)
+        mujoco.mj_kinematics(model, data)
         q = q0 + data.qpos[model.joint("crank").qposadr[0]]
         expected = r * math.cos(q) + math.sqrt(l * l - (r * math.sin(q)) ** 2)
         x = 1000 * data.site("slider").xpos[0]

@@ -188,14 +188,12 @@ def test_summary_prints_the_inertia_reflected_through_the_belt(tmp_path, cli):
         l for l in result.stdout.splitlines() if l.startswith("reflected inertia at arm_shaft:")
     )
     ratio_line = next(l for l in result.stdout.splitlines() if "referred to motor (ratio 8:1)" in l)
-    assert float(line.split(":")[1].split()[0]) == pytest.approx(
-        expected, rel=1e-3
-    )  # 4 significant digits
+    # 4 significant digits
+    assert float(line.split(":")[1].split()[0]) == pytest.approx(expected, rel=1e-3)
     assert float(ratio_line.split()[1]) == pytest.approx(expected / 64, rel=1e-3)
     moving = next(l for l in result.stdout.splitlines() if l.startswith("moving mass:"))
-    assert float(moving.split()[2]) == pytest.approx(
-        0.4, rel=1e-9
-    )  # 100 g + 300 g, the base is fixed
+    # 100 g + 300 g, the base is fixed
+    assert float(moving.split()[2]) == pytest.approx(0.4, rel=1e-9)
 
 
 @pytest.mark.slow

@@ -451,9 +451,8 @@ def test_gen2_inertia_order_and_units(tmp_path):
     assembly = read(_gen2_with_subassemblies(tmp_path))
     slider = next(p for p in assembly.parts.values() if p.name == "Slider")
     tilt = rotation((1, 0, 0), math.pi / 2)
-    ixx, iyy, izz, iyz, izx, ixy = (
-        np.array([4e3, 1e3, 4e3, 100, 200, 300]) * 1e-9
-    )  # g*mm^2 -> kg*m^2
+    # g*mm^2 -> kg*m^2
+    ixx, iyy, izz, iyz, izx, ixy = np.array([4e3, 1e3, 4e3, 100, 200, 300]) * 1e-9
     local = np.array([[ixx, ixy, izx], [ixy, iyy, iyz], [izx, iyz, izz]])
     assert slider.inertia == pytest.approx(tilt @ local @ tilt.T, abs=1e-18)
     assert slider.mass == pytest.approx(0.02)
@@ -532,9 +531,8 @@ def test_gen2_compound_joints_get_suffixed_names_and_6dof_to_ground_is_free(tmp_
 
 
 def test_gen2_stl_written_in_millimetres_is_detected_by_its_mass_properties(tmp_path):
-    box_stl(
-        tmp_path / "block.stl", (100, 0, 0), (140, 20, 10)
-    )  # mm, well away from the part origin
+    # mm, well away from the part origin
+    box_stl(tmp_path / "block.stl", (100, 0, 0), (140, 20, 10))
     parts = gen2_part("base", "P-base", 1.0, (0, 0, 0), (0.01, 0.01, 0.01, 0, 0, 0)) + gen2_part(
         "block",
         "P-block",

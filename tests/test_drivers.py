@@ -24,9 +24,8 @@ def test_ground_pivots_stay_joints_and_the_crank_is_the_guessed_shaft(tmp_path):
     assert {"ground--crank", "rocker--ground"} <= tree_joints(model)
     assert report.n_loop_closures == 1 and report.degrees_of_freedom == 1
     guess = guess_roles(model)
-    assert (
-        guess.shaft_joint == "ground--crank"
-    )  # the rocker only rocks; the coupler pins are not on the frame
+    # the rocker only rocks; the coupler pins are not on the frame
+    assert guess.shaft_joint == "ground--crank"
 
 
 def test_a_named_driver_stays_a_joint(tmp_path):

@@ -143,9 +143,8 @@ def test_a_servo_step_follows_its_loop_equation(tmp_path, cli):
         - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t))
     )
     assert np.max(np.abs(q - expected)) < 0.01 * goal
-    assert (
-        np.max(np.abs(kp * (goal - q) - kd * column["spin_a_vel_rad_s"])) < 6.0
-    )  # never saturated
+    # never saturated
+    assert np.max(np.abs(kp * (goal - q) - kd * column["spin_a_vel_rad_s"])) < 6.0
     assert column["spin_a_input_rad"] == pytest.approx(goal)
     # the current is the motor's: (V - Ke w) / R
     current = (
@@ -303,9 +302,8 @@ def test_the_servo_limit_python_twin_matches_the_compiled_callback(tmp_path):
     model, data = machine.model, machine.data
     joint = model.joint("spin_a")
     data.qpos[joint.qposadr[0]], data.qvel[joint.dofadr[0]] = 0.1, 3.0
-    data.ctrl[model.actuator("drive_motor").id] = (
-        2.0  # 20 (2 - 0.1) - 0.05 x 3 = 37.85 V asked of 6 V
-    )
+    # 20 (2 - 0.1) - 0.05 x 3 = 37.85 V asked of 6 V
+    data.ctrl[model.actuator("drive_motor").id] = 2.0
     mujoco.mj_forward(model, data)
     native = data.qfrc_passive[joint.dofadr[0]]
     data.qfrc_passive[:] = 0.0

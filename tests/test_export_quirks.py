@@ -44,6 +44,7 @@ BUILDERS = [
     scara_printer,
     onshape_copter,
 ]
+# one stand-in per failure class of issue 14, in its order
 ISSUE_14 = [
     simscape_link_gen1,
     massless_link_tiny_parts,
@@ -52,11 +53,12 @@ ISSUE_14 = [
     creo_ball_beam_rigid,
     ball_in_groove,
     conveyor_with_origin_mates,
-]  # one stand-in per failure class of issue 14, in its order
+]
+# furuta's world is Y-up; the puck's table stands in the xy plane: gravity along it
 UP = {
     furuta: "y",
     planar_puck: "y",
-}  # furuta's world is Y-up; the puck's table stands in the xy plane: gravity along it
+}
 
 
 @pytest.fixture(scope="module")
@@ -281,9 +283,8 @@ def test_flexible_subassembly_keeps_its_own_mates_in_its_own_frame(built):
     )
     shin = model.body("upper_shin-1").id
     start = data.xmat[shin].reshape(3, 3).copy()
-    housing_axis = (
-        data.site("housing-1").xmat.reshape(3, 3).T @ axis
-    )  # the damper axis in the housing's frame
+    # the damper axis in the housing's frame
+    housing_axis = data.site("housing-1").xmat.reshape(3, 3).T @ axis
     for step in range(500):
         model.eq_data[drive, 0] = 0.3 * min(1.0, step / 400)
         mujoco.mj_step(model, data)
@@ -415,9 +416,8 @@ def test_simscape_multibody_link_first_generation_root(built, tmp_path):
     fourbar = export.facts["fourbar"]
     _, _, a, _ = fourbar.points()
     assert data.site("crank_end").xpos == pytest.approx(fourbar.world(*a, 4.0) * 1e-3, abs=1e-9)
-    text = export.path.read_text(
-        encoding="utf-8"
-    )  # the same model element written as the document's root
+    # the same model element written as the document's root
+    text = export.path.read_text(encoding="utf-8")
     start, end = (
         text.index("<SimscapeMultibody>"),
         text.index("</SimscapeMultibody>") + len("</SimscapeMultibody>"),

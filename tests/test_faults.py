@@ -509,9 +509,8 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
 
     def ready() -> bool:
         if moment == "while ray.init starts it":
-            return any(
-                program(pid) == "gcs_server" for pid in children(proc.pid)
-            )  # ray.init has begun
+            # ray.init has begun
+            return any(program(pid) == "gcs_server" for pid in children(proc.pid))
         return journal.exists() and journal.read_text().count("\n") > 3
 
     deadline = time.monotonic() + 240
@@ -521,9 +520,8 @@ def test_a_kill_stops_the_ray_instance_the_run_started(tmp_path, moment):
     sent = time.monotonic()
     proc.send_signal(signal.SIGTERM)
     _, stderr = proc.communicate(timeout=120)
-    assert proc.returncode == 143, (
-        stderr
-    )  # SIGTERM's, also when Ray turns it into a KeyboardInterrupt
+    # SIGTERM's, also when Ray turns it into a KeyboardInterrupt
+    assert proc.returncode == 143, stderr
     assert "error: interrupted" in stderr.splitlines(), stderr
     assert "WARNING" not in stderr, stderr  # none of Ray's own log lines reach the user
     assert time.monotonic() - sent < INTERRUPT_MARGIN_S
@@ -545,9 +543,8 @@ def test_a_signal_a_library_turned_into_keyboardinterrupt_keeps_its_exit_status(
 
     monkeypatch.setitem(interrupts._state, "interrupted", signal.SIGTERM)
     assert interrupts.exit_status(KeyboardInterrupt()) == 143
-    assert (
-        interrupts.exit_status(interrupts.Interrupted(signal.SIGINT)) == 130
-    )  # the exception's own signal first
+    # the exception's own signal first
+    assert interrupts.exit_status(interrupts.Interrupted(signal.SIGINT)) == 130
     monkeypatch.setitem(interrupts._state, "interrupted", None)
     assert interrupts.exit_status(KeyboardInterrupt()) == 130  # a Ctrl-C Python raised itself
 

@@ -49,9 +49,8 @@ def test_a_fleet_gets_one_json_each_a_summary_and_survives_a_bad_recording(
         truth = json.loads((RECORDINGS / f"{name}.truth.json").read_text())
         concealed = truth["effects"]
         assert rows[name]["status"] == "ok"
-        assert rows[name]["effects"].split("+") == (
-            concealed or [""]
-        )  # found what the bench concealed
+        # found what the bench concealed
+        assert rows[name]["effects"].split("+") == (concealed or [""])
         data = json.loads((out / f"{name}.json").read_text())
         assert data["final"]["effects"] == concealed
         assert float(rows[name]["final_rmse_rad_s"]) == pytest.approx(
@@ -63,13 +62,11 @@ def test_a_fleet_gets_one_json_each_a_summary_and_survives_a_bad_recording(
     assert float(rows["torque_ripple_seed3"]["final_rmse_rad_s"]) < 0.3 * float(
         rows["torque_ripple_seed3"]["baseline_rmse_rad_s"]
     )
-    assert (
-        rows["position_friction_seed3"]["ripple_motor_order1_cos_Nm"] == ""
-    )  # a parameter its model does not have
+    # a parameter its model does not have
+    assert rows["position_friction_seed3"]["ripple_motor_order1_cos_Nm"] == ""
     page = (out / "summary.html").read_text()
-    assert (
-        "robust z" in page and page.count("data:image/png;base64,") >= 4
-    )  # one strip plot per fitted parameter
+    # one strip plot per fitted parameter
+    assert "robust z" in page and page.count("data:image/png;base64,") >= 4
 
     # the fleet's JSON of a recording is what a single `diagnose --json` writes
     single = tmp_path / "single.json"
@@ -150,16 +147,14 @@ def test_a_fleet_of_mat_files_with_a_recording_map_finds_what_the_csvs_conceal(c
     names = ("clean_seed1", "torque_ripple_seed3")
     for name in names:
         rec = read_recording(RECORDINGS / f"{name}.csv")
-        counts = -np.round(
-            rec.arm_angle_rad / (2 * np.pi / 20000)
-        )  # the bench counts the other way
+        # the bench counts the other way
+        counts = -np.round(rec.arm_angle_rad / (2 * np.pi / 20000))
         scipy.io.savemat(
             folder / f"{name}.mat",
             {"t": rec.time_s, "u": rec.voltage_V, "enc": counts, "i": rec.current_A},
         )
-        shutil.copy(
-            RECORDINGS / f"{name}.truth.json", folder
-        )  # JSON beside the recordings is not taken for one
+        # JSON beside the recordings is not taken for one
+        shutil.copy(RECORDINGS / f"{name}.truth.json", folder)
     mapping = tmp_path / "map.toml"
     mapping.write_text(
         '[recording]\ntime = "t"\nvoltage = "u"\nshaft_angle = "enc"\nshaft_angle_unit = "counts"\n'

@@ -74,9 +74,8 @@ def test_ground_in_a_description_reaches_every_verb(tmp_path, cli):
     assert machine.model.body_weldid[block] != 0
     result = cli("needle", "--machine", description, "--csv", tmp_path / "n.csv")
     assert result.returncode == 0, result.stderr
-    assert (
-        "stroke: 120.000 mm" in result.stdout
-    )  # the tip 60 mm below the hinge turns a whole revolution
+    # the tip 60 mm below the hinge turns a whole revolution
+    assert "stroke: 120.000 mm" in result.stdout
 
 
 def test_ground_of_an_mjcf_that_does_not_fix_it_is_an_error(tmp_path, cli_here):

@@ -70,9 +70,8 @@ def test_hook_point_clearance_at_the_passage_agrees_with_the_needle_inspection(m
     sweep = ClearanceSweep(model, [Pair("needle", "hook")], driver="arm_shaft")
     result = sweep.run(full_curve=True)[0]
     angle = np.radians(needle.hook_passage_angle_deg)
-    start = pose_sweep(model, np.linspace(0.0, angle, 100), "arm_shaft")[
-        -1
-    ]  # walk there: same assembly branch
+    # walk there: same assembly branch
+    start = pose_sweep(model, np.linspace(0.0, angle, 100), "arm_shaft")[-1]
     distance, _, _ = sweep.distance_at(Pair("needle", "hook"), angle, start)
     assert distance * 1e3 == pytest.approx(needle.hook_point_clearance_mm, abs=0.01)
     # household practice: 0-0.1 mm between hook point and needle (Janome 1600P service manual)
@@ -89,9 +88,8 @@ def test_shipped_machine_passes_at_nominal_dimensions(model):
     hook, plate = report.results
     assert report.passed
     assert 0.0 < hook.min_distance_mm <= 0.1 + 1e-3  # household range: 0-0.1 mm (Janome 1600P)
-    assert (
-        195.0 < hook.angle_deg < 215.0
-    )  # just after bottom dead centre, the needle rising (loop lift)
+    # just after bottom dead centre, the needle rising (loop lift)
+    assert 195.0 < hook.angle_deg < 215.0
     assert plate.min_distance_mm > 0.1
 
 
@@ -100,11 +98,12 @@ def test_mistimed_hook_collides_with_the_needle(model):
     from mechanism.inspection.clearance import Pair
     from mechanism.inspection.variants import VariantSet, parameter, run_variants
 
+    # the shipped description's mistimed variant
     variants = VariantSet(
         [parameter("hook_timing_deg", "coupling:hook_worm_gear:hook_deg")],
         ["nominal", "early hook"],
         np.array([[0.0], [40.0]]),
-    )  # the shipped description's mistimed variant
+    )
     batch = run_variants(
         model, variants, [Pair("needle", "hook")], driver="arm_shaft", progress=False
     )

@@ -312,9 +312,8 @@ def test_supply_limit_python_twin_matches_the_compiled_callback():
     from mechanism.physics.motor import python_supply_limit
 
     limited = mechanism.load_machine(_with_supply(TOY_MACHINE, 10.0, 0.8))
-    reference = mechanism.simulate(
-        limited, voltage_V=12.0, duration_s=0.4
-    )  # commanded above the supply: limited
+    # commanded above the supply: limited
+    reference = mechanism.simulate(limited, voltage_V=12.0, duration_s=0.4)
     velocities = velocities_with_passive(
         limited,
         lambda m, d: (machine_module.python_friction(m, d), python_supply_limit(m, d)),
@@ -325,6 +324,5 @@ def test_supply_limit_python_twin_matches_the_compiled_callback():
     unlimited = mechanism.simulate(
         mechanism.load_machine(TOY_MACHINE), voltage_V=12.0, duration_s=0.4
     )
-    assert (
-        reference.arm_velocity_rad_s[-1] < 0.95 * unlimited.arm_velocity_rad_s[-1]
-    )  # the limit acted
+    # the limit acted
+    assert reference.arm_velocity_rad_s[-1] < 0.95 * unlimited.arm_velocity_rad_s[-1]

@@ -57,9 +57,8 @@ def test_report_traces_carry_the_machines_ratio_and_zero():
         import warnings
 
         with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings():
-            warnings.simplefilter(
-                "error"
-            )  # a residual of zero (an exact fit) plots without matplotlib's complaints
+            # a residual of zero (an exact fit) plots without matplotlib's complaints
+            warnings.simplefilter("error")
             _plots(traces, Path(folder))
     finally:
         plt.Axes.set = original

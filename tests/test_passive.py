@@ -120,16 +120,14 @@ def test_a_held_ball_stays_and_the_pendulum_swings_at_its_period(tmp_path):
         lower_mm = -90.0
         upper_mm = 90.0
         """
-    machine = mechanism.load_machine(
-        _arm(tmp_path, extra, bob_deg=27.0)
-    )  # 3 deg off hanging on the arm tilted 30 deg
+    # 3 deg off hanging on the arm tilted 30 deg
+    machine = mechanism.load_machine(_arm(tmp_path, extra, bob_deg=27.0))
     swing = machine.model.joint("swing")
     result = simulate(0.0, 2.0, machine=machine, start_angle_rad=math.radians(30.0))
     assert np.degrees(result.arm_angle_rad) == pytest.approx(30.0, abs=1.0)  # held by its stop
     angle = result.state[:, 1 + swing.qposadr[0]] + math.radians(3.0)  # 0 where it hangs
-    assert np.max(np.abs(angle)) < math.radians(
-        6.0
-    )  # small oscillations (the ball's landing on its stop adds a little)
+    # small oscillations (the ball's landing on its stop adds a little)
+    assert np.max(np.abs(angle)) < math.radians(6.0)
     crossings = result.time_s[1:][(angle[:-1] < 0) & (angle[1:] >= 0)]
     crossings = crossings[crossings > 0.5]
     period = float(np.mean(np.diff(crossings)))
@@ -137,9 +135,8 @@ def test_a_held_ball_stays_and_the_pendulum_swings_at_its_period(tmp_path):
     expected = 2 * math.pi * math.sqrt((length**2 + 0.4 * radius**2) / (9.81 * length))
     assert period == pytest.approx(expected, rel=0.01)
     ball = machine.model.joint("roll").qposadr[0]
-    assert np.all(
-        np.abs(result.state[:, 1 + ball]) <= 0.09 + 1e-3
-    )  # the ball stays between its stops
+    # the ball stays between its stops
+    assert np.all(np.abs(result.state[:, 1 + ball]) <= 0.09 + 1e-3)
 
 
 def test_the_runaway_guard_names_an_overspeeding_motor():

@@ -291,9 +291,8 @@ def test_gravity_torque_is_the_ram_and_rod_weight_through_the_linkage(tables):
     """G(θ) = g (m_ram dz/dθ + m_rod dz_rod/dθ) + crank unbalance; its mean over a turn is zero."""
     assert abs(float(tables.gravity_torque_Nm.mean())) < 1e-9
     ram = export_parts()["RAM-1"]["mass"]
-    assert (
-        np.max(np.abs(tables.gravity_torque_Nm)) > 9.81 * ram * R
-    )  # the rod and the crank pin add to the ram
+    # the rod and the crank pin add to the ram
+    assert np.max(np.abs(tables.gravity_torque_Nm)) > 9.81 * ram * R
 
 
 def exact_meshes(model) -> dict[str, object]:

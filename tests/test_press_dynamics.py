@@ -46,12 +46,10 @@ def press():
 
 def test_the_press_is_shipped_and_its_roles_resolve(press):
     assert "press" in mechanism.shipped_machines()
-    assert press.frame.zero_rad == pytest.approx(
-        0.0, abs=1e-9
-    )  # assembly pose = ram at top dead centre
-    assert (
-        press.frame.direction == 1.0
-    )  # a positive motor turn is a positive crank turn (right-hand worm)
+    # assembly pose = ram at top dead centre
+    assert press.frame.zero_rad == pytest.approx(0.0, abs=1e-9)
+    # a positive motor turn is a positive crank turn (right-hand worm)
+    assert press.frame.direction == 1.0
     assert press.motor_ratio == pytest.approx(RATIO, rel=1e-9)
     # the ram tip over the die plate: 1.625 in at the top, 0.125 in at the bottom
     assert press.tool_height_mm_at(np.array([0.0, np.pi])) == pytest.approx(

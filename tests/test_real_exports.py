@@ -64,9 +64,8 @@ def stated_mass_kg(path: Path) -> float:
         re.findall(r'<Part name="[^"]*" uid="([^"]+)"[^>]*>.*?<Mass>([^<]+)</Mass>', text, re.S)
     )
     tree = text[text.index("<InstanceTree>") : text.index("</InstanceTree>")]
-    return sum(
-        float(masses[e]) for e in re.findall(r'entityUid="([^"]+)"', tree) if e in masses
-    )  # DataUnits: kg here
+    # DataUnits: kg here
+    return sum(float(masses[e]) for e in re.findall(r'entityUid="([^"]+)"', tree) if e in masses)
 
 
 @pytest.fixture(scope="module")
@@ -86,9 +85,8 @@ def converted(tmp_path_factory):
 def test_real_export_converts_with_its_mass_and_nothing_floating(converted, key):
     report, path = converted(key), real(key)
     model = mujoco.MjModel.from_xml_path(str(report.mjcf_path))
-    assert model.body_mass.sum() == pytest.approx(
-        stated_mass_kg(path), rel=1e-6, abs=1e-8
-    )  # abs: an export of 0 kg
+    # abs: an export of 0 kg
+    assert model.body_mass.sum() == pytest.approx(stated_mass_kg(path), rel=1e-6, abs=1e-8)
     assert mujoco.mjtJoint.mjJNT_FREE not in set(model.jnt_type)
     assert report.n_meshes or any("geometry file(s) are missing" in w for w in report.warnings)
     data = mujoco.MjData(model)
@@ -111,9 +109,8 @@ def test_proe_fourbar_in_inches_follows_freudenstein(converted):
     crank, coupler, rocker, ground = (
         np.linalg.norm(u - v) for u, v in ((a, o2), (b, a), (b, o4), (o4, o2))
     )
-    assert (crank, coupler, rocker, ground) == pytest.approx(
-        (1.27, 2.032, 5.08, 4.572), abs=1e-3
-    )  # 50, 80, 200, 180 in
+    # 50, 80, 200, 180 in
+    assert (crank, coupler, rocker, ground) == pytest.approx((1.27, 2.032, 5.08, 4.572), abs=1e-3)
 
     def rocker_angle(theta, guess):
         """Rocker angle (from the ground line O2->O4) for crank angle theta, nearest ``guess``."""
@@ -206,9 +203,8 @@ def test_creo_export_without_data_units_is_read_in_its_model_units(converted):
     assert found == CREO_SMIMPORT
     slide = next(j for j in assembly.joints if (j.base, j.follower) == ("11", "12"))
     assert slide.primitives[0].axis == pytest.approx([0, 0, 1], abs=1e-9)
-    assert slide.base_frame.position[0] == pytest.approx(
-        0.52, abs=1e-9
-    )  # 600 mm - 80 mm: millimetres, not metres
+    # 600 mm - 80 mm: millimetres, not metres
+    assert slide.base_frame.position[0] == pytest.approx(0.52, abs=1e-9)
     assert converted("creo").degrees_of_freedom == 6
 
 
@@ -491,9 +487,8 @@ def test_creo_9_wrist_and_onshape_backhoe_give_simscapes_joint_kinds(converted):
     Onshape's exporter with joints (fastened ones are welds): Simscape's 8 revolute and 7 cylindrical."""
     assert dict(_kinds("wrist")) == {"revolute": 9}
     assert dict(_kinds("backhoe")) == {"revolute": 8, "cylindrical": 7}
-    assert dict(_kinds("arm_robot")) == {
-        "revolute": 13
-    }  # Onshape 2024, servos fastened to their links
+    # Onshape 2024, servos fastened to their links
+    assert dict(_kinds("arm_robot")) == {"revolute": 13}
     assert (
         converted("wrist").degrees_of_freedom == 3 and converted("backhoe").degrees_of_freedom == 3
     )

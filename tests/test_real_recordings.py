@@ -126,9 +126,8 @@ class PublishedLoadFriction(Effect):
         p = XL330_M6
         w = s.velocity_rad_s
         tm = p["kt"] / p["R"] * drive.voltage_V - p["kt"] ** 2 / p["R"] * w
-        te = (
-            -drive.tau_arm_Nm
-        )  # the baseline's gravity torque, resisting; bam's bias torque is applied
+        # the baseline's gravity torque, resisting; bam's bias torque is applied
+        te = -drive.tau_arm_Nm
         drive.coulomb_Nm = drive.coulomb_Nm + np.abs(
             p["load_friction_external"] * te - p["load_friction_motor"] * tm
         )

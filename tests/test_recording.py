@@ -81,9 +81,8 @@ def test_velocity_definition_tracks_a_ripple_and_has_a_low_quantisation_floor():
     raw = np.diff(measured) * FS
     assert np.std(raw - 30) > 0.1  # raw differencing: 0.31 rad/s steps
     err = (v - true_velocity)[100:-100]
-    assert (
-        np.sqrt(np.mean(err**2)) < 0.015
-    )  # the ripple (0.75 rad/s) passes, quantisation is filtered
+    # the ripple (0.75 rad/s) passes, quantisation is filtered
+    assert np.sqrt(np.mean(err**2)) < 0.015
 
 
 def test_constant_voltage_is_not_identifiable_and_steps_are():

@@ -144,9 +144,8 @@ def test_matlab_v73_through_h5py(tmp_path, truth):
             ("volts", truth["voltage"]),
             ("rev", truth["angle"] / TWO_PI),
         ):
-            handle.create_dataset(
-                name, data=values.reshape(1, -1)
-            )  # MATLAB stores a column transposed
+            # MATLAB stores a column transposed
+            handle.create_dataset(name, data=values.reshape(1, -1))
             handle[name].attrs["MATLAB_class"] = np.bytes_("double")
     with open(path, "r+b") as handle:
         handle.write(b"MATLAB 7.3 MAT-file, written by a test".ljust(116, b" "))
@@ -383,9 +382,8 @@ def test_inspect_recording_reports_units_rate_encoder_and_excitation(tmp_path, c
     assert data["excitation"]["coulomb_friction"]["excited"]  # it turns both ways
     assert data["excitation"]["turns_backward"] and data["excitation"]["turns_forward"]
     assert "4096 counts/rev" in result.stdout
-    top = (
-        np.percentile(np.abs(np.gradient(truth["angle"], 1 / FS)), 99) / TWO_PI
-    )  # turns per second
+    # turns per second
+    top = np.percentile(np.abs(np.gradient(truth["angle"], 1 / FS)), 99) / TWO_PI
     assert data["nyquist_Hz"] == pytest.approx(FS / 2)
     assert data["orders_per_turn_visible_at_top_speed"] == pytest.approx(FS / 2 / top, rel=0.05)
     # one constant voltage: not identifiable, said per parameter
@@ -684,9 +682,8 @@ def test_matrix_columns_headerless_text_and_json_quirks(tmp_path, truth):
         tmp_path / "r.json",
         map_file(tmp_path, 'time = "t"\nvoltage = "v"\nshaft_angle = "pos.rad * 2 / 2"\n'),
     )
-    assert np.array_equal(
-        doubled.arm_angle_rad, rec.arm_angle_rad
-    )  # a nested field inside an expression
+    # a nested field inside an expression
+    assert np.array_equal(doubled.arm_angle_rad, rec.arm_angle_rad)
     # a record without a field: named when the field is used
     del entries[7]["v"]
     (tmp_path / "r.json").write_text(json.dumps(entries))
@@ -714,9 +711,8 @@ def test_a_mapped_log_reads_as_its_hand_conversion_whatever_the_time_stamps(tmp_
         )
         (tmp_path / "hand.csv").write_text("time,voltage,arm_angle\n" + rows + "\n")
         hand = read_recording(tmp_path / "hand.csv")
-        assert len(hand) == len(rec) and hand.dt == pytest.approx(
-            rec.dt, rel=1e-7
-        )  # epoch seconds hold 2.4e-7 s
+        # epoch seconds hold 2.4e-7 s
+        assert len(hand) == len(rec) and hand.dt == pytest.approx(rec.dt, rel=1e-7)
         assert np.array_equal(hand.voltage_V, rec.voltage_V)
         assert np.allclose(hand.arm_angle_rad, rec.arm_angle_rad, atol=1e-9)
 
@@ -724,9 +720,8 @@ def test_a_mapped_log_reads_as_its_hand_conversion_whatever_the_time_stamps(tmp_
 @pytest.mark.slow
 def test_split_cuts_at_the_gaps_into_pieces_a_fleet_reads(tmp_path, cli):
     t = np.arange(12000) / FS
-    keep = (
-        (t < 3.0) | ((t >= 3.3) & (t < 3.4)) | ((t >= 4.0) & (t < 8.0)) | (t >= 9.0)
-    )  # 3 gaps; 0.1 s is too short
+    # 3 gaps; 0.1 s is too short
+    keep = (t < 3.0) | ((t >= 3.3) & (t < 3.4)) | ((t >= 4.0) & (t < 8.0)) | (t >= 9.0)
     counts = np.floor(7.0 * t / (TWO_PI / COUNTS))
     part = {
         "time": t[keep],
@@ -817,9 +812,8 @@ def test_inspect_takes_the_descriptions_table_and_the_map_file_wins(tmp_path, cl
         and by_description["chosen"]["shaft_angle_rad"]["unit"] == "deg"
     )
     assert by_description["ranges"]["shaft_angle_rad"]["max"] == pytest.approx(truth["angle"].max())
-    wins = map_file(
-        tmp_path, 'time = "T"\nvoltage = "V"\nshaft_angle = "A_deg"\n'
-    )  # says rad: wrong, but it wins
+    # says rad: wrong, but it wins
+    wins = map_file(tmp_path, 'time = "T"\nvoltage = "V"\nshaft_angle = "A_deg"\n')
     cli(
         "inspect-recording",
         path,
@@ -848,9 +842,8 @@ def test_a_mat_file_whose_compressed_variable_inflates_past_the_limit_is_refused
     scipy.io.savemat(
         path, {"s": {"time": np.zeros(400_000), "voltage": np.zeros(400_000)}}, do_compression=True
     )
-    assert (
-        path.stat().st_size < 100_000
-    )  # 6.4 MB of zeros inside a struct (whose size whosmat does not see)
+    # 6.4 MB of zeros inside a struct (whose size whosmat does not see)
+    assert path.stat().st_size < 100_000
     line = cli("inspect-recording", path, env={"MECHANISM_MAX_INPUT_MB": "1"}).assert_bad_input()
     assert "inflates past the input limit of 1 MiB" in line
 
@@ -868,9 +861,8 @@ def test_even_epoch_stamps_give_the_grid_of_relative_ones(tmp_path, truth):
         rows[name] = read_recording(tmp_path / f"{name}.csv")
     steps = np.diff(1.7e9 + truth["time"])
     assert abs(np.median(steps) - 1 / FS) > 1e-8  # the trap
-    assert rows["epoch"].dt == pytest.approx(
-        rows["relative"].dt, rel=1e-7
-    )  # a quantum over the duration
+    # a quantum over the duration
+    assert rows["epoch"].dt == pytest.approx(rows["relative"].dt, rel=1e-7)
     assert np.allclose(
         rows["epoch"].time_s - rows["epoch"].time_s[0], rows["relative"].time_s, atol=1e-6
     )

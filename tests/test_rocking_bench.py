@@ -236,9 +236,8 @@ def test_a_rocking_machine_is_diagnosed_with_its_multibody_baseline_by_default(r
     _, nominal = rocker
     assert resolve_baseline(SimpleNamespace(baseline=None), nominal) == "multibody"
     assert resolve_baseline(SimpleNamespace(baseline="lumped"), nominal) == "lumped"
-    assert (
-        resolve_baseline(SimpleNamespace(baseline=None), drive_nominal(None)) == "lumped"
-    )  # the sewing machine turns
+    # the sewing machine turns
+    assert resolve_baseline(SimpleNamespace(baseline=None), drive_nominal(None)) == "lumped"
 
 
 @pytest.mark.slow

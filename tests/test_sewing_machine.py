@@ -103,9 +103,8 @@ def _export_parts():
 
 
 def test_export_mass_properties_are_those_of_the_meshes_and_the_parameter_densities():
-    densities = {
-        name: entry["value"] * 1e-6 for name, entry in PARAMS["materials"].items()
-    }  # g/mm^3
+    # g/mm^3
+    densities = {name: entry["value"] * 1e-6 for name, entry in PARAMS["materials"].items()}
     parts = _export_parts()
     assert len(parts) == 24
     for name, (mass, cg, inertia, rotation, origin, stl) in parts.items():
@@ -274,9 +273,8 @@ def test_needle_position_velocity_and_acceleration_follow_the_analytic_slider_cr
     assert np.abs(motion.needle_z_mm - z).max() < 0.05
     assert np.abs(motion.needle_velocity_mm_per_rad - dz).max() < 0.01 * np.abs(dz).max()
     assert np.abs(motion.needle_acceleration_mm_per_rad2 - ddz).max() < 0.01 * np.abs(ddz).max()
-    assert motion.stroke_mm == pytest.approx(
-        2 * param("crank", "radius"), abs=0.01
-    )  # in-line slider-crank
+    # in-line slider-crank
+    assert motion.stroke_mm == pytest.approx(2 * param("crank", "radius"), abs=0.01)
     assert motion.tdc_angle_deg == pytest.approx(0.0, abs=0.1)
     assert motion.bdc_angle_deg == pytest.approx(180.0, abs=0.1)
 
@@ -391,9 +389,8 @@ def test_needle_cli_model_without_a_needle(tmp_path, cli_here):
         '<mujoco><worldbody><body><joint name="arm_shaft"/><geom size="0.1"/></body></worldbody></mujoco>'
     )
     line = cli_here("needle", "--model", model, "--csv", tmp_path / "n.csv").assert_bad_input()
-    assert (
-        "motor_joint" in line and "close matches: arm_shaft" in line
-    )  # the shipped roles do not fit it
+    # the shipped roles do not fit it
+    assert "motor_joint" in line and "close matches: arm_shaft" in line
 
 
 @pytest.mark.slow

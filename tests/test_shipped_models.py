@@ -39,9 +39,8 @@ def test_self_contained_mjcf_steps_in_stock_mujoco(name, tmp_path):
     assert model.nu == 1 and model.actuator_dyntype[0] == mujoco.mjtDyn.mjDYN_DCMOTOR
     data = _step_without_warnings(model, 12.0, 1.0)
     shaft = model.joint(machine.shaft_joint)
-    assert (
-        machine.frame.direction * data.qvel[shaft.dofadr[0]] > 0
-    )  # forward under a positive voltage
+    # forward under a positive voltage
+    assert machine.frame.direction * data.qvel[shaft.dofadr[0]] > 0
 
 
 @pytest.mark.parametrize("path", sorted((ASSETS / "mjcf").glob("*.xml")), ids=lambda p: p.name)

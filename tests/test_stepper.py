@@ -105,9 +105,8 @@ def test_thread_cut_peaks_at_the_stroke_and_returns(kind, thread_cut_runs, param
     # the reversal overshoots (thesis fig. 20): the rotor passes the turning point
     reversal = s["reversals"][0]
     assert reversal["overshoot_deg"] > 0.5
-    assert (
-        reversal["peak_speed_error_rad_s"] > 1.5 * params.step_rad * 1000
-    )  # more than the slew speed
+    # more than the slew speed
+    assert reversal["peak_speed_error_rad_s"] > 1.5 * params.step_rad * 1000
 
 
 @pytest.mark.slow
@@ -223,10 +222,11 @@ def test_drive_tables(params):
     _, a, b = steppers.drive(params, full, steppers.rest_angle_rad(params, full, steps))
     assert np.all(np.abs(a) == current) and np.all(np.abs(b) == current)
     _, a, b = steppers.drive(params, half, steppers.rest_angle_rad(params, half, steps / 2))
+    # one and two phases on, alternating
     assert sorted(set(np.count_nonzero([a, b], axis=0))) == [
         1,
         2,
-    ]  # one and two phases on, alternating
+    ]
     phi, a, b = steppers.drive(params, micro, steppers.rest_angle_rad(params, micro, steps / 16))
     np.testing.assert_allclose(np.hypot(a, b), current)
     np.testing.assert_allclose(np.diff(phi), math.pi / 2 / 16)

@@ -331,11 +331,12 @@ def test_cli_writes_the_contract_columns_and_a_plot(cli, tmp_path):
             "voltage_V",
         ],
     )
+    # the nominal row runs at the default voltage
     assert list(table["voltage_V"]) == [
         12.0,
         7.0,
         7.0,
-    ]  # the nominal row runs at the default voltage
+    ]
     assert table["ripple_pp_rad_s"][2] < table["ripple_pp_rad_s"][1]
     assert plot.stat().st_size > 10_000
 

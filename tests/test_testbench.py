@@ -408,9 +408,8 @@ def test_thermal_drift_speeds_the_machine_up_as_its_friction_falls():
         viscous = base["viscous_motor_side_Nm_s_per_rad"] * (
             1 - drift["viscous_drop_fraction"] * warm
         )
-        motor_speed = (Kt * 6.0 / R - coulomb / RATIO) / (
-            Kt * Ke / R + viscous
-        )  # thesis eq. 5, steady
+        # thesis eq. 5, steady
+        motor_speed = (Kt * 6.0 / R - coulomb / RATIO) / (Kt * Ke / R + viscous)
         k = int(t * 1000) - 1
         assert speed[k] == pytest.approx(motor_speed / RATIO, rel=0.01)
     assert speed[-1] > 1.05 * speed[1500]
@@ -518,9 +517,8 @@ def test_encoder_eccentricity_is_a_once_per_revolution_sensor_error():
     kwargs = dict(seed=6, duration_s=6.3, voltage_plateaus=profile)
     clean, ecc = make_recording([], **kwargs), make_recording(["encoder_eccentricity"], **kwargs)
     amplitude = ecc.truth["effect_params"]["encoder_eccentricity"]["amplitude_rad"]
-    np.testing.assert_array_equal(
-        clean.traces["arm_angle_rad"], ecc.traces["arm_angle_rad"]
-    )  # the machine is untouched
+    # the machine is untouched
+    np.testing.assert_array_equal(clean.traces["arm_angle_rad"], ecc.traces["arm_angle_rad"])
     theta = ecc.traces["arm_angle_rad"]
     error = ecc.arm_angle - theta
     basis = np.column_stack(
@@ -529,9 +527,8 @@ def test_encoder_eccentricity_is_a_once_per_revolution_sensor_error():
     coef = np.linalg.lstsq(basis, error, rcond=None)[0]
     assert math.hypot(*coef[1:3]) == pytest.approx(amplitude, abs=ANGLE_STEP_RAD / 2)
     assert max(math.hypot(*coef[3:5]), math.hypot(*coef[5:7])) < ANGLE_STEP_RAD / 4
-    index = (
-        np.abs(np.mod(theta + np.pi, 2 * np.pi) - np.pi) < 1e-3
-    )  # at the index pulse (TDC) the error vanishes
+    # at the index pulse (TDC) the error vanishes
+    index = np.abs(np.mod(theta + np.pi, 2 * np.pi) - np.pi) < 1e-3
     assert np.all(np.abs(error[index]) <= ANGLE_STEP_RAD)
 
     def speed_error_rms(window):

@@ -286,9 +286,8 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
             from mechanism.files.interrupts import deferred
 
             with deferred():
-                _kill(
-                    _descendants(os.getpid())
-                )  # at once: Ray's own shutdown of a half-started instance takes seconds
+                # at once: Ray's own shutdown of a half-started instance takes seconds
+                _kill(_descendants(os.getpid()))
                 with contextlib.suppress(Exception):
                     ray.shutdown()
             raise

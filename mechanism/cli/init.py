@@ -75,9 +75,8 @@ def run(args) -> int:
                 up, why = detect_up(read(source))
             except ExportError as exc:
                 raise UserError(str(exc)) from None
-        mjcf = converted_model(
-            source, up=up if args.up else None
-        )  # the conversion every verb of the draft reuses
+        # the conversion every verb of the draft reuses
+        mjcf = converted_model(source, up=up if args.up else None)
     reference = os.path.relpath(source.resolve(), out.resolve().parent)
     text, summary = draft_description(
         mjcf, reference, args.name or source.stem, up=up, up_reason=why

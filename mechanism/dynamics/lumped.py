@@ -83,9 +83,8 @@ class DriveNominal:
     viscous_shaft_Nm_s_per_rad: float
     joint_ratios: tuple[tuple[str, float], ...] = ()
     supply_V: float | None = None
-    tool_in_fabric: bool = (
-        True  # the machine has a tool that works in fabric (a needle-penetration load can exist)
-    )
+    # the machine has a tool that works in fabric (a needle-penetration load can exist)
+    tool_in_fabric: bool = True
     zero_meaning: str = "needle top"  # what shaft angle 0 is, for reports
     # The shaft's travel when it rocks between stops (shaft angles [rad], lower first); None
     # for a shaft that turns whole revolutions.
@@ -169,9 +168,8 @@ class Signals:
     ratio: float
     source_index: np.ndarray | None = None  # windows of a long recording: their samples in it
     whole: "Signals | None" = None  # ... and the whole recording's signals
-    parent: "Signals | None" = (
-        None  # a subset (see :meth:`subset`): the signals it was taken from ...
-    )
+    # a subset (see :meth:`subset`): the signals it was taken from ...
+    parent: "Signals | None" = None
     parent_index: np.ndarray | None = None  # ... and its samples there
     _cache: dict = field(default_factory=dict, repr=False)
     _memos: dict = field(default_factory=dict, repr=False)
@@ -421,9 +419,8 @@ def _kernel():
     return fn
 
 
-SUBSTEPS = (
-    1  # the exponential step is exact for the linear part; more substeps change nothing measurable
-)
+# the exponential step is exact for the linear part; more substeps change nothing measurable
+SUBSTEPS = 1
 
 
 def simulate(

@@ -114,12 +114,10 @@ def check_stable(
         raise unstable(when, "non-finite or reset state")
 
 
-RUNAWAY_EXTENT = (
-    10.0  # a body this many times the model's size from its centre has left the machine
-)
-RUNAWAY_SPEED = (
-    1.5  # a motor this many times faster than its no-load speed is driven by numbers, not physics
-)
+# a body this many times the model's size from its centre has left the machine
+RUNAWAY_EXTENT = 10.0
+# a motor this many times faster than its no-load speed is driven by numbers, not physics
+RUNAWAY_SPEED = 1.5
 RUNAWAY_BODY_STRIDE = 20  # body positions are checked every 20 steps (and at each chunk's end)
 
 
@@ -222,13 +220,11 @@ class SimulationResult:
     needle_z_mm: np.ndarray
     motor_velocity_rad_s: np.ndarray
     metadata: dict = field(default_factory=dict)
-    state: np.ndarray | None = (
-        None  # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
-    )
+    # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
+    state: np.ndarray | None = None
     sensordata: np.ndarray | None = None  # the model's sensors after each sample (full model only)
-    joints: dict[str, np.ndarray] = field(
-        default_factory=dict
-    )  # every joint's position/velocity, each motor's input/current
+    # every joint's position/velocity, each motor's input/current
+    joints: dict[str, np.ndarray] = field(default_factory=dict)
 
     def columns(self) -> dict[str, np.ndarray]:
         return {
@@ -410,9 +406,8 @@ class _Run:
                     applied[samples], qpos[samples, machine.motor_qpos], motor_velocity[samples]
                 )
             else:
-                voltage = np.full(
-                    len(samples), np.nan
-                )  # a current drive's voltage is its amplifier's business
+                # a current drive's voltage is its amplifier's business
+                voltage = np.full(len(samples), np.nan)
         return SimulationResult(
             time_s=(samples + 1) * dt,
             voltage_V=voltage,
@@ -473,9 +468,8 @@ def motor_inputs(machine: Machine, inputs) -> dict[str, VoltageProfile]:
             if not np.isfinite(value):
                 raise UserError(f"input of the motor on {joint}: must be a finite number of {unit}")
             if joint == machine.motor_joint and unit == "V" and not isinstance(inputs, dict):
-                value = VoltageProfile.constant(
-                    value
-                )  # the one-motor voltage keeps its range check
+                # the one-motor voltage keeps its range check
+                value = VoltageProfile.constant(value)
             else:
                 value = VoltageProfile(np.array([0.0]), np.array([value]))
         if joint == machine.motor_joint and unit == "V":

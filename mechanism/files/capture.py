@@ -55,9 +55,8 @@ class LineTracker(io.TextIOBase):
         self.flush()
 
 
-TERMINAL_CODES = re.compile(
-    r"\x1b\[[0-9;?]*[A-Za-z]"
-)  # colours and cursor moves (OpenCASCADE colours its messages)
+# colours and cursor moves (OpenCASCADE colours its messages)
+TERMINAL_CODES = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 
 def summarize(text: str, limit: int = 300) -> str:

@@ -466,9 +466,8 @@ def _read_json(raw: bytes, label: str, records: str | None):
             v is None or (isinstance(v, (int, float, str)) and not isinstance(v, bool))
             for v in values
         ):
-            columns[name] = [
-                v if v is None else str(v) for v in values
-            ]  # numbers as text, time stamps, gaps
+            # numbers as text, time stamps, gaps
+            columns[name] = [v if v is None else str(v) for v in values]
     return columns, metadata
 
 
@@ -683,9 +682,8 @@ def _read_tdms(raw: bytes, label: str):
     from nptdms.log import log_manager
 
     level = log_manager.log_level
-    log_manager.set_level(
-        logging.ERROR
-    )  # its warnings about a damaged file would be third-party text on stderr
+    # its warnings about a damaged file would be third-party text on stderr
+    log_manager.set_level(logging.ERROR)
     try:
         return _read_tdms_quietly(nptdms, raw, label)
     finally:

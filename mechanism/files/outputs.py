@@ -368,9 +368,8 @@ class Transaction:
                             exc
                         ):  # no room even for a link: stop before replacing anything
                             raise
-                        backup = (
-                            None  # a file system without hard links: published without a way back
-                        )
+                        # a file system without hard links: published without a way back
+                        backup = None
                 try:
                     os.replace(temporary, destination)
                 except BaseException:

@@ -49,9 +49,8 @@ from mechanism.tolerances import (
     HULL_TOLERANCE_M,
 )
 
-MINIMA_REFINED = (
-    3  # at most this many local minima refined per pair (those that may hold the smallest)
-)
+# at most this many local minima refined per pair (those that may hold the smallest)
+MINIMA_REFINED = 3
 SPEED_MARGIN = 1.25  # travel is measured between samples (chords): allow 25% more along the way
 HULL_DISTMAX_M = 1.0
 
@@ -223,9 +222,8 @@ class ClearanceSweep:
         )
         self.periodic = travel is None or travel.rotates
         if self.periodic:
-            self.angles = self.zero + cycle_angles(
-                revolutions, resolution_deg
-            )  # increasing joint positions
+            # increasing joint positions
+            self.angles = self.zero + cycle_angles(revolutions, resolution_deg)
             self.period = np.radians(360.0 * revolutions)
             self._start = model.qpos0.copy()
         else:
@@ -284,9 +282,8 @@ class ClearanceSweep:
         n = len(self.angles)
         results = []
         for k, pair in enumerate(self.pairs):
-            dip = SPEED_MARGIN * np.maximum(
-                travel[k], np.roll(travel[k], 1)
-            )  # over the step before or after
+            # over the step before or after
+            dip = SPEED_MARGIN * np.maximum(travel[k], np.roll(travel[k], 1))
             reach = lower[k] - dip  # no exact distance within ±1 sample can be smaller
             exact = np.full(n, np.nan)
             smallest = np.inf

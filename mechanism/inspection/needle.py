@@ -54,12 +54,10 @@ class NeedleMotion:
     hook_passage_angle_deg: float | None = None
     needle_rise_at_passage_mm: float | None = None  # needle height above BDC at the passage
     hook_point_to_needle_axis_mm: float | None = None  # at the passage
-    hook_point_clearance_mm: float | None = (
-        None  # hook point to the needle surface (mesh) at the passage
-    )
-    hook_point_above_eye_mm: float | None = (
-        None  # hook point above the needle-eye centre at the passage
-    )
+    # hook point to the needle surface (mesh) at the passage
+    hook_point_clearance_mm: float | None = None
+    # hook point above the needle-eye centre at the passage
+    hook_point_above_eye_mm: float | None = None
     speed_rpm: float | None = None
     notes: list[str] = field(default_factory=list)
 

@@ -238,9 +238,8 @@ def read_probes(
         if item.sensor is not None:  # sensor frame = site frame; report in world
             vector = data.site_xmat[site].reshape(3, 3) @ data.sensor(item.sensor).data
         else:
-            assert (
-                item.loop_joint is not None
-            )  # add_probes gives every probe without a sensor its loop joint
+            # add_probes gives every probe without a sensor its loop joint
+            assert item.loop_joint is not None
             vector = _loop_load(model, data, item.loop_joint, data.site_xpos[site], quantity)
         values.extend([*vector, float(np.linalg.norm(vector))])
     return values
@@ -292,9 +291,8 @@ def probe_cycle(
     model = _compile(spec)
     data = mujoco.MjData(model)
     joints = parts.joint_names(model)
-    driver = named_joint(
-        driver
-    )  # None reached close_matches: a TypeError instead of this UserError
+    # None reached close_matches: a TypeError instead of this UserError
+    driver = named_joint(driver)
     if driver not in joints:
         raise UserError(
             f"no driver joint named {driver!r}; close matches: {close_matches(driver, joints)}"

@@ -36,9 +36,8 @@ from mechanism.machine import parts
 from mechanism.errors import UserError
 from mechanism.tolerances import MIN_DEPTH_SPACING_M
 
-PRIMITIVE_SECTIONS = (
-    256  # tessellation of primitives for the overlap solid only (distances use exact primitives)
-)
+# tessellation of primitives for the overlap solid only (distances use exact primitives)
+PRIMITIVE_SECTIONS = 256
 DEPTH_REFINEMENT = 4  # overlap surface refined to (overlap size / this) ...
 FINE_PASS_VERTICES = 3  # ... then 8x finer around the deepest few vertices
 ON_SURFACE_M = 1e-9  # a point this close to a surface lies on it

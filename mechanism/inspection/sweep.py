@@ -70,9 +70,8 @@ REPLACED_IN_CODE = (
     "this machine's motor or fabric was replaced in code (MachineConfig): description offsets (motor:, "
     "tool:) would not reach it; describe it instead"
 )
-POINT_MASS_INERTIA_KGM2 = (
-    1e-12  # what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
-)
+# what a welded point mass needs to compile (MuJoCo's minimum is 1e-15)
+POINT_MASS_INERTIA_KGM2 = 1e-12
 
 
 @dataclass(frozen=True)
@@ -569,9 +568,8 @@ class FullRunner:
         ]
         reduced = [self.reduced_runner.reduced(values)[0] for values in group]
         for (variant, _), tables in zip(built, reduced):
-            variant.tables = (
-                tables.tables
-            )  # the same geometry: no second tabulation (~0.1 s) for the tool height
+            # the same geometry: no second tabulation (~0.1 s) for the tool height
+            variant.tables = tables.tables
         results = simulate_batch(
             [m for m, _ in built],
             [v for _, v in built],
@@ -608,9 +606,8 @@ class SweepResult:
     options: SweepOptions
     seconds: float = 0.0
     resumed: int = 0  # rows kept from an interrupted run
-    degrees_of_freedom: int = (
-        1  # of the machine: other than 1, the full model ran (the reduced one is 1-DOF)
-    )
+    # of the machine: other than 1, the full model ran (the reduced one is 1-DOF)
+    degrees_of_freedom: int = 1
 
     @property
     def model(self) -> str:
@@ -672,9 +669,8 @@ def run_sweep(
         ):  # one sweep at a time writes a journal: a second one would mix rows in
             from mechanism.files.outputs import output_lock
 
-            Path(journal).parent.mkdir(
-                parents=True, exist_ok=True
-            )  # as the journal's own first write does
+            # as the journal's own first write does
+            Path(journal).parent.mkdir(parents=True, exist_ok=True)
             stack.enter_context(
                 output_lock(
                     [journal],

@@ -35,9 +35,8 @@ from mechanism.errors import UserError
 
 DEFAULT_FRAMES = 120
 VIEW_SECTIONS = 32  # tessellation of primitive geoms in the viewer
-TARGET_SIZE = (
-    1.5  # the model is scaled to about this size [viewer units] to suit meshcat's default camera
-)
+# the model is scaled to about this size [viewer units] to suit meshcat's default camera
+TARGET_SIZE = 1.5
 FRAME_OPACITY = 0.3  # parts fixed to the world are drawn translucent
 MARKER_COLORS = (0xE6194B, 0x3CB44B, 0x4363D8, 0xF58231, 0x911EB4, 0x42D4F4)
 
@@ -233,9 +232,8 @@ class Marker:
 @dataclass
 class Overlays:
     markers: list[Marker] = field(default_factory=list)
-    lines: list[tuple[str, np.ndarray, np.ndarray]] = field(
-        default_factory=list
-    )  # name, world points [m]
+    # name, world points [m]
+    lines: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
 
@@ -273,9 +271,8 @@ def build_scene(
     root[:3, 3] = -scale * 0.5 * (low + high)
     vis["/Grid"].set_property("visible", False)
     vis["/Axes"].set_property("visible", False)
-    vis["/Cameras/default/rotated/<object>"].set_property(
-        "position", [0.0, 0.6, 1.9]
-    )  # from the operator's side (-y), a little above
+    # from the operator's side (-y), a little above
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.6, 1.9])
     scene = vis["mechanism"]
     scene.set_transform(root)
 

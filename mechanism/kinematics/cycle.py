@@ -35,9 +35,8 @@ from mechanism.kinematics.pose import position_only, joint_dof, solve_pose, velo
 
 DEFAULT_SPEED_RPM = 600.0  # a mid-range household sewing speed (10 stitches per second)
 DEFAULT_RESOLUTION_DEG = 0.5
-DERIVATIVE_STEP_RAD = (
-    1e-5  # central difference of dq/dθ: truncation ~1e-10, round-off ~1e-8 (relative)
-)
+# central difference of dq/dθ: truncation ~1e-10, round-off ~1e-8 (relative)
+DERIVATIVE_STEP_RAD = 1e-5
 
 
 def cycle_angles(

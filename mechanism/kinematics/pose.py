@@ -162,9 +162,8 @@ def solve_pose(
     return norm
 
 
-APPROACH_STEP_RAD = np.radians(
-    5.0
-)  # a rocker walks from the export's pose to where a sweep starts in 5 deg steps
+# a rocker walks from the export's pose to where a sweep starts in 5 deg steps
+APPROACH_STEP_RAD = np.radians(5.0)
 APPROACH_STEP_M = 2e-3
 
 

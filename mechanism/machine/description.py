@@ -381,19 +381,15 @@ class MachineDescription:
     zero_site: str | None
     motor: dict[str, Any]  # the main motor's table (motor_joint's)
     friction: dict[str, dict[str, Any]] = field(default_factory=dict)
-    motors: dict[str, dict[str, Any]] = field(
-        default_factory=dict
-    )  # joint -> its motor table, the main one first
-    limits: dict[str, tuple[float, float]] = field(
-        default_factory=dict
-    )  # joint -> (lower, upper) [rad or m]
-    limit_units: dict[str, str] = field(
-        default_factory=dict
-    )  # joint -> "deg" (a hinge's) or "mm" (a slide's)
+    # joint -> its motor table, the main one first
+    motors: dict[str, dict[str, Any]] = field(default_factory=dict)
+    # joint -> (lower, upper) [rad or m]
+    limits: dict[str, tuple[float, float]] = field(default_factory=dict)
+    # joint -> "deg" (a hinge's) or "mm" (a slide's)
+    limit_units: dict[str, str] = field(default_factory=dict)
     warm_friction: dict[str, dict[str, Any]] = field(default_factory=dict)
-    sections: dict[str, dict[str, Any]] = field(
-        default_factory=dict
-    )  # the optional sections as written
+    # the optional sections as written
+    sections: dict[str, dict[str, Any]] = field(default_factory=dict)
     variant_presets: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
 
@@ -536,10 +532,11 @@ def _check_limits(
                     "needs lower_deg and upper_deg (a hinge) or lower_mm and upper_mm "
                     "(a slide), one pair",
                 )
+            # both given (checked above)
             lower, upper = (
                 float(pair[0] or 0.0),
                 float(pair[1] or 0.0),
-            )  # both given (checked above)
+            )
             if not upper > lower:
                 raise _fail(
                     source, section, f"upper_{unit}", f"must be above lower_{unit} ({lower:g})"
@@ -675,9 +672,8 @@ def parse_description(
         raise _fail(source, PRESET_TABLE, None, 'expected name = "target" pairs')
     model = Path(sections["machine"]["model"])
     if not model.is_absolute():
-        model = Path(
-            os.path.normpath((base or Path.cwd()) / model)
-        )  # "../mjcf/x.xml" reads as the folder it is in
+        # "../mjcf/x.xml" reads as the folder it is in
+        model = Path(os.path.normpath((base or Path.cwd()) / model))
     drive = sections["drive"]
     limits, limit_units = _check_limits(source, data.get("limits", {}))
     if "zero_site" not in drive and "zero_angle_deg" not in drive:
@@ -733,9 +729,8 @@ def read_description(path: str | os.PathLike) -> MachineDescription:
         data = tomllib.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise UserError(f"machine description {path}: not valid TOML: {exc}") from None
-    resolved = (
-        path.resolve()
-    )  # a link to a shipped description resolves its model beside the real file
+    # a link to a shipped description resolves its model beside the real file
+    resolved = path.resolve()
     description = parse_description(data, str(path), resolved.parent)
     return _with_path(description, path)
 

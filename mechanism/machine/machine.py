@@ -76,13 +76,11 @@ TORQUE_SENSOR = "drive_motor_torque"
 DEFAULT_TIMESTEP_S = 0.0005
 ZERO_SEARCH_SAMPLES = 180
 BELT_TENSIONS = ("low", "normal", "hard")
-STALL_VOLTAGE_V = (
-    24.0  # the voltage a hard stop is sized for where the description gives no supply voltage
-)
+# the voltage a hard stop is sized for where the description gives no supply voltage
+STALL_VOLTAGE_V = 24.0
 STALL_CURRENT_A = 10.0  # a current drive's stall current where the description gives no limit
-STOP_HOLD_RAD = math.radians(
-    0.5
-)  # a hard stop holds the stalled motor within half a degree (a slide: 0.5 mm)
+# a hard stop holds the stalled motor within half a degree (a slide: 0.5 mm)
+STOP_HOLD_RAD = math.radians(0.5)
 STOP_HOLD_M = 0.5e-3
 STOP_IMPEDANCE = (0.95, 0.9999)  # MuJoCo's default dmax up to as stiff as its soft constraints go
 
@@ -433,9 +431,8 @@ def find_shaft_frame(
     from scipy.optimize import brentq
 
     if rocks and best in (0, len(height) - 1):
-        return ShaftFrame(
-            zero_rad=float(coarse.angle_rad[best]), direction=direction
-        )  # highest at an end of the travel
+        # highest at an end of the travel
+        return ShaftFrame(zero_rad=float(coarse.angle_rad[best]), direction=direction)
     low, high = coarse.angle_rad[best] - step, coarse.angle_rad[best] + step
     try:
         zero = (
@@ -661,9 +658,8 @@ class Machine:
             item = spec.joint(joint)
             item.limited = mujoco.mjtLimited.mjLIMITED_TRUE
             hinge = item.type == mujoco.mjtJoint.mjJNT_HINGE
-            scale = (
-                180.0 / math.pi if hinge and spec.compiler.degree else 1.0
-            )  # an MJCF in degrees compiles the range as such
+            # an MJCF in degrees compiles the range as such
+            scale = 180.0 / math.pi if hinge and spec.compiler.degree else 1.0
             item.range = [lower * scale, upper * scale]
         self.friction = FrictionSet(self.friction_laws())
         self.friction.apply_to_spec(spec)
@@ -920,9 +916,8 @@ class Machine:
         with atomic_dir(path.parent / meshes) as folder:
             for mesh in self.spec.meshes:
                 shutil.copy2(source / mesh.file, folder / Path(mesh.file).name)
-        xml = (
-            self.spec.to_xml()
-        )  # compiles against the original meshes; the folder name is swapped after
+        # compiles against the original meshes; the folder name is swapped after
+        xml = self.spec.to_xml()
         xml, count = re.subn(
             r'(<compiler\b[^>]*\bmeshdir=")[^"]*(")', rf"\g<1>{meshes}\g<2>", xml, count=1
         )

@@ -50,9 +50,8 @@ class RoleGuess:
     ratios: dict[str, float] = field(default_factory=dict)  # mean turns per shaft turn
     revolving: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    travel: tuple[float, float] | None = (
-        None  # a shaft that rocks: the range it assembles in (joint coordinate)
-    )
+    # a shaft that rocks: the range it assembles in (joint coordinate)
+    travel: tuple[float, float] | None = None
     unknown: list[str] = field(default_factory=list)  # what could not be guessed
 
 
@@ -212,9 +211,8 @@ def _moving_site(
     periodic = travel is None
     travel = np.ptp(heights, axis=0)
     rising = np.diff(np.vstack([heights, heights[:1]]), axis=0) > 0
-    peaks = np.sum(
-        rising & ~np.roll(rising, -1, axis=0), axis=0
-    )  # rising then not: one maximum each
+    # rising then not: one maximum each
+    peaks = np.sum(rising & ~np.roll(rising, -1, axis=0), axis=0)
     floor = 1e-6 * max(float(model.stat.extent), 1e-3)
     candidates = [
         k for k in range(len(sites)) if travel[k] > floor and (peaks[k] == 1 or not periodic)

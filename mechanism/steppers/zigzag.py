@@ -154,9 +154,8 @@ class NeedleProfile:
                 f"needle ({self.name}) never goes below {clearance_mm:g} mm: nothing to time against"
             )
         centre = samples // 2
-        first = (
-            centre - np.flatnonzero(~above[:centre][::-1])[0]
-        )  # first index above, going back from TDC
+        # first index above, going back from TDC
+        first = centre - np.flatnonzero(~above[:centre][::-1])[0]
         last = centre + np.flatnonzero(~above[centre:])[0] - 1  # last index above, going forward
 
         def f(a):

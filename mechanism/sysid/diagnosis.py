@@ -81,9 +81,8 @@ STEP_GAIN = 0.10
 # a proxy soaking up a true effect's leftovers cut at most 18-25 %.
 KEEP_GAIN_JOINT = 0.30
 GENERIC_GAIN = 0.30  # a generic model (names no mechanism) is kept when it cuts the error by 30 %
-TIE_BAND = (
-    0.03  # candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
-)
+# candidates within 3 % of the best validation rmse count as a tie: fewer parameters win
+TIE_BAND = 0.03
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
@@ -143,9 +142,8 @@ def locate(problem: Problem, fitted: FitResult) -> Localisation:
     rec = problem.recording
     s = problem.signals
     pred = problem.full_prediction(fitted.structure, fitted.values)
-    r = np.nan_to_num(
-        rec.velocity_rad_s - pred
-    )  # unscored samples (the ends, unused windows) count as zero
+    # unscored samples (the ends, unused windows) count as zero
+    r = np.nan_to_num(rec.velocity_rad_s - pred)
     t, w = rec.time_s, rec.velocity_rad_s
     speed = np.abs(w)
     top = max(np.percentile(speed, 99), 1e-6)

@@ -61,9 +61,8 @@ class Effect:
     meaning: str = ""
     enters: str = ""  # "torque", "friction", "voltage", "belt", "measurement"
     sentence: str = ""
-    feature: str = (
-        ""  # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
-    )
+    # the residual feature (see mechanism.sysid.diagnosis.FEATURES) the evidence quotes
+    feature: str = ""
     generic: bool = False  # a fallback family that names no mechanism
     physics: str = ""  # for a generic family: what physics could be behind it
 
@@ -146,12 +145,13 @@ class TorqueRipple(Effect):
     name = "torque_ripple"
     meaning = "motor-angle-periodic torque: shaft distortion (once and twice per motor revolution) and cogging of the 12-pole motor (12 and 24 per revolution)"
     enters = "torque"
+    # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
     MOTOR_ORDERS = (
         1,
         2,
         12,
         24,
-    )  # shaft distortion (once, twice per motor turn), 12-pole cogging and its harmonic
+    )
     all_linear = True
 
     @classmethod
@@ -210,9 +210,8 @@ class LinkageDynamics(Effect):
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
-        return shaft_turns(
-            nominal
-        )  # a slider-crank over whole revolutions; a rocker's linkage is its multibody baseline
+        # a slider-crank over whole revolutions; a rocker's linkage is its multibody baseline
+        return shaft_turns(nominal)
 
     def make_parameters(self, nominal):
         # at most a mass whose inertia on the largest crank is 1.7x the machine's whole inertia
@@ -276,13 +275,11 @@ class LinkageDynamics(Effect):
             return
         grid_dx, grid_ddx = self.kinematics(v, Signals.periodic_grid())
         inertia = grid_dx * grid_dx
-        drive.inertia_kgm2 += m * s.periodic(
-            inertia - inertia.mean()
-        )  # the revolution mean is the baseline's J
+        # the revolution mean is the baseline's J
+        drive.inertia_kgm2 += m * s.periodic(inertia - inertia.mean())
         drive.quadratic_Nm_s2 += m * s.periodic(grid_dx * grid_ddx)  # 1/2 dJ/dtheta
-        drive.tau_arm_Nm += (
-            m * 9.81 * s.periodic(grid_dx)
-        )  # potential energy m g x, resisting when the bar rises
+        # potential energy m g x, resisting when the bar rises
+        drive.tau_arm_Nm += m * 9.81 * s.periodic(grid_dx)
 
     def grid(self, s, located):
         return [
@@ -860,9 +857,8 @@ class EncoderEccentricity(Effect):
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
-        return shaft_turns(
-            nominal
-        )  # once per revolution: over part of one it is an angle-dependent torque's twin
+        # once per revolution: over part of one it is an angle-dependent torque's twin
+        return shaft_turns(nominal)
 
     def make_parameters(self, nominal):
         return _harmonic_pair(
@@ -1103,9 +1099,8 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 
 
-NEEDS_FABRIC = (
-    "needle_penetration",
-)  # offered only where the machine has a tool working in fabric
+# offered only where the machine has a tool working in fabric
+NEEDS_FABRIC = ("needle_penetration",)
 
 
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:

@@ -54,9 +54,8 @@ class GenericShaftTorque(GenericEffect):
         )
 
     def make_parameters(self, nominal):
-        bound = (
-            25 / 9 * nominal.torque_scale_Nm / self.ratio
-        )  # up to ~3x the Coulomb level at the shaft
+        # up to ~3x the Coulomb level at the shaft
+        bound = 25 / 9 * nominal.torque_scale_Nm / self.ratio
         return tuple(
             p
             for k in self.orders

@@ -61,9 +61,8 @@ from mechanism.sysid.recording import (
 )
 
 REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
-DIVERGED_RAD_S = (
-    1e6  # a simulated speed beyond this has diverged (its square would overflow the residual)
-)
+# a simulated speed beyond this has diverged (its square would overflow the residual)
+DIVERGED_RAD_S = 1e6
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
 #                   residual piecewise smooth, so derivatives need steps well above round-off
 
@@ -128,9 +127,8 @@ class Problem:
     """
 
     FIT_STRIDE = 3
-    MAX_SEGMENTS = (
-        360  # a long recording is scored on this many segments spread over it (6 min of 1 s)
-    )
+    # a long recording is scored on this many segments spread over it (6 min of 1 s)
+    MAX_SEGMENTS = 360
 
     def __init__(
         self, rec: Recording, nominal: DriveNominal, segment_s: float = 1.0, burn_in_s: float = 0.25
@@ -368,9 +366,8 @@ def fit(
         x_start = min(scouts, key=lambda r: r.cost).x
     else:
         x_start = candidates[0]
-    result = min(
-        [run(x_start, max_nfev), *scouts], key=lambda r: r.cost
-    )  # never worse than a start
+    # never worse than a start
+    result = min([run(x_start, max_nfev), *scouts], key=lambda r: r.cost)
     values = values_of(result.x)
     n_data = len(result.fun) - prior_index.size
     r_fit = result.fun[:n_data] if part == "fit" else problem.residual(structure, values, "fit")
@@ -627,9 +624,8 @@ def initial_baseline_values(problem: Problem, baseline) -> dict[str, float]:
     ke = by_name.get("motor_back_emf_V_s_per_rad")
     if ke is not None and c_arm < 0:
         # less damping than the datasheet back-emf gives: the back-emf constant is smaller
-        keep = (
-            0.25 * by_name["viscous_motor_side_Nm_s_per_rad"].nominal * n * n
-        )  # start off the bound
+        # start off the bound
+        keep = 0.25 * by_name["viscous_motor_side_Nm_s_per_rad"].nominal * n * n
         k = ke.nominal + (c_arm - keep) * motor.resistance_ohm / (
             n * n * motor.torque_constant_Nm_per_A
         )

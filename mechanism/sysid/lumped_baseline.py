@@ -91,9 +91,8 @@ class LumpedBaseline:
             nominal.torque_scale_Nm,
         )
         lo, hi = self.INERTIA_RANGE
-        described = (
-            nominal.linkage is not None
-        )  # the inertia is the model's: a prior, not a free factor
+        # the inertia is the model's: a prior, not a free factor
+        described = nominal.linkage is not None
         self.parameters = (
             Parameter(
                 "inertia_motor_side_kgm2",
@@ -172,9 +171,8 @@ class LumpedBaseline:
         """The offset and the model's gravity torque at the measured angle (resisting; arm side), or None."""
         torque = None
         if self.gravity:
-            linkage = (
-                self.nominal.linkage
-            )  # one table per model: baselines of two models may share the signals
+            # one table per model: baselines of two models may share the signals
+            linkage = self.nominal.linkage
             if linkage is None:  # baseline_terms asks for gravity only where the tables are
                 raise ValueError(
                     "a gravity torque needs the machine model's linkage tables (nominal.linkage)"

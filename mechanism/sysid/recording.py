@@ -57,9 +57,8 @@ class Recording:
     current_A: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
     source: str = "<recording>"
-    reading: dict = field(
-        default_factory=dict
-    )  # what was read and done (format, columns, units, resampling)
+    # what was read and done (format, columns, units, resampling)
+    reading: dict = field(default_factory=dict)
 
     @property
     def dt(self) -> float:

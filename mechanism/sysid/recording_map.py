@@ -30,11 +30,12 @@ from mechanism.errors import UserError, close_matches
 from mechanism.files.formats import Columns
 
 TIME_PER_S = {"s": 1.0, "ms": 1e3, "us": 1e6}  # divided by, as a hand conversion does (t_ms / 1000)
+# counts, m, mm need a constant
 ANGLE_TO_RAD = {
     "rad": 1.0,
     "deg": math.pi / 180.0,
     "rev": 2 * math.pi,
-}  # counts, m, mm need a constant
+}
 MAX_MAP_BYTES = 1 << 16
 
 # default column names of each signal (the CSV contract and its unit-named aliases)
@@ -86,9 +87,8 @@ def _check_table(table, source: str) -> dict:
     for key in ("time", "voltage", "shaft_angle", "current"):
         text = checked.get(key)
         if text is not None and _clearly_an_expression(text):
-            parse_expression(
-                text, f"{where} {key}"
-            )  # anything else may be a file's column: checked when read
+            # anything else may be a file's column: checked when read
+            parse_expression(text, f"{where} {key}")
     return checked
 
 

@@ -142,9 +142,8 @@ def _model_parameters(
         th_tau_cool=1.0,
     )
     derived: dict[str, dict] = {}
-    belt = effects.get("belt_compliance") or effects.get(
-        "backlash"
-    )  # backlash: a belt with free play
+    # backlash: a belt with free play
+    belt = effects.get("belt_compliance") or effects.get("backlash")
     motor_share = belt["motor_inertia_fraction"] if belt else 0.0
     arm_side = ratio**2 * (1.0 - motor_share) * total  # mean inertia carried by the arm shaft
     link = effects.get("linkage_dynamics")
@@ -292,9 +291,8 @@ def _chunk_stepper(
     return step
 
 
-HEATING_CHUNK_S = (
-    0.1  # the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
-)
+# the copper's temperature is held over a chunk (thermal time constants are >= 20 s)
+HEATING_CHUNK_S = 0.1
 
 
 def _simulate_heating(

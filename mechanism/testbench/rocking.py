@@ -27,17 +27,13 @@ from mechanism.errors import UserError
 CONTROL_PERIOD_S = 0.01  # the bench's position check (100 Hz)
 SAFE_MARGIN = 0.15  # targets stay this share of the travel clear of each stop
 MIN_MOVE = 0.25  # a move covers at least this share of the safe band
-CROSSING_S = (
-    0.6,
-    4.0,
-)  # a move crosses the safe band in this time at its target speed (log-uniform)
+# a move crosses the safe band in this time at its target speed (log-uniform)
+CROSSING_S = (0.6, 4.0)
 REST_S = (0.2, 1.2)  # the rest at 0 V after each move
-BREAKAWAY_WAIT_S = (
-    0.3  # a shaft slower than a tenth of its target speed this long after a move starts ...
-)
-BREAKAWAY_STEP = (
-    1.15  # ... gets 15 % more voltage, again after as long (up to the supply): few voltage steps
-)
+# a shaft slower than a tenth of its target speed this long after a move starts ...
+BREAKAWAY_WAIT_S = 0.3
+# ... gets 15 % more voltage, again after as long (up to the supply): few voltage steps
+BREAKAWAY_STEP = 1.15
 VOLTAGE_RESOLUTION_V = 0.01
 
 # Effects whose physics needs a shaft or motor that turns whole revolutions (or the sewing
@@ -113,10 +109,11 @@ def safe_band(nominal) -> tuple[float, float]:
 def working_voltages(nominal) -> tuple[float, float]:
     """The bench's move voltages for the described drive: slowest and fastest crossing [V]."""
     lo, hi = safe_band(nominal)
-    return tuple(
+    slowest, fastest = (
         voltage_for_speed(nominal, (hi - lo) / crossing)
         for crossing in sorted(CROSSING_S, reverse=True)
-    )  # type: ignore[return-value]
+    )
+    return slowest, fastest
 
 
 def voltage_for_speed(nominal, speed: float) -> float:

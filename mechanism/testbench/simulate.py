@@ -90,9 +90,8 @@ class Solver:
     """The integrator in use: ``native`` (C) or ``python``."""
 
     name: str
-    function: Callable[
-        ..., object
-    ]  # the C tb_simulate (through ctypes) or _simulate_python; their results are unused
+    # the C tb_simulate (through ctypes) or _simulate_python; their results are unused
+    function: Callable[..., object]
 
 
 _SOLVER: Solver | None = None
@@ -301,9 +300,8 @@ def _simulate_python(p, u, state, outputs, table=None):
             tha += h * wa
             thm += h * wm
             if p["stop_on"] != 0.0 and (tha > p["stop_hi"] or tha < p["stop_lo"]):
-                tha = (
-                    p["stop_hi"] if tha > p["stop_hi"] else p["stop_lo"]
-                )  # inelastic: the arm stops at the stop
+                # inelastic: the arm stops at the stop
+                tha = p["stop_hi"] if tha > p["stop_hi"] else p["stop_lo"]
                 if (tha == p["stop_hi"] and wa > 0.0) or (tha == p["stop_lo"] and wa < 0.0):
                     wa = 0.0
                 if p["belt"] == 0.0:

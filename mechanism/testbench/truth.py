@@ -18,9 +18,8 @@ from mechanism.errors import UserError, close_matches
 
 TWO_PI = 2.0 * math.pi
 GRAVITY_M_S2 = 9.81
-ENCODER_COUNTS_PER_REV = (
-    20000  # the bench's default encoder (5000 lines, quadrature); an option per recording
-)
+# the bench's default encoder (5000 lines, quadrature); an option per recording
+ENCODER_COUNTS_PER_REV = 20000
 ANGLE_STEP_RAD = TWO_PI / ENCODER_COUNTS_PER_REV
 
 

@@ -296,12 +296,13 @@ class FourBar:
         b = o4 + self.rocker * np.array([math.cos(theta4), math.sin(theta4)])
         return o2, o4, a, b
 
+    # mm, mm, g/mm^3, g (or the export's units)
     WIDTH, THICKNESS, DENSITY, FRAME_MASS = (
         6.0,
         3.0,
         7.85e-3,
         500.0,
-    )  # mm, mm, g/mm^3, g (or the export's units)
+    )
 
     def links(self):
         """(name, start pin, end pin, layer) of the moving links, in plane coordinates."""
@@ -353,9 +354,8 @@ class FourBar:
         for name, start, end, layer in self.links():
             length = float(np.linalg.norm(end - start))
             angle = math.atan2(*(end - start)[::-1])
-            link_rotation = self.plane @ rotation(
-                (0, 0, 1), angle
-            )  # x along the link, z along the normal
+            # x along the link, z along the normal
+            link_rotation = self.plane @ rotation((0, 0, 1), angle)
             mass = masses[name]
             mid = self.world(*(0.5 * (start + end)), layer * 4.0)
             named = [

@@ -41,9 +41,8 @@ class Injector:
             return
         self.fired = True
         if self.fault.startswith("SIG"):
-            os.kill(
-                os.getpid(), getattr(signal, self.fault)
-            )  # the handler runs at the next bytecode
+            # the handler runs at the next bytecode
+            os.kill(os.getpid(), getattr(signal, self.fault))
             return
         number = getattr(errno, self.fault)
         raise OSError(number, os.strerror(number), os.fsdecode(path))

@@ -110,16 +110,18 @@ def crank_post_distance(theta, P=0.03, rho=0.012, r1=0.005, r2=0.004, alpha_deg=
 R, L = 0.0165, 0.05
 PLATE_TOP = 0.02  # needle-plate top surface height
 TIP_BELOW_BAR = 0.0365  # needle tip below the needle-bar origin: tip 10 mm above the plate at TDC, 23 mm below at BDC
+# needle 0.2 mm off the hole centre: 0.3 mm clearance
 NEEDLE_RADIUS, HOLE_RADIUS, OFFSET = (
     0.0006,
     0.0011,
     0.0002,
-)  # needle 0.2 mm off the hole centre: 0.3 mm clearance
+)
+# scarf from 2 mm to 4.5 mm above the tip, 0.3 mm deep on the hook side (-y)
 SCARF = (
     0.002,
     0.0045,
     0.0003,
-)  # scarf from 2 mm to 4.5 mm above the tip, 0.3 mm deep on the hook side (-y)
+)
 HOOK_PASS_DEG = 195.0  # the hook point passes the needle 15 deg after BDC
 HOOK_RADIUS, HOOK_POINT_RADIUS, HOOK_GAP = 0.003, 0.0003, 0.0001  # 0.1 mm from the scarf bottom
 

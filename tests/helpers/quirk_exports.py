@@ -289,6 +289,7 @@ def ball_and_beam(folder: Path) -> Built:
         ),
         *doc.pin("Pivote horquilla", "post-1", "fork_b-1", p - 0.02 * Z, Z),
         *doc.pin("Pivote columna", "base-1", "post-1", p - 0.091 * Z, Z),
+        # the same faces mated twice
         *[
             m(
                 "Coincident",
@@ -297,7 +298,7 @@ def ball_and_beam(folder: Path) -> Built:
                 ("plane", "bracket-1", e + d, X),
             )
             for i, d in enumerate((0.001 * Z, -0.004 * Z + 0.002 * Y))
-        ],  # the same faces mated twice
+        ],
         m(
             "Coincident",
             "Coincidente12",
@@ -391,12 +392,10 @@ def furuta(folder: Path) -> Built:
     instances = []
     for i, (key, (mass, origin)) in enumerate(names.items()):
         entity = f"{key.rsplit('-', 1)[0]}*:*Default"
-        rot = (
-            rotation(X, -math.pi / 2) if key == "stand-1" else turned(i)
-        )  # the stand's z is the world's up
-        com = (
-            pivot - 0.1 * up + 0.01 * X if key == "pendulum-1" else origin
-        )  # the pendulum hangs straight down
+        # the stand's z is the world's up
+        rot = rotation(X, -math.pi / 2) if key == "stand-1" else turned(i)
+        # the pendulum hangs straight down
+        com = pivot - 0.1 * up + 0.01 * X if key == "pendulum-1" else origin
         doc.part(entity, mass, in_frame((rot, origin), com), (mass * 1e-4,) * 3 + (0, 0, 0))
         attrs = (
             ' grounded="true"'
@@ -1032,16 +1031,16 @@ def creo_arm(folder: Path) -> Built:
             )
         )
     tree = doc.tree(*instances)
+    # joints: (base uid, follower uid) -> (kind, axis, a point on it in metres)
     mates, joints = (
         [],
         {},
-    )  # joints: (base uid, follower uid) -> (kind, axis, a point on it in metres)
+    )
     previous = "5"
     for uid, _, kind, axis, point in CREO_CHAIN:
         point = np.asarray(point)
-        normal = (
-            axis if kind == "revolute" else next(v for v in (Z, X, Y) if abs(v @ axis) < 0.5)
-        )  # locks the rest
+        # locks the rest
+        normal = axis if kind == "revolute" else next(v for v in (Z, X, Y) if abs(v @ axis) < 0.5)
         mates += [
             doc.mate(
                 "Coincident",
@@ -1298,11 +1297,12 @@ def onshape_copter(folder: Path, arms: int = 6) -> Built:
     propeller; the arms fastened to the hub by root ``Weld`` joints, some written hub-first and
     some arm-first."""
     hub = np.array([0.001, -0.002, -0.010])
+    # in the arm's / motor's frame
     reach, motor_at, blade_at = (
         0.024,
         np.array([0.20, 0.0, 0.01]),
         np.array([0.0, 0.0, 0.025]),
-    )  # in the arm's / motor's frame
+    )
     doc = _Doc()
     cm = '<ModelUnits length="centimeter" mass="kilogram"/>'
     for uid, mass, com, name in (
@@ -1575,10 +1575,11 @@ def ball_in_groove(folder: Path) -> Built:
     sphere-plane ``Tangent`` mates (SolidWorks). Simscape makes no joint from them."""
     p = np.array([0.0, 0.0, 0.1])
     ball_at = p + (0.05, 0, 0.012)
+    # the groove's faces' normals
     left, right = (
         unit((0, 0.7071, 0.7071)),
         unit((0, -0.7071, 0.7071)),
-    )  # the groove's faces' normals
+    )
     r = 0.01
     doc = _Doc()
     doc.part("base*:*Default", 0.5, (0, 0, 0.02), (1e-3, 1e-3, 1e-3, 0, 0, 0))

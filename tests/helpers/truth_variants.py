@@ -375,9 +375,8 @@ class Case:
     arm_angle_rad: np.ndarray  # as the encoder reports it
     current_A: np.ndarray | None
     truth: dict = field(default_factory=dict)
-    sensed_angle_rad: np.ndarray | None = (
-        None  # what the sensor reports before jitter and quantisation
-    )
+    # what the sensor reports before jitter and quantisation
+    sensed_angle_rad: np.ndarray | None = None
 
     def write_csv(self, path) -> None:
         cols = ["time", "voltage", "arm_angle"] + (
@@ -527,9 +526,8 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
             depth = nd["tip_depth_m"] - z_tip  # how far below the fabric top the tip is
             fabric_thickness = layers * nd["layer_thickness_m"]
             in_fabric = np.clip(depth, 0.0, None)
-            engaged = (
-                np.minimum(in_fabric, fabric_thickness) / nd["layer_thickness_m"]
-            )  # layers the shank is in
+            # layers the shank is in
+            engaged = np.minimum(in_fabric, fabric_thickness) / nd["layer_thickness_m"]
             lever = rc * np.abs(np.sin(grid))  # |dz/dtheta|
             fabric = nd["force_N_per_layer"] * engaged * lever
         fabric = scale * fabric
@@ -538,12 +536,10 @@ def simulate_truth(m: dict, params: dict, u_cmd: np.ndarray, variant: Variant, s
     ld = params.get("linkage_dynamics")
     if ld is not None:
         _, d1, d2 = _slider_crank(ld["crank_m"], ld["rod_m"])
-        mass = scale * (
-            ld["mass_kg"] + 0.5 * ld["rod_mass_kg"]
-        )  # rod mass: about half reciprocates
-        rotating = (
-            scale * 0.5 * ld["rod_mass_kg"] * ld["crank_m"] ** 2
-        )  # the rest turns with the pin
+        # rod mass: about half reciprocates
+        mass = scale * (ld["mass_kg"] + 0.5 * ld["rod_mass_kg"])
+        # the rest turns with the pin
+        rotating = scale * 0.5 * ld["rod_mass_kg"] * ld["crank_m"] ** 2
         link_j = _Table(mass * d1 * d1 + rotating)
         link_q = _Table(mass * d1 * d2)  # 1/2 dJ/dtheta
         link_g = _Table(mass * G * d1)

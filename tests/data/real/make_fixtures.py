@@ -45,9 +45,8 @@ def xl330(repo: str) -> None:
         t = np.array([e["timestamp"] for e in entries])
         q = np.array([e["position"] for e in entries])
         raw = np.array([e["load"] for e in entries], dtype=float)  # the present PWM, raw counts
-        duty = np.clip(
-            np.where(raw > 2**15 - 1, raw - 2**16, raw) / 885.0, -1.0, 1.0
-        )  # 885 counts = full duty
+        # 885 counts = full duty
+        duty = np.clip(np.where(raw > 2**15 - 1, raw - 2**16, raw) / 885.0, -1.0, 1.0)
         volts = duty * np.array([e["input_volts"] for e in entries])
         header = (
             f"# source: github.com/Rhoban/bam@{BAM_COMMIT} bam/data.bak/processed/{name}.json (Apache-2.0)\n"
