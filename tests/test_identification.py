@@ -3,6 +3,7 @@ synthetic truth, and the thesis's Table 2."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -304,3 +305,26 @@ def test_no_machine_and_the_default_machine_loaded_give_the_same_fit(clean_bench
     ratio = nominal.ratio
     assert nominal.inertia_kgm2 == pytest.approx(lumped["inertia_motor_side_kgm2"] * ratio**2)
     assert nominal.linkage is None  # the lumped inertia replaces the CAD's tables
+
+
+def test_a_machine_given_by_its_lumped_numbers_keeps_its_own_model_for_the_multibody_baseline(
+    tmp_path,
+):
+    """``[lumped]`` replaces the linkage tables in the drive, but the multibody baseline still
+    tabulates the machine's own MJCF (not the shipped default's, which has no such joint)."""
+    from mechanism import api, load_machine
+    from mechanism.sysid.multibody_baseline import linkage_tables
+
+    shipped = Path(__file__).resolve().parent.parent / "assets" / "machines" / "press.toml"
+    text = shipped.read_text().replace('"../mjcf/', f'"{shipped.parent.parent}/mjcf/')
+    described = tmp_path / "press_lumped.toml"
+    described.write_text(
+        text + "\n[lumped]\ninertia_motor_side_kgm2 = 1e-4\ncoulomb_shaft_Nm = 0.5\n"
+    )
+    press = load_machine(described)
+    nominal = api.drive_nominal(press)
+    assert nominal.linkage is None
+    assert nominal.inertia_kgm2 == pytest.approx(1e-4 * press.motor_ratio**2)
+    own = load_machine(shipped).tables
+    tables = linkage_tables(nominal)
+    np.testing.assert_allclose(tables.inertia_kgm2, own.inertia_kgm2, rtol=1e-9)
