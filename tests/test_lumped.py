@@ -10,9 +10,11 @@ from mechanism.dynamics.lumped import (
     MotorConstants,
     Segments,
     Signals,
+    angle_from_velocity,
     lagged_voltage,
     simulate,
     simulate_numpy,
+    windowed_dot,
 )
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.data.reference import thesis
@@ -117,6 +119,38 @@ def test_native_kernel_equals_numpy_fallback_with_every_term_and_a_belt():
         simulate_numpy(drive, motor, seg, w0, DT),
         rtol=1e-9,
         atol=1e-9,
+    )
+
+
+def test_the_compiled_angle_and_differentiator_equal_numpy_and_the_calculus(monkeypatch):
+    """The trapezoid integral (bit for bit: the same operations in the same order) and the
+    windowed differentiator of the fitting path, compiled and in numpy; a quadratic angle
+    comes back as its exact derivative."""
+    from mechanism.dynamics import lumped
+    from mechanism.sysid.recording import velocity_coefficients
+
+    rng = np.random.default_rng(3)
+    w = rng.normal(20.0, 5.0, (7, 900))
+    start = rng.uniform(-3.0, 300.0, 7)
+    c = velocity_coefficients(DT)
+    first = np.sort(rng.choice(7 * 900 - len(c), 500, replace=False))
+    assert lumped._signal_kernels() is not None, "the test needs the compiled kernel"
+    compiled_angle = angle_from_velocity(w, DT, start)
+    compiled_velocity = windowed_dot(compiled_angle, first, c)
+    monkeypatch.setattr(lumped, "_signal_kernels", lambda: None)
+    angle = angle_from_velocity(w, DT, start)
+    np.testing.assert_array_equal(compiled_angle, angle)
+    np.testing.assert_allclose(
+        compiled_velocity, windowed_dot(angle, first, c), rtol=1e-12, atol=1e-9
+    )
+    # w = a + b t: trapezoids integrate it exactly, and the differentiator gives w back
+    t = np.arange(900) * DT
+    line = (4.0 + 30.0 * t)[None, :]
+    exact = 1.5 + 4.0 * t + 15.0 * t**2
+    np.testing.assert_allclose(angle_from_velocity(line, DT, np.array([1.5]))[0], exact, atol=1e-12)
+    inner = np.arange(len(c), 900 - len(c))
+    np.testing.assert_allclose(
+        windowed_dot(exact, inner - len(c) // 2, c), line[0, inner], rtol=1e-9
     )
 
 

@@ -419,6 +419,72 @@ def _kernel():
     return fn
 
 
+@functools.lru_cache(maxsize=None)
+def _signal_kernels():
+    """The compiled trapezoid integral and windowed filter (lumped.c), or None."""
+    from mechanism import native
+
+    lib = native.load("lumped")
+    if lib is None:
+        return None
+    dp = ctypes.POINTER(ctypes.c_double)
+    integrate, dot = lib.angle_from_velocity, lib.windowed_dot
+    integrate.argtypes = [dp, ctypes.c_int, ctypes.c_int, ctypes.c_double, dp, dp]
+    dot.argtypes = [dp, ctypes.c_int, ctypes.POINTER(ctypes.c_longlong), dp, ctypes.c_int, dp]
+    integrate.restype = dot.restype = None
+    return integrate, dot
+
+
+def angle_from_velocity(w: np.ndarray, dt: float, start_angle: np.ndarray) -> np.ndarray:
+    """Angle [rad] of each segment (rows of ``w``) by trapezoids from its start angle."""
+    w = np.ascontiguousarray(w, dtype=np.float64)
+    start = np.ascontiguousarray(start_angle, dtype=np.float64)
+    angle = np.empty_like(w)
+    kernels = _signal_kernels()
+    if kernels is not None:
+        dp = ctypes.POINTER(ctypes.c_double)
+        kernels[0](
+            w.ctypes.data_as(dp),
+            w.shape[0],
+            w.shape[1],
+            dt,
+            start.ctypes.data_as(dp),
+            angle.ctypes.data_as(dp),
+        )
+        return angle
+    # a0 + dt * cumsum(0.5 * (w[1:] + w[:-1])), in place
+    angle[:, 0] = 0.0
+    steps = angle[:, 1:]
+    np.add(w[:, 1:], w[:, :-1], out=steps)
+    steps *= 0.5
+    np.cumsum(steps, axis=1, out=steps)
+    angle *= dt
+    angle += start[:, None]
+    return angle
+
+
+def windowed_dot(x: np.ndarray, first: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+    """``x.ravel()[first[j] + k] @ coefficients`` for every j: a filter (the velocity
+    differentiator) evaluated only at the samples whose windows start at ``first``."""
+    x = np.ascontiguousarray(x, dtype=np.float64).ravel()
+    first = np.ascontiguousarray(first, dtype=np.int64)
+    c = np.ascontiguousarray(coefficients, dtype=np.float64)
+    kernels = _signal_kernels()
+    if kernels is None:
+        return x[first[:, None] + np.arange(len(c))] @ c
+    out = np.empty(len(first))
+    dp = ctypes.POINTER(ctypes.c_double)
+    kernels[1](
+        x.ctypes.data_as(dp),
+        len(first),
+        first.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
+        c.ctypes.data_as(dp),
+        len(c),
+        out.ctypes.data_as(dp),
+    )
+    return out
+
+
 # the exponential step is exact for the linear part; more substeps change nothing measurable
 SUBSTEPS = 1
 

@@ -28,6 +28,9 @@ from pathlib import Path
 from mechanism.files.cache import cache_root  # noqa: F401 - where it always was
 
 _HERE = Path(__file__).resolve().parent
+# -ffp-contract=off: no fused multiply-adds (some processors' default), so that the compiled
+# code and its numpy fallback round alike
+FLAGS = ("-O2", "-ffp-contract=off", "-shared", "-fPIC")
 
 
 def cache_dir() -> Path:
@@ -53,7 +56,7 @@ def load(name: str) -> ctypes.CDLL | None:
     text = source.read_bytes()
     # Link the very libmujoco the Python bindings loaded (same file, so one instance).
     link = [str(libraries[0]), f"-Wl,-rpath,{package}"] if libraries else []
-    recipe = " ".join([mujoco.__version__, str(include), sys.platform, *link]).encode()
+    recipe = " ".join([mujoco.__version__, str(include), sys.platform, *FLAGS, *link]).encode()
     key = hashlib.sha256(text + recipe).hexdigest()[:16]
     target = cache_dir() / f"lib{name}-{key}.so"
     from mechanism.files.cache import file_problem, install_file
@@ -75,9 +78,7 @@ def load(name: str) -> ctypes.CDLL | None:
             os.close(fd)
             cmd = [
                 compiler,
-                "-O2",
-                "-shared",
-                "-fPIC",
+                *FLAGS,
                 f"-I{include}",
                 str(source),
                 "-o",

@@ -273,3 +273,49 @@ void simulate_segments(const drive_params *p, const double *u, const double *tm,
             run_rigid(p, &a, starts[j], lengths[j], w0[j], out + offsets[j]);
     }
 }
+
+/* The angle from the simulated velocity by trapezoids, each segment from its start angle:
+ * angle[0] = a0, angle[i] = (sum of 0.5 (w[k] + w[k-1]), k <= i) dt + a0. The same operations
+ * in the same order as the numpy fallback (add, halve, running sum, scale, shift): equal numbers. */
+void angle_from_velocity(const double *w, int n_seg, int length, double dt, const double *a0,
+                         double *angle) {
+    for (int j = 0; j < n_seg; j++) {
+        const double *v = w + (long)j * length;
+        double *a = angle + (long)j * length;
+        double s = 0.0;
+        a[0] = 0.0 * dt + a0[j];
+        for (int i = 1; i < length; i++) {
+            s += (v[i] + v[i - 1]) * 0.5;
+            a[i] = s * dt + a0[j];
+        }
+    }
+}
+
+/* out[j] = sum_k x[first[j] + k] c[k]: a filter evaluated only at the samples it is needed
+ * (the velocity differentiator at the scored samples), without gathering the windows. */
+void windowed_dot(const double *x, int n, const long long *first, const double *c, int m,
+                  double *out) {
+    int j = 0;
+    /* four outputs at a time: four independent chains of additions (each still in order k) */
+    for (; j + 4 <= n; j += 4) {
+        const double *x0 = x + first[j], *x1 = x + first[j + 1];
+        const double *x2 = x + first[j + 2], *x3 = x + first[j + 3];
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+        for (int k = 0; k < m; k++) {
+            s0 += x0[k] * c[k];
+            s1 += x1[k] * c[k];
+            s2 += x2[k] * c[k];
+            s3 += x3[k] * c[k];
+        }
+        out[j] = s0;
+        out[j + 1] = s1;
+        out[j + 2] = s2;
+        out[j + 3] = s3;
+    }
+    for (; j < n; j++) {
+        const double *xj = x + first[j];
+        double s = 0.0;
+        for (int k = 0; k < m; k++) s += xj[k] * c[k];
+        out[j] = s;
+    }
+}

@@ -41,8 +41,10 @@ from mechanism.dynamics.lumped import (
     MotorConstants,
     Segments,
     Signals,
+    angle_from_velocity,
     make_segments,
     simulate,
+    windowed_dot,
 )
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.parameters import (
@@ -174,7 +176,7 @@ class Problem:
         original = _parts(self.segments)
         self.parts = _parts(simulated)
         self.strides = {"fit": self.FIT_STRIDE, "screen": self.FIT_STRIDE, "val": 1, "all": 1}
-        self._gather = {}
+        self._window_first: dict[str, np.ndarray] = {}
         self.measured, self.scored = {}, {}
         for name, seg in self.parts.items():
             window_rows, window_offsets = [], []
@@ -183,10 +185,9 @@ class Problem:
                 window_rows.append(np.full(len(offsets), i))
                 window_offsets.append(offsets)
             rows, cols = np.concatenate(window_rows), np.concatenate(window_offsets)
-            # the differentiator's support of every scored sample, as flat indices into the part's windows
-            self._gather[name] = (rows * seg.length + cols - self.pad)[:, None] + np.arange(
-                len(self.coefficients), dtype=np.int64
-            )[None, :]
+            # where the differentiator's support of every scored sample starts, as a flat index
+            # into the part's windows
+            self._window_first[name] = rows * seg.length + cols - self.pad
             self.scored[name] = original[name].starts[rows] + cols
             self.measured[name] = rec.velocity_rad_s[self.scored[name]]
         # each part runs on its own windows laid end to end (the screening part on a quarter of
@@ -217,18 +218,10 @@ class Problem:
             return np.full(len(self.measured[part]), 1e3)
         # integrate to an angle from the measured start angle (trapezoids), pass it through the
         # sensor model, and differentiate it like the measurement (the same Savitzky-Golay
-        # weights, evaluated only where they are needed); in place, in the order
-        # a0 + dt * cumsum(0.5 * (w[1:] + w[:-1]))
-        angle = np.empty_like(w)
-        angle[:, 0] = 0.0
-        steps = angle[:, 1:]
-        np.add(w[:, 1:], w[:, :-1], out=steps)
-        steps *= 0.5
-        np.cumsum(steps, axis=1, out=steps)
-        angle *= self.dt
-        angle += signals.arm_angle_rad[seg.starts][:, None]
+        # weights, evaluated only where they are needed)
+        angle = angle_from_velocity(w, self.dt, signals.arm_angle_rad[seg.starts])
         angle = structure.measured_angle(values, signals, angle)
-        return angle.ravel()[self._gather[part]] @ self.coefficients
+        return windowed_dot(angle, self._window_first[part], self.coefficients)
 
     def residual(
         self, structure: ModelStructure, values: dict[str, float], part: str = "fit"
