@@ -13,9 +13,9 @@ from typing import Sequence
 from mechanism.dynamics.simulation import SimulationResult, plot_simulation
 from mechanism.files.outputs import atomic_dir
 from mechanism.files.tables import read_table, write_table
-from mechanism.inspection.needle import NeedleMotion, needle_motion
-from mechanism.inspection.needle import plot as plot_needle
-from mechanism.inspection.needle import write_csv as write_needle_csv
+from mechanism.inspection.tool import ToolMotion, tool_motion
+from mechanism.inspection.tool import plot as plot_tool_motion
+from mechanism.inspection.tool import write_csv as write_tool_motion_csv
 from mechanism.machine.machine import Machine, MachineConfig, load_machine
 from mechanism.machine.models import (
     shipped_export,
@@ -293,6 +293,20 @@ def drive_nominal(machine: Machine | None):
     return machine_drive_nominal(machine if machine is not None else load_machine())
 
 
+# Deprecated aliases, the sewing machine's words from before the core spoke of shaft and tool:
+# the very same objects as the generic names (docs/api.md lists them).
+NeedleMotion = ToolMotion
+needle_motion = tool_motion
+plot_needle = plot_tool_motion
+write_needle_csv = write_tool_motion_csv
+DEPRECATED_ALIASES = {
+    "NeedleMotion": "ToolMotion",
+    "needle_motion": "tool_motion",
+    "plot_needle": "plot_tool_motion",
+    "write_needle_csv": "write_tool_motion_csv",
+}
+
+
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:
     """The diagnosis's HTML report with its plots, in ``folder``."""
     from mechanism.sysid.report import diagnosis_report as run
@@ -305,6 +319,7 @@ __all__ = [
     "MachineConfig",
     "NeedleMotion",
     "SimulationResult",
+    "ToolMotion",
     "VoltageProfile",
     "atomic_dir",
     "clearance",
@@ -332,7 +347,10 @@ __all__ = [
     "shipped_scene",
     "simulate",
     "sweep",
+    "tool_motion",
+    "plot_tool_motion",
     "view",
     "write_needle_csv",
+    "write_tool_motion_csv",
     "write_table",
 ]

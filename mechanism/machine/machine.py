@@ -765,6 +765,16 @@ class Machine:
         return self.description.section("tool").get("plate")
 
     @property
+    def zero_meaning(self) -> str:
+        """What shaft angle 0 is, in the description's words (for reports and plot labels)."""
+        description = self.description
+        if description.zero_site is not None:
+            if description.zero_site != self.tool_site:
+                return f"{description.zero_site} highest"
+            return f"{description.zero_site} at its top"
+        return f"{self.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
+
+    @property
     def fabric_capable(self) -> bool:
         """Can the tool pierce fabric layers (tool site, plate and a fabric model described)?"""
         tool = self.description.section("tool")
