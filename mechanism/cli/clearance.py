@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mechanism.cli._batch import add_batch_arguments, check_batch_arguments
+from mechanism.cli._batch import add_batch_arguments, backend_from_args, check_batch_arguments
 from mechanism.files.limits import number
 
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, inspection_target
@@ -120,7 +120,7 @@ def run(args) -> int:
             args.cycle,
             args.resolution,
             args.workers,
-            args.backend,
+            backend_from_args(args),
             ray_address=args.ray_address,
             description=description,
         )

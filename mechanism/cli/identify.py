@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mechanism.sysid.lumped_baseline import Baseline
+
 ORDER = 60
 
 
@@ -49,17 +54,21 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
     )
 
 
-def resolve_baseline(args, nominal) -> str:
+def resolve_baseline(args, nominal) -> Baseline:
     """The baseline asked for, else multibody for a described machine whose shaft rocks (its
     inertia and gravity vary over the travel), else lumped."""
+    from mechanism.cli._choices import chosen
+    from mechanism.sysid.lumped_baseline import BASELINES
+
     if args.baseline:
-        return args.baseline
+        return chosen(args.baseline, BASELINES, "--baseline")
     rocks = (
         getattr(nominal, "travel_rad", None) is not None
         and getattr(nominal, "linkage", None) is not None
     )
-    args.baseline = "multibody" if rocks else "lumped"
-    return args.baseline
+    baseline: Baseline = "multibody" if rocks else "lumped"
+    args.baseline = baseline
+    return baseline
 
 
 def register(subparsers) -> None:

@@ -184,7 +184,13 @@ def run(args: argparse.Namespace) -> int:
     from mechanism.dynamics.simulation import plot_simulation, simulate
     from mechanism.errors import UserError
     from mechanism.files.tables import write_table
-    from mechanism.machine.machine import Machine, MachineConfig, motor_from_description
+    from mechanism.cli._choices import chosen
+    from mechanism.machine.machine import (
+        BELT_TENSIONS,
+        Machine,
+        MachineConfig,
+        motor_from_description,
+    )
     from mechanism.physics.motor import Thermal
 
     if not (args.csv or args.plot or args.summary):
@@ -215,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
         layers=args.layers,
         needle=not args.no_needle,
         feeding=args.feeding,
-        belt_tension=args.belt_tension,
+        belt_tension=chosen(args.belt_tension, BELT_TENSIONS, "--belt-tension"),
         motor=motor,
         timestep_s=None if args.timestep is None else args.timestep * 1e-3,
     )

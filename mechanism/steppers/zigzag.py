@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from mechanism.steppers import step_profiles
+from mechanism.steppers._drive import StepperKind
 from mechanism.steppers._motor import StepperParams, described_step_rate, pm25s048
 from mechanism.steppers._simulation import simulate
 from mechanism.errors import UserError
@@ -243,7 +244,7 @@ def check_move(
     rate: float | None = None,
     linkage: ZigzagLinkage | None = None,
     params: StepperParams | None = None,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str = "full",
     ramp_steps: float = 0.0,
     clearance_mm: float = 0.0,
@@ -308,7 +309,7 @@ def sew(
     rate: float | None = None,
     linkage: ZigzagLinkage | None = None,
     params: StepperParams | None = None,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str = "full",
     clearance_mm: float = 0.0,
     tolerance_mm: float | None = None,
