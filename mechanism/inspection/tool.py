@@ -32,11 +32,12 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.lazy import renamed
 
 MIN_SAMPLES = 36
 MAX_SAMPLES = 36000
@@ -70,18 +71,6 @@ FIELD_ALIASES: dict[str, str] = {
 }
 
 
-def _alias(name: str) -> Any:
-    """A property that reads and writes the attribute ``name`` (an old name kept working)."""
-
-    def get(self):
-        return getattr(self, name)
-
-    def put(self, value) -> None:
-        setattr(self, name, value)
-
-    return property(get, put, doc=f"Deprecated alias of ``{name}``.")
-
-
 @dataclass
 class ToolMotion:
     """The tool (and a described hook) over one shaft revolution (arrays sampled at ``shaft_angle_deg``)."""
@@ -110,14 +99,14 @@ class ToolMotion:
     zero_meaning: str = "the described zero"  # what shaft angle 0 is, in the description's words
 
     # the sewing machine's names, kept as aliases
-    arm_angle_deg = _alias("shaft_angle_deg")
-    needle_z_mm = _alias("tool_z_mm")
-    needle_velocity_mm_per_rad = _alias("tool_velocity_mm_per_rad")
-    needle_acceleration_mm_per_rad2 = _alias("tool_acceleration_mm_per_rad2")
-    hook_point_to_needle_mm = _alias("hook_point_to_tool_mm")
-    needle_rise_at_passage_mm = _alias("tool_rise_at_passage_mm")
-    hook_point_to_needle_axis_mm = _alias("hook_point_to_tool_axis_mm")
-    arm_speed_rad_s = _alias("shaft_speed_rad_s")
+    arm_angle_deg = renamed("shaft_angle_deg")
+    needle_z_mm = renamed("tool_z_mm")
+    needle_velocity_mm_per_rad = renamed("tool_velocity_mm_per_rad")
+    needle_acceleration_mm_per_rad2 = renamed("tool_acceleration_mm_per_rad2")
+    hook_point_to_needle_mm = renamed("hook_point_to_tool_mm")
+    needle_rise_at_passage_mm = renamed("tool_rise_at_passage_mm")
+    hook_point_to_needle_axis_mm = renamed("hook_point_to_tool_axis_mm")
+    arm_speed_rad_s = renamed("shaft_speed_rad_s")
 
     @property
     def shaft_speed_rad_s(self) -> float | None:
