@@ -184,3 +184,11 @@ def test_the_tool_verb_writes_the_needle_verbs_numbers_under_generic_names(tmp_p
     b = read_table(tmp_path / "tool.csv", required=[generic for generic, _ in COLUMN_NAMES])
     for generic, historical in COLUMN_NAMES:
         np.testing.assert_array_equal(a[historical], b[generic])
+
+
+@pytest.mark.parametrize("verb", ["tool", "needle"])
+@pytest.mark.parametrize("args", [("--samples", "5"), ("--speed", "-100")])
+def test_both_verbs_refuse_bad_input_alike(tmp_path, cli_here, verb, args):
+    csv = tmp_path / "t.csv"
+    line = cli_here(verb, "--csv", csv, *args).assert_bad_input()
+    assert not csv.exists() and line.startswith("error:")
