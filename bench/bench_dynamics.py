@@ -56,7 +56,7 @@ def main() -> None:
     dt = machine.model.opt.timestep
     nstep = int(SIM_SECONDS / dt)
     run = simulate(12.0, SIM_SECONDS, machine=machine)
-    arm_speed = float(run.arm_velocity_rad_s[-1000:].mean())
+    arm_speed = float(run.shaft_velocity_rad_s[-1000:].mean())
     full = best_of(lambda: simulate(12.0, SIM_SECONDS, machine=machine), repeats=3)
     ours_per_step = full / nstep
     raw_per_step = raw_step_seconds(DEFAULT_MODEL, arm_speed, nstep)

@@ -94,7 +94,7 @@ def _full(machine, count: int) -> None:
             mujoco.mj_step(model, data)
         speeds.append(variant.shaft_velocity(data.qvel))
     looped = time.perf_counter() - start
-    final = [r.arm_velocity_rad_s[-1] for r in results]
+    final = [r.shaft_velocity_rad_s[-1] for r in results]
     difference = float(np.max(np.abs(np.subtract(final, speeds))))
     print(
         f"full model: {count} variants x {duration_s:g} s; mujoco.rollout on 2 threads {batched / count * 1e3:.0f} ms per "

@@ -34,7 +34,7 @@ site = "needle_tip"
 plate = "needle_plate"
 """)
 machine = mechanism.load_machine(work / "machine.toml")
-print("stroke", round(mechanism.needle_motion(machine).stroke_mm, 3), "mm")
+print("stroke", round(mechanism.tool_motion(machine).stroke_mm, 3), "mm")
 print(
     "speed at 12 V",
     round(mechanism.simulate(machine, voltage_V=12, duration_s=2).mean_speed_rpm),

@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from mechanism.dynamics.simulation import SimulationResult, plot_simulation
 from mechanism.files.outputs import atomic_dir
 from mechanism.files.tables import read_table, write_table
-from mechanism.inspection.needle import NeedleMotion, needle_motion
-from mechanism.inspection.needle import plot as plot_needle
-from mechanism.inspection.needle import write_csv as write_needle_csv
+from mechanism.inspection.tool import ToolMotion, tool_motion
+from mechanism.inspection.tool import plot as plot_tool_motion
+from mechanism.inspection.tool import write_csv as write_tool_motion_csv
 from mechanism.machine.machine import Machine, MachineConfig, load_machine
 from mechanism.machine.models import (
     shipped_export,
@@ -25,6 +25,10 @@ from mechanism.machine.models import (
     shipped_scene,
 )
 from mechanism.physics.inputs import VoltageProfile
+
+if TYPE_CHECKING:  # option names only: the modules load where they run
+    from mechanism.batch.runner import Backend
+    from mechanism.sysid.lumped_baseline import Baseline
 
 
 def simulate(
@@ -128,7 +132,7 @@ def sweep(
     voltage_V: float = 12.0,
     duration_s: float = 2.0,
     workers: int = 1,
-    backend: str = "local",
+    backend: Backend = "local",
     progress: bool = False,
     **options,
 ):
@@ -251,14 +255,19 @@ def identify(
     machine: Machine | None,
     recording: str | os.PathLike,
     recording_map: str | os.PathLike | None = None,
+    *,
+    baseline: Baseline = "lumped",
     **options,
 ):
-    """Fit the machine's lumped baseline (inertia, friction) to a bench recording (any
-    format :func:`read_recording` takes)."""
+    """Fit the machine's baseline (``"lumped"``: inertia, friction; or ``"multibody"``) to a
+    bench recording (any format :func:`read_recording` takes)."""
     from mechanism.sysid.identification import identify as run
 
     return run(
-        read_recording(recording, machine, recording_map), nominal=drive_nominal(machine), **options
+        read_recording(recording, machine, recording_map),
+        baseline,
+        nominal=drive_nominal(machine),
+        **options,
     )
 
 
@@ -268,6 +277,7 @@ def diagnose(
     recording_map: str | os.PathLike | None = None,
     *,
     recording_name: str | None = None,
+    baseline: Baseline = "lumped",
     **options,
 ):
     """Find the physics the machine's model is missing from a bench recording, model it, show the fit improve.
@@ -280,7 +290,7 @@ def diagnose(
     rec = read_recording(recording, machine, recording_map)
     if recording_name is not None:
         rec = dataclasses.replace(rec, source=recording_name)
-    return run(rec, nominal=drive_nominal(machine), **options)
+    return run(rec, baseline, nominal=drive_nominal(machine), **options)
 
 
 def drive_nominal(machine: Machine | None):
@@ -291,6 +301,20 @@ def drive_nominal(machine: Machine | None):
     from mechanism.sysid.nominal import machine_drive_nominal
 
     return machine_drive_nominal(machine if machine is not None else load_machine())
+
+
+# Deprecated aliases, the sewing machine's words from before the core spoke of shaft and tool:
+# the very same objects as the generic names (docs/api.md lists them).
+NeedleMotion = ToolMotion
+needle_motion = tool_motion
+plot_needle = plot_tool_motion
+write_needle_csv = write_tool_motion_csv
+DEPRECATED_ALIASES = {
+    "NeedleMotion": "ToolMotion",
+    "needle_motion": "tool_motion",
+    "plot_needle": "plot_tool_motion",
+    "write_needle_csv": "write_tool_motion_csv",
+}
 
 
 def diagnosis_report(result, folder: str | os.PathLike) -> Path:
@@ -305,6 +329,7 @@ __all__ = [
     "MachineConfig",
     "NeedleMotion",
     "SimulationResult",
+    "ToolMotion",
     "VoltageProfile",
     "atomic_dir",
     "clearance",
@@ -332,7 +357,10 @@ __all__ = [
     "shipped_scene",
     "simulate",
     "sweep",
+    "tool_motion",
+    "plot_tool_motion",
     "view",
     "write_needle_csv",
+    "write_tool_motion_csv",
     "write_table",
 ]

@@ -70,13 +70,13 @@ def _convert(machine: mechanism.Machine, out: Path, final: Path) -> dict:
 def _tool(machine: mechanism.Machine, out: Path) -> dict | None:
     if not machine.tool_site:
         return None
-    motion = mechanism.needle_motion(machine)
-    mechanism.write_needle_csv(motion, out / "tool.csv")
-    mechanism.plot_needle(motion, out / "tool.png")
+    motion = mechanism.tool_motion(machine)
+    mechanism.write_tool_motion_csv(motion, out / "tool.csv")  # the historical columns, as before
+    mechanism.plot_tool_motion(motion, out / "tool.png")
     return {
         "stroke_mm": motion.stroke_mm,
         "hook_passage_deg": motion.hook_passage_angle_deg,
-        "needle_rise_at_passage_mm": motion.needle_rise_at_passage_mm,
+        "needle_rise_at_passage_mm": motion.tool_rise_at_passage_mm,  # the demo.json key kept
         "hook_point_clearance_mm": motion.hook_point_clearance_mm,
         "summary": motion.summary_lines(),
     }

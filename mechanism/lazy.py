@@ -27,3 +27,16 @@ def lazy_exports(
         return sorted(where)
 
     return sorted(where), __getattr__, __dir__
+
+
+def renamed(name: str) -> Any:
+    """A class attribute that reads and writes the attribute ``name``: an old name of a
+    renamed dataclass field kept working (``needle_z_mm = renamed("tool_z_mm")``)."""
+
+    def get(self):
+        return getattr(self, name)
+
+    def put(self, value) -> None:
+        setattr(self, name, value)
+
+    return property(get, put, doc=f"Deprecated alias of ``{name}``.")

@@ -28,11 +28,12 @@ import contextlib
 import os
 import sys
 from collections import deque
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Literal, Sequence, get_args
 
 from mechanism.errors import UserError
 
-BACKENDS = ("local", "ray")
+Backend = Literal["local", "ray"]  # where a batch runs: local processes, or Ray
+BACKENDS: tuple[Backend, ...] = get_args(Backend)
 MAX_WORKERS = 1024
 RAY_TASK_RETRIES = 3  # reruns of a chunk whose worker process or node died
 RAY_INSTALL_HINT = "pip install 'mechanism[ray]'"
@@ -60,7 +61,7 @@ def item_ranges(indices) -> str:
     return ", ".join(parts)
 
 
-def check_options(backend: str, workers: int) -> None:
+def check_options(backend: Backend, workers: int) -> None:
     """Raise UserError for an unknown backend or a worker count out of range."""
     if backend not in BACKENDS:
         raise UserError(f"backend {backend!r}: expected one of {', '.join(BACKENDS)}")
@@ -75,7 +76,7 @@ def run_batch(
     shared: Any = None,
     setup: Callable[[Any], Any] | None = None,
     workers: int = 1,
-    backend: str = "local",
+    backend: Backend = "local",
     ray_address: str | None = None,
     on_result: Callable[[int, Any], None] | None = None,
     progress: bool = True,

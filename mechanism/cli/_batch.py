@@ -2,6 +2,19 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mechanism.batch.runner import Backend
+
+
+def backend_from_args(args) -> Backend:
+    """``--backend`` as the API's :data:`~mechanism.batch.runner.Backend`."""
+    from mechanism.batch.runner import BACKENDS
+    from mechanism.cli._choices import chosen
+
+    return chosen(args.backend, BACKENDS, "--backend")
+
 
 def add_batch_arguments(parser, what: str) -> None:
     """--workers, --backend, --ray-address for a verb whose batch items are ``what``."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mechanism.cli._batch import add_batch_arguments, check_batch_arguments
+from mechanism.cli._batch import add_batch_arguments, backend_from_args, check_batch_arguments
 from mechanism.files.limits import number
 
 from mechanism.cli._machine import DRIVER_HELP, add_machine_arguments, inspection_target
@@ -13,13 +13,13 @@ ORDER = 45
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "clearance",
-        help="minimum clearance and interferences between real part shapes over arm revolutions, for design variants",
+        help="minimum clearance and interferences between real part shapes over shaft revolutions, for design variants",
         description=(
-            "Turn the arm shaft through whole revolutions (sampled every --resolution degrees, minima refined on the "
+            "Turn the shaft through whole revolutions (sampled every --resolution degrees, minima refined on the "
             "angle to 1e-5 rad) and measure the exact distance between the parts' triangle meshes (never their "
-            "convex hulls: a needle passing through the needle-plate hole is a clearance). Reports per pair the "
-            "minimum clearance [mm], the arm angle [deg, 0 = needle top dead centre] where it occurs, the closest "
-            "points [mm, world], and every interference: its arm-angle range and largest penetration depth [mm] "
+            "convex hulls: a pin passing through a hole is a clearance). Reports per pair the "
+            "minimum clearance [mm], the shaft angle [deg, 0 = the described zero] where it occurs, the closest "
+            "points [mm, world], and every interference: its shaft-angle range and largest penetration depth [mm] "
             "(a negative minimum clearance is minus that depth). With --variants, every design variant of the file "
             "is checked (in parallel with --workers) and the CSV has one row per variant."
         ),
@@ -48,14 +48,14 @@ def register(subparsers) -> None:
         type=number(0, 100, low_open=True),
         default=1.0,
         metavar="N",
-        help="arm shaft revolutions to check (default 1)",
+        help="shaft revolutions to check (default 1)",
     )
     parser.add_argument(
         "--resolution",
         type=number(0.01, 360, "deg"),
         default=0.5,
         metavar="DEG",
-        help="sampling step of the arm angle [deg] (default 0.5)",
+        help="sampling step of the shaft angle [deg] (default 0.5)",
     )
     parser.add_argument(
         "--required",
@@ -120,7 +120,7 @@ def run(args) -> int:
             args.cycle,
             args.resolution,
             args.workers,
-            args.backend,
+            backend_from_args(args),
             ray_address=args.ray_address,
             description=description,
         )

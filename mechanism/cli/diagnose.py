@@ -143,6 +143,7 @@ def run_fleet(args, candidates) -> int:
         raise UserError(
             "--json and --report are for one recording; a fleet writes them per recording into --out"
         )
+    from mechanism.cli._batch import backend_from_args
     from mechanism.cli.identify import resolve_baseline
 
     nominal = drive_nominal(args)
@@ -150,7 +151,7 @@ def run_fleet(args, candidates) -> int:
         args.recording,
         args.out,
         workers=args.workers,
-        backend=args.backend,
+        backend=backend_from_args(args),
         ray_address=args.ray_address,
         progress=sys.stderr.isatty(),
         baseline=resolve_baseline(args, nominal),

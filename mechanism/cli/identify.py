@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mechanism.sysid.lumped_baseline import Baseline
+
 ORDER = 60
 
 
@@ -42,24 +47,28 @@ def add_recording_arguments(parser, what: str, optional: bool = False) -> None:
     parser.add_argument(
         "--json",
         metavar="OUT.json",
-        help=f"write the {what} as JSON (rmse in rad/s of arm velocity)",
+        help=f"write the {what} as JSON (rmse in rad/s of shaft velocity)",
     )
     parser.add_argument(
         "--report", metavar="DIR", help="write an HTML report with plots to DIR (DIR/index.html)"
     )
 
 
-def resolve_baseline(args, nominal) -> str:
+def resolve_baseline(args, nominal) -> Baseline:
     """The baseline asked for, else multibody for a described machine whose shaft rocks (its
     inertia and gravity vary over the travel), else lumped."""
+    from mechanism.cli._choices import chosen
+    from mechanism.sysid.lumped_baseline import BASELINES
+
     if args.baseline:
-        return args.baseline
+        return chosen(args.baseline, BASELINES, "--baseline")
     rocks = (
         getattr(nominal, "travel_rad", None) is not None
         and getattr(nominal, "linkage", None) is not None
     )
-    args.baseline = "multibody" if rocks else "lumped"
-    return args.baseline
+    baseline: Baseline = "multibody" if rocks else "lumped"
+    args.baseline = baseline
+    return baseline
 
 
 def register(subparsers) -> None:
@@ -69,7 +78,7 @@ def register(subparsers) -> None:
         description=(
             "Fit the baseline model to a bench recording by simulation-error minimisation (scipy least squares; "
             "multiple shooting: 1 s segments restarted from the measured velocity). Fitted: inertia (motor side, "
-            "kg m^2), viscous friction (motor side, N m s/rad), Coulomb friction (arm side, N m) and the winding's "
+            "kg m^2), viscous friction (motor side, N m s/rad), Coulomb friction (shaft side, N m) and the winding's "
             "L/R [s]; the motor constants stay at the datasheet values (R 1.1 ohm, Kt 0.017 N m/A, Ke 0.021 V s/rad) "
             "unless --free names them. Half of the segments (interleaved) are held out: the reported rmse [rad/s] "
             "is on them. With --table2 instead of a recording: the steady-state friction fit of the thesis's "

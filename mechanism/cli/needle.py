@@ -1,4 +1,8 @@
-"""``mechanism needle``: needle-bar motion and hook timing over one arm-shaft revolution."""
+"""``mechanism needle``: needle-bar motion and hook timing over one arm-shaft revolution.
+
+The sewing machine's name of ``mechanism tool`` (mechanism.cli.tool): the same numbers, with the
+table's historical column names, header and help, unchanged (scripts read its files).
+"""
 
 from __future__ import annotations
 
@@ -6,9 +10,9 @@ from mechanism.files.limits import number
 
 import argparse
 
-from mechanism.cli._machine import add_machine_arguments, machine_from_args
+from mechanism.cli._machine import add_machine_arguments
 
-ORDER = 20
+ORDER = 21  # after its generic name, mechanism tool
 
 EPILOG = """\
 CSV columns: arm_angle_deg, needle_z_mm (needle point above the needle-plate top),
@@ -27,7 +31,8 @@ examples:
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "needle",
-        help="needle-bar position, velocity, acceleration and hook timing over one arm revolution",
+        help="needle-bar position, velocity, acceleration and hook timing over one arm revolution "
+        "(the sewing machine's name of 'tool', with its historical column names)",
         description=(
             "Inspect the needle motion of a converted machine over one arm-shaft revolution (arm angle 0 = "
             "needle top dead centre): print the stroke, the top and bottom dead-centre arm angles, and the arm "
@@ -68,12 +73,6 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism.inspection.needle import needle_motion, plot, write_csv
+    from mechanism.cli.tool import run_with
 
-    motion = needle_motion(machine_from_args(args), samples=args.samples, speed_rpm=args.speed)
-    write_csv(motion, args.csv)
-    if args.plot:
-        plot(motion, args.plot)
-    print("\n".join(motion.summary_lines()))
-    print(f"wrote {args.csv}" + (f" and {args.plot}" if args.plot else ""))
-    return 0
+    return run_with(args, "needle")

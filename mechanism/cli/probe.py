@@ -20,7 +20,7 @@ def register(subparsers) -> None:
         "probe",
         help="sensor probes: position/velocity/acceleration of a point, force/torque in a joint",
         description=(
-            "Add MuJoCo sensors to the model and record them over a kinematic cycle (--cycle: the arm shaft "
+            "Add MuJoCo sensors to the model and record them over a kinematic cycle (--cycle: the shaft "
             "turning at a constant speed, loads by rigid inverse dynamics without friction) or a dynamic "
             "simulation (--voltage and --duration: motor, friction and loads). All values are in the world "
             "frame (z up). position [mm], velocity [m/s], acceleration [m/s^2, gravity removed]; force [N] and "
@@ -62,7 +62,7 @@ def register(subparsers) -> None:
     )
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument(
-        "--cycle", action="store_true", help="one kinematic cycle of the arm shaft at --speed"
+        "--cycle", action="store_true", help="one kinematic cycle of the shaft at --speed"
     )
     add_input_arguments(parser, mode)
     parser.add_argument(
@@ -76,28 +76,28 @@ def register(subparsers) -> None:
         type=number(0, 1e5, "rpm"),
         default=600.0,
         metavar="RPM",
-        help="arm shaft speed for --cycle [rpm] (default 600; 0 = static)",
+        help="shaft speed for --cycle [rpm] (default 600; 0 = static)",
     )
     parser.add_argument(
         "--revolutions",
         type=number(0, 100, low_open=True),
         default=1.0,
         metavar="N",
-        help="arm revolutions for --cycle (default 1)",
+        help="shaft revolutions for --cycle (default 1)",
     )
     parser.add_argument(
         "--resolution",
         type=number(0.01, 360, "deg"),
         default=0.5,
         metavar="DEG",
-        help="arm angle step for --cycle [deg] (default 0.5)",
+        help="shaft angle step for --cycle [deg] (default 0.5)",
     )
     parser.add_argument("--driver", metavar="JOINT", help=DRIVER_HELP)
     parser.add_argument("--csv", required=True, metavar="OUT.csv", help="write the probe table")
     parser.add_argument(
         "--plot",
         metavar="OUT.png",
-        help="plot every probe over the arm angle (cycle) or time (simulation)",
+        help="plot every probe over the shaft angle (cycle) or time (simulation)",
     )
     parser.set_defaults(
         handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",)

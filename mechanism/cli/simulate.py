@@ -23,7 +23,7 @@ def register(subparsers) -> None:
             "motor joint (Kt != Ke kept exactly), the model's couplings and loops, the described friction per "
             "joint (Coulomb, viscous, Stribeck, position-dependent), optional fabric on the tool. Default machine: "
             "the shipped Sapphire 870 (Domel motor R 1.1 ohm, Kt 0.017 N m/A, Ke 0.021 V s/rad, belt 8:1). "
-            "Writes a CSV with units in every column name; 'arm' columns are the described shaft."
+            "Writes a CSV with units in every column name; its arm_* columns are the described shaft's."
         ),
         epilog="example: mechanism simulate --voltage 12.49 --duration 3 --csv out/run.csv --summary",
     )
@@ -113,7 +113,7 @@ def register(subparsers) -> None:
         type=number(0.01, 2, "ms"),
         metavar="MS",
         help="simulation time step [ms] (default: the description's, else 0.5); loops and belts stiffen "
-        "with it: at ~1000 rpm the Sapphire's needle-bar loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms",
+        "with it: at ~1000 rpm the Sapphire's crank loop opens ~0.2 mm at 0.5 ms, ~0.05 mm at 0.25 ms",
     )
     parser.add_argument(
         "--reduced",
@@ -184,7 +184,13 @@ def run(args: argparse.Namespace) -> int:
     from mechanism.dynamics.simulation import plot_simulation, simulate
     from mechanism.errors import UserError
     from mechanism.files.tables import write_table
-    from mechanism.machine.machine import Machine, MachineConfig, motor_from_description
+    from mechanism.cli._choices import chosen
+    from mechanism.machine.machine import (
+        BELT_TENSIONS,
+        Machine,
+        MachineConfig,
+        motor_from_description,
+    )
     from mechanism.physics.motor import Thermal
 
     if not (args.csv or args.plot or args.summary):
@@ -215,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
         layers=args.layers,
         needle=not args.no_needle,
         feeding=args.feeding,
-        belt_tension=args.belt_tension,
+        belt_tension=chosen(args.belt_tension, BELT_TENSIONS, "--belt-tension"),
         motor=motor,
         timestep_s=None if args.timestep is None else args.timestep * 1e-3,
     )

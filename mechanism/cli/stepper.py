@@ -157,6 +157,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from mechanism import steppers
+    from mechanism.cli._choices import chosen
     from mechanism.steppers import step_profiles
     from mechanism.errors import UserError
     from mechanism.files.outputs import atomic_file
@@ -182,7 +183,11 @@ def run(args) -> int:
     )
 
     if args.sweep:
-        kinds = list(steppers.KINDS) if args.model == "both" else [args.model]
+        kinds = (
+            list(steppers.KINDS)
+            if args.model == "both"
+            else [chosen(args.model, steppers.KINDS, "--model")]
+        )
         results, pull_out = {}, {}
         for kind in kinds:
             results[kind] = steppers.sweep_rates(

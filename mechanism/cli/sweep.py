@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mechanism.cli._batch import add_batch_arguments, check_batch_arguments
+from mechanism.cli._batch import add_batch_arguments, backend_from_args, check_batch_arguments
 from mechanism.cli._machine import add_machine_arguments
 from mechanism.files.limits import number
 
@@ -148,7 +148,7 @@ def run(args) -> int:
         variants,
         options,
         workers=args.workers,
-        backend=args.backend,
+        backend=backend_from_args(args),
         ray_address=args.ray_address,
         journal=journal,
         resume=args.resume,

@@ -96,6 +96,8 @@ def _truth_output(args):
 def run(args) -> int:
     from mechanism.errors import UserError
     from mechanism.testbench import EFFECTS, make_recording, truth_path_for, write_recording
+    from mechanism.cli._choices import chosen
+    from mechanism.files.formats import WRITE_FORMATS
 
     if args.list:
         width = max(map(len, EFFECTS))
@@ -129,7 +131,8 @@ def run(args) -> int:
         sample_rate_hz=args.rate,
         encoder_counts_per_rev=args.counts,
     )
-    csv_path, truth_path = write_recording(recording, args.output, args.format)
+    fmt = None if args.format is None else chosen(args.format, WRITE_FORMATS, "--format")
+    csv_path, truth_path = write_recording(recording, args.output, fmt)
     what = ", ".join(recording.effects) or "no effect (clean)"
     print(f"wrote {csv_path} ({len(recording.time)} samples, {what}) and {truth_path}")
     return 0

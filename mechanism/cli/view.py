@@ -20,9 +20,9 @@ def register(subparsers) -> None:
         "view",
         help="animate the machine in a self-contained HTML page (meshcat), or serve it live",
         description=(
-            "Build a meshcat scene of the model (its visual meshes in the export's colours) and animate one arm "
+            "Build a meshcat scene of the model (its visual meshes in the export's colours) and animate one shaft "
             "revolution (default), a dynamic simulation (--voltage and --duration) or a bench recording "
-            "(--recording: CSV with time [s], voltage [V], arm_angle [rad, 0 = needle TDC], replayed kinematically). "
+            "(--recording: CSV with time [s], voltage [V], shaft_angle (or arm_angle) [rad, 0 = the described zero], replayed kinematically). "
             "The HTML embeds meshcat's viewer and opens in a browser with no server and no network. Probe markers "
             "(--probe) and clearance minima (--pairs: markers at the closest points and a line between them) can "
             "be overlaid."
@@ -31,14 +31,12 @@ def register(subparsers) -> None:
     )
     add_machine_arguments(parser)
     motion = parser.add_mutually_exclusive_group()
-    motion.add_argument(
-        "--cycle", action="store_true", help="one arm shaft revolution (the default)"
-    )
+    motion.add_argument("--cycle", action="store_true", help="one shaft revolution (the default)")
     add_input_arguments(parser, motion)
     motion.add_argument(
         "--recording",
         metavar="FILE",
-        help="replay a recording CSV (time, voltage, arm_angle) kinematically",
+        help="replay a recording CSV (time, voltage, shaft_angle or arm_angle) kinematically",
     )
     parser.add_argument(
         "--duration",

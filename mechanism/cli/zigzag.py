@@ -167,7 +167,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from mechanism.steppers import zigzag
+    from mechanism.cli._choices import chosen
+    from mechanism.steppers import KINDS, zigzag
     from mechanism.errors import UserError
     from mechanism.files.outputs import atomic_file
     from mechanism.files.tables import write_table
@@ -189,7 +190,7 @@ def run(args) -> int:
     options = dict(
         width_mm=args.width_mm,
         rate=args.rate,
-        kind=args.model,
+        kind=chosen(args.model, KINDS, "--model"),
         mode=args.mode,
         clearance_mm=args.clearance_mm,
         tolerance_mm=args.tolerance_mm,

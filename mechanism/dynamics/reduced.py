@@ -1,7 +1,7 @@
 """The reduced 1-DOF form of the multibody machine, computed by MuJoCo from the CAD model.
 
-The sewing machine has one degree of freedom: every joint position is a function q(θ) of
-the arm angle θ. Lagrange's equation projected on θ is exact:
+The machine has one degree of freedom: every joint position is a function q(θ) of
+the shaft angle θ. Lagrange's equation projected on θ is exact:
 
     J(θ) θ'' + ½ J'(θ) θ'² + G(θ) = Q(θ, θ', V)
 
@@ -38,7 +38,7 @@ class _Tables(ctypes.Structure):
         "motor_ratio",
         "viscous",
         "cogging",
-        "needle_depth",
+        "needle_depth",  # the tool's depth and dz/dθ, named as in native/reduced.c
         "needle_dz",
         "friction_ratio",
         "friction_scale",
@@ -120,11 +120,11 @@ class ReducedModel:
         fabric = self.machine.fabric
         if fabric.layers:
             top = self.machine.plate_top_z + fabric.thickness_m
-            self._needle_depth = top - t.tool_z_m
-            self._needle_dz = t.tool_dz_drad
+            self._tool_depth = top - t.tool_z_m
+            self._tool_dz = t.tool_dz_drad
         else:
-            self._needle_depth = np.full(n, -1.0)
-            self._needle_dz = np.zeros(n)
+            self._tool_depth = np.full(n, -1.0)
+            self._tool_dz = np.zeros(n)
 
     # -- the right-hand side, in numpy (the reference for the C kernel and its fallback) --
     def motor_current(self, voltage, motor_velocity):
@@ -137,7 +137,7 @@ class ReducedModel:
         ) / motor.resistance_ohm
 
     def static_friction(self, angle):
-        """Break-away torque at the arm [N m] at rest at ``angle`` (a float, or an array for an array)."""
+        """Break-away torque at the shaft [N m] at rest at ``angle`` (a float, or an array for an array)."""
         total = sum(
             (
                 abs(periodic_interp(r, angle)) * law.static_level * periodic_interp(s, angle)
@@ -148,7 +148,7 @@ class ReducedModel:
         return float(total) if np.ndim(angle) == 0 else total
 
     def generalized_force(self, angle, velocity, voltage):
-        """Everything but inertia: motor - ½J'ω² - G - friction - fabric [N m at the arm]
+        """Everything but inertia: motor - ½J'ω² - G - friction - fabric [N m at the shaft]
         (a float, or an array when any argument is one)."""
         t = self.tables
         motor = self.machine.motor
@@ -167,9 +167,9 @@ class ReducedModel:
                 * np.sign(ratio * velocity)
             )
         if self.machine.fabric.layers:
-            dz = periodic_interp(self._needle_dz, angle)
+            dz = periodic_interp(self._tool_dz, angle)
             force += dz * self.machine.fabric.force(
-                periodic_interp(self._needle_depth, angle), dz * velocity
+                periodic_interp(self._tool_depth, angle), dz * velocity
             )
         return float(force) if np.ndim(force) == 0 else force
 
@@ -218,17 +218,17 @@ class ReducedModel:
         rm = periodic_interp(self._motor_ratio, angle)
         sample_volts = volts[substeps - 1 :: substeps]
         current = self.motor_current(sample_volts, rm * velocity)
-        needle = np.full(nsample, np.nan)
+        tool_z = np.full(nsample, np.nan)
         if t.tool_z_m is not None:
-            needle = self.machine.tool_height_mm(t.at("tool_z_m", angle))
+            tool_z = self.machine.tool_height_mm(t.at("tool_z_m", angle))
         return SimulationResult(
             time_s=np.arange(1, nsample + 1) / sample_rate_hz,
             voltage_V=sample_volts,
             current_A=current,
-            arm_angle_rad=angle,
-            arm_velocity_rad_s=velocity,
-            arm_acceleration_rad_s2=acceleration,
-            needle_z_mm=needle,
+            shaft_angle_rad=angle,
+            shaft_velocity_rad_s=velocity,
+            shaft_acceleration_rad_s2=acceleration,
+            tool_z_mm=tool_z,
             motor_velocity_rad_s=rm * velocity,
             metadata={"model": "reduced", "native": library is not None, "substep_s": dt},
         )
@@ -274,8 +274,8 @@ class ReducedModel:
             ptr(self._motor_ratio),
             ptr(self._viscous),
             ptr(self._cogging),
-            ptr(self._needle_depth),
-            ptr(self._needle_dz),
+            ptr(self._tool_depth),
+            ptr(self._tool_dz),
             ptr(ratios),
             ptr(scales),
             ptr(static_scales),

@@ -15,6 +15,7 @@ import mujoco.rollout
 import numpy as np
 
 from mechanism.errors import UserError
+from mechanism.lazy import renamed
 from mechanism.physics.inputs import VoltageProfile
 from mechanism.machine.machine import TORQUE_SENSOR, Machine, MachineConfig, actuator_name
 from mechanism.physics.motor import DCMotor, ServoDrive
@@ -214,10 +215,10 @@ class SimulationResult:
     time_s: np.ndarray
     voltage_V: np.ndarray
     current_A: np.ndarray
-    arm_angle_rad: np.ndarray
-    arm_velocity_rad_s: np.ndarray
-    arm_acceleration_rad_s2: np.ndarray
-    needle_z_mm: np.ndarray
+    shaft_angle_rad: np.ndarray  # from the described zero
+    shaft_velocity_rad_s: np.ndarray
+    shaft_acceleration_rad_s2: np.ndarray
+    tool_z_mm: np.ndarray  # the tool above the plate top (NaN without a described tool)
     motor_velocity_rad_s: np.ndarray
     metadata: dict = field(default_factory=dict)
     # full physics state (mjSTATE_FULLPHYSICS) after each sample, for replays
@@ -226,17 +227,25 @@ class SimulationResult:
     # every joint's position/velocity, each motor's input/current
     joints: dict[str, np.ndarray] = field(default_factory=dict)
 
+    # the sewing machine's names of the shaft and tool fields, kept as aliases
+    arm_angle_rad = renamed("shaft_angle_rad")
+    arm_velocity_rad_s = renamed("shaft_velocity_rad_s")
+    arm_acceleration_rad_s2 = renamed("shaft_acceleration_rad_s2")
+    needle_z_mm = renamed("tool_z_mm")
+
     def columns(self) -> dict[str, np.ndarray]:
+        """The CSV columns (``mechanism simulate --csv``): the shaft's and the tool's keep their
+        historical names (``arm_*``, ``needle_z_mm``: the file contract)."""
         return {
             "time_s": self.time_s,
             "voltage_V": self.voltage_V,
             "current_A": self.current_A,
-            "arm_angle_rad": self.arm_angle_rad,
-            "arm_velocity_rad_s": self.arm_velocity_rad_s,
-            "arm_acceleration_rad_s2": self.arm_acceleration_rad_s2,
-            "needle_z_mm": self.needle_z_mm,
+            "arm_angle_rad": self.shaft_angle_rad,
+            "arm_velocity_rad_s": self.shaft_velocity_rad_s,
+            "arm_acceleration_rad_s2": self.shaft_acceleration_rad_s2,
+            "needle_z_mm": self.tool_z_mm,
             "motor_velocity_rad_s": self.motor_velocity_rad_s,
-            "arm_speed_rpm": self.arm_velocity_rad_s * 60 / (2 * np.pi),
+            "arm_speed_rpm": self.shaft_velocity_rad_s * 60 / (2 * np.pi),
             **self.joints,
         }
 
@@ -250,8 +259,8 @@ class SimulationResult:
         return self.speed_summary(min(1.0, 0.5 * float(self.time_s[-1])))["mean_rpm"]
 
     def speed_summary(self, last_s: float = 1.0) -> dict[str, float]:
-        """Mean / min / max arm speed [rpm] over the last ``last_s`` seconds."""
-        rpm = self.arm_velocity_rad_s[self.window(last_s)] * 60 / (2 * np.pi)
+        """Mean / min / max shaft speed [rpm] over the last ``last_s`` seconds."""
+        rpm = self.shaft_velocity_rad_s[self.window(last_s)] * 60 / (2 * np.pi)
         return {
             "mean_rpm": float(rpm.mean()),
             "min_rpm": float(rpm.min()),
@@ -369,12 +378,12 @@ class _Run:
         # the full physics state: [time, qpos, qvel, act, ...]
         qpos = state[:, 1 : 1 + model.nq]
         qvel = state[:, 1 + model.nq : 1 + model.nq + model.nv]
-        arm_angle = machine.shaft_angle(qpos)
-        arm_velocity = machine.shaft_velocity(qvel)
+        shaft_angle = machine.shaft_angle(qpos)
+        shaft_velocity = machine.shaft_velocity(qvel)
         motor_velocity = qvel[:, machine.motor_dof]
         samples = np.arange(1, self.nsample + 1) * substeps - 1  # state after each sample interval
-        previous = np.concatenate([[0.0], arm_velocity])[samples + 1 - substeps]
-        acceleration = (arm_velocity[samples] - previous) / (substeps * dt)
+        previous = np.concatenate([[0.0], shaft_velocity])[samples + 1 - substeps]
+        acceleration = (shaft_velocity[samples] - previous) / (substeps * dt)
 
         torque = sensordata[:, model.sensor(TORQUE_SENSOR).adr[0]]
         applied = self.control[:, machine.actuator]
@@ -391,7 +400,7 @@ class _Run:
             motor = machine.motor
             commanded = (applied - motor.back_emf_V_s_rad * motor_velocity) / motor.resistance_ohm
             current = current + machine.supply.current(motor, applied, motor_velocity) - commanded
-        needle = machine.tool_height_mm_at(arm_angle)
+        tool_z = machine.tool_height_mm_at(shaft_angle)
         joints = joint_columns(
             machine, qpos[samples], qvel[samples], self.control[samples], sensordata[samples]
         )
@@ -412,10 +421,10 @@ class _Run:
             time_s=(samples + 1) * dt,
             voltage_V=voltage,
             current_A=current,
-            arm_angle_rad=arm_angle[samples],
-            arm_velocity_rad_s=arm_velocity[samples],
-            arm_acceleration_rad_s2=acceleration,
-            needle_z_mm=needle[samples],
+            shaft_angle_rad=shaft_angle[samples],
+            shaft_velocity_rad_s=shaft_velocity[samples],
+            shaft_acceleration_rad_s2=acceleration,
+            tool_z_mm=tool_z[samples],
             motor_velocity_rad_s=motor_velocity[samples],
             metadata={
                 "timestep_s": dt,
@@ -531,14 +540,14 @@ def plot_simulation(result: SimulationResult, path) -> None:
     from mechanism.files.plotting import plt, save_figure
 
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
-    axes[0].plot(result.time_s, result.arm_velocity_rad_s * 60 / (2 * np.pi), lw=0.8)
+    axes[0].plot(result.time_s, result.shaft_velocity_rad_s * 60 / (2 * np.pi), lw=0.8)
     axes[0].set_ylabel("shaft speed [rpm]")
     axes[1].plot(result.time_s, result.current_A, lw=0.8, color="tab:red")
     axes[1].set_ylabel("current [A]")
     ax_v = axes[1].twinx()
     ax_v.plot(result.time_s, result.voltage_V, lw=0.8, color="tab:gray")
     ax_v.set_ylabel("voltage [V]")
-    axes[2].plot(result.time_s, result.needle_z_mm, lw=0.8, color="tab:green")
+    axes[2].plot(result.time_s, result.tool_z_mm, lw=0.8, color="tab:green")
     axes[2].axhline(0.0, color="k", lw=0.5)
     axes[2].set_ylabel("tool above plate [mm]")
     axes[2].set_xlabel("time [s]")

@@ -37,7 +37,7 @@ import zlib
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import IO, Callable, Iterator, Mapping, Sequence
+from typing import IO, Callable, Iterator, Literal, Mapping, Sequence, get_args
 
 import numpy as np
 
@@ -60,7 +60,8 @@ FORMATS = {
     "json": ((".json", ".jsonl", ".ndjson"), None),
 }
 COMPRESSIONS = (".gz", ".bz2", ".xz", ".zip")
-WRITE_FORMATS = ("csv", "csv.gz", "parquet", "mat")
+WriteFormat = Literal["csv", "csv.gz", "parquet", "mat"]  # what write_columns writes
+WRITE_FORMATS: tuple[WriteFormat, ...] = get_args(WriteFormat)
 MAX_MATRIX_COLUMNS = 64  # a MATLAB matrix wider than this is not a signal table
 
 
@@ -751,7 +752,7 @@ def write_columns(
     path: str | os.PathLike,
     columns: Mapping[str, np.ndarray],
     comments: Sequence[str] = (),
-    fmt: str = "csv",
+    fmt: WriteFormat = "csv",
     metadata: Mapping[str, str] | None = None,
 ) -> Path:
     """Write named columns (units in the names) as ``fmt`` (one of :data:`WRITE_FORMATS`),

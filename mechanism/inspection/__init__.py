@@ -5,7 +5,7 @@ from mechanism.lazy import lazy_exports
 __all__, __getattr__, __dir__ = lazy_exports(
     __name__,
     {
-        "needle": ("NeedleMotion", "needle_motion"),
+        "tool": ("ToolMotion", "tool_motion", "NeedleMotion", "needle_motion"),
         "probes": ("Probe", "ProbeResult", "run_probes", "plot_probes"),
         "clearance": ("Pair", "check_clearance", "parse_pairs", "all_pairs"),
         "variants": (

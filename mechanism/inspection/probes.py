@@ -369,7 +369,7 @@ def probe_simulation(
         mujoco.mj_forward(model, data)
         rows.append(read_probes(model, data, attached))
     table = np.asarray(rows).reshape(len(result.time_s), -1)
-    columns = {"time_s": result.time_s, f"{machine.shaft_joint}_angle_rad": result.arm_angle_rad}
+    columns = {"time_s": result.time_s, f"{machine.shaft_joint}_angle_rad": result.shaft_angle_rad}
     columns.update({name: table[:, i] for i, name in enumerate(_columns(attached))})
     comments = [
         f"dynamic simulation of {machine.name}: "

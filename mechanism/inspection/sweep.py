@@ -34,6 +34,7 @@ from typing import Any, Callable, Sequence
 import mujoco
 import numpy as np
 
+from mechanism.batch.runner import Backend
 from mechanism.dynamics.reduced import ReducedModel
 from mechanism.errors import UserError, close_matches
 from mechanism.kinematics.linkage import LinkageTables, compute_tables, periodic_derivative
@@ -635,7 +636,7 @@ def run_sweep(
     options: SweepOptions = SweepOptions(),
     *,
     workers: int = 1,
-    backend: str = "local",
+    backend: Backend = "local",
     ray_address: str | None = None,
     progress: bool = True,
     journal: str | os.PathLike | None = None,
@@ -767,7 +768,7 @@ def _run_full(
     todo: list[int],
     keep: Callable[[int, dict[str, Any]], None],
     workers: int,
-    backend: str,
+    backend: Backend,
     ray_address: str | None,
     progress: bool,
     one_dof: bool,

@@ -32,7 +32,7 @@ METRICS = {
 def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str, Any]:
     """:data:`METRICS` of one run from rest (a voltage step at t = 0), plus a ``note`` when the
     run did not reach a steady state."""
-    t, angle, speed = result.time_s, result.arm_angle_rad, result.arm_velocity_rad_s
+    t, angle, speed = result.time_s, result.shaft_angle_rad, result.shaft_velocity_rad_s
     row: dict[str, Any] = {name: math.nan for name in METRICS}
     row["peak_current_A"] = float(np.max(np.abs(result.current_A)))
     row["breakaway_V"] = breakaway_voltage(reduced)
@@ -57,9 +57,9 @@ def variant_metrics(result: SimulationResult, reduced: ReducedModel) -> dict[str
         np.degrees(np.mod(angle[start + int(np.argmin(speed[steady]))], TWO_PI))
     )
     row["rms_current_A"] = float(np.sqrt(np.mean(result.current_A[steady] ** 2)))
-    if np.isfinite(result.needle_z_mm).all():
+    if np.isfinite(result.tool_z_mm).all():
         row["tool_above_plate_ms"] = (
-            _time_above(t[start - 1 :], result.needle_z_mm[start - 1 :]) * 1e3
+            _time_above(t[start - 1 :], result.tool_z_mm[start - 1 :]) * 1e3
         )
     previous = np.flatnonzero(angle <= angle[-1] - 2 * TWO_PI)
     if previous.size:
@@ -124,7 +124,7 @@ def bearing_loads(result: SimulationResult, bearings: Sequence[str]) -> dict[str
         return {}
     assert result.sensordata is not None
     machine_sensors = result.metadata.get("sensor_columns", {})
-    angle = result.arm_angle_rad
+    angle = result.shaft_angle_rad
     last = np.flatnonzero(angle <= angle[-1] - TWO_PI)
     window = slice(int(last[-1]) + 1 if last.size else 0, None)
     out = {}

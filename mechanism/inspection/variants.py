@@ -59,6 +59,7 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 import mujoco
 import numpy as np
 
+from mechanism.batch.runner import Backend
 from mechanism.machine import parts
 from mechanism.errors import UserError, close_matches
 
@@ -701,7 +702,7 @@ class BatchResult:
     pairs: list[Pair]
     required_mm: float
     workers: int
-    backend: str
+    backend: Backend
     seconds: float = 0.0
     extra: dict = field(default_factory=dict)
 
@@ -728,7 +729,7 @@ def run_variants(
     revolutions: float = 1.0,
     resolution_deg: float = 0.5,
     workers: int = 1,
-    backend: str = "local",
+    backend: Backend = "local",
     progress: bool = True,
     ray_address: str | None = None,
     on_row: Callable[[int, dict], None] | None = None,

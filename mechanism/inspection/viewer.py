@@ -13,7 +13,7 @@ body so that one animated transform per body moves everything on it; probe marke
 spheres on their parts, moving with them); for clearance pairs, markers at the two
 closest points of each part and a line between them drawn where they are at the minimum.
 
-Motion sources: a kinematic cycle (one arm revolution), a dynamic simulation (the
+Motion sources: a kinematic cycle (one shaft revolution), a dynamic simulation (the
 simulated joint positions), or a recording (the identification CSV contract: ``time``,
 ``voltage``, ``arm_angle``), replayed kinematically through the pose solver.
 """

@@ -36,7 +36,7 @@ import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 from mechanism.errors import UserError, close_matches
 
@@ -100,9 +100,10 @@ FRICTION_KEYS = {
     "position_joint": _name("joint whose angle sets the position dependence (default: its own)"),
 }
 
-MOTOR_TYPES = ("dc", "servo", "current")
+MotorType = Literal["dc", "servo", "current"]  # a [motor] table's type: the drive kind
+MOTOR_TYPES: tuple[MotorType, ...] = get_args(MotorType)
 # keys each drive kind needs (besides type), and the input its command is in
-MOTOR_REQUIRED = {
+MOTOR_REQUIRED: dict[MotorType, tuple[str, ...]] = {
     "dc": ("resistance_ohm", "torque_constant_Nm_per_A", "back_emf_V_s_per_rad"),
     "servo": (
         "resistance_ohm",
@@ -113,7 +114,7 @@ MOTOR_REQUIRED = {
     ),
     "current": ("torque_constant_Nm_per_A",),
 }
-MOTOR_INPUT_UNIT = {"dc": "V", "servo": "rad", "current": "A"}
+MOTOR_INPUT_UNIT: dict[MotorType, str] = {"dc": "V", "servo": "rad", "current": "A"}
 
 LIMIT_KEYS = {
     "lower_deg": Key(

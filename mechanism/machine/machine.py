@@ -24,7 +24,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast, get_args
 
 import mujoco
 import numpy as np
@@ -75,7 +75,8 @@ ACTUATOR = "drive_motor"  # the actuator the machine adds (its own name, not a C
 TORQUE_SENSOR = "drive_motor_torque"
 DEFAULT_TIMESTEP_S = 0.0005
 ZERO_SEARCH_SAMPLES = 180
-BELT_TENSIONS = ("low", "normal", "hard")
+BeltTension = Literal["low", "normal", "hard"]  # the description's [loads] belt_tension_*_Nm
+BELT_TENSIONS: tuple[BeltTension, ...] = get_args(BeltTension)
 # the voltage a hard stop is sized for where the description gives no supply voltage
 STALL_VOLTAGE_V = 24.0
 STALL_CURRENT_A = 10.0  # a current drive's stall current where the description gives no limit
@@ -93,7 +94,7 @@ class MachineConfig:
     layers: int = 0
     needle: bool = True  # the tool engages the fabric
     feeding: bool = False
-    belt_tension: str = "normal"
+    belt_tension: BeltTension = "normal"
     motor: DCMotor | None = None  # replaces the described motor
     friction: dict[str, FrictionLaw] | None = None  # replaces described laws joint by joint
     fabric: FabricLoad | None = None
@@ -763,6 +764,16 @@ class Machine:
     @property
     def plate_part(self) -> str | None:
         return self.description.section("tool").get("plate")
+
+    @property
+    def zero_meaning(self) -> str:
+        """What shaft angle 0 is, in the description's words (for reports and plot labels)."""
+        description = self.description
+        if description.zero_site is not None:
+            if description.zero_site != self.tool_site:
+                return f"{description.zero_site} highest"
+            return f"{description.zero_site} at its top"
+        return f"{self.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
 
     @property
     def fabric_capable(self) -> bool:

@@ -12,6 +12,7 @@ from mechanism.steppers._drive import (
     KINDS,
     USER_SIZE,
     DriveMode,
+    StepperKind,
     drive_mode,
     linear_stiffness,
     user_data,
@@ -23,7 +24,7 @@ def add_stepper(
     spec,
     joint: str,
     params: StepperParams,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str | DriveMode = "full",
     name: str = "stepper",
     gear: float = 1.0,
@@ -53,7 +54,7 @@ def add_stepper(
     return actuator
 
 
-def default_timestep(params: StepperParams, kind: str) -> float:
+def default_timestep(params: StepperParams, kind: StepperKind) -> float:
     """Ten steps per chopper period for the circuit model; the physical model has no
     electrical dynamics and needs only to resolve the rotor's ringing."""
     if kind == "circuit":
@@ -66,7 +67,7 @@ def default_timestep(params: StepperParams, kind: str) -> float:
 
 def build_model(
     params: StepperParams,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str | DriveMode = "full",
     timestep: float | None = None,
 ):

@@ -8,6 +8,7 @@ import ctypes
 import functools
 import math
 import warnings
+from typing import Literal
 
 from mechanism.errors import UserError
 from mechanism.steppers._drive import (
@@ -48,7 +49,10 @@ def _address(callback) -> int | None:
         return None
 
 
-def install(backend: str = "auto") -> str:
+CallbackBackend = Literal["auto", "native", "python"]  # auto: native where a C compiler is
+
+
+def install(backend: CallbackBackend = "auto") -> Literal["native", "python"]:
     """Install the stepper callbacks; returns the backend installed: ``native`` (the C
     callbacks, kept installed; idempotent) or, with ``backend="python"`` or where no C
     compiler exists, ``python``. A callback of another part installed before ours as a C

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -14,7 +15,8 @@ from mechanism.steppers._motor import StepperParams
 
 # Layout of actuator_user, mirrored in mechanism/native/stepper.c.
 MARKER = 870048.0
-KIND_CODES = {"circuit": 1, "physical": 2}
+StepperKind = Literal["circuit", "physical"]  # the stepper model: its circuit, or physical
+KIND_CODES: dict[StepperKind, int] = {"circuit": 1, "physical": 2}
 (
     USER_MARKER,
     USER_KIND,
@@ -34,7 +36,7 @@ KIND_CODES = {"circuit": 1, "physical": 2}
     USER_SIZE,
 ) = range(16)
 CIRCUIT_ACTDIM = 4  # i_a, i_b, chopper_a, chopper_b
-KINDS = tuple(KIND_CODES)
+KINDS: tuple[StepperKind, ...] = get_args(StepperKind)
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,7 @@ def rest_angle_rad(params: StepperParams, mode: DriveMode, steps=0.0):
 
 
 def linear_stiffness(
-    params: StepperParams, kind: str, mode: DriveMode, steps: float = 0.0
+    params: StepperParams, kind: StepperKind, mode: DriveMode, steps: float = 0.0
 ) -> float:
     """dT/dtheta [N m/rad] at rest at the commanded position (unloaded, standstill):
     the linearised model whose ringing frequency is sqrt(K / J)."""
@@ -144,7 +146,7 @@ def linear_stiffness(
     return p * params.physical_kt_Nm_A * params.supply_V / params.resistance_ohm * magnitude
 
 
-def user_data(params: StepperParams, kind: str, mode: DriveMode) -> list[float]:
+def user_data(params: StepperParams, kind: StepperKind, mode: DriveMode) -> list[float]:
     if kind not in KIND_CODES:
         raise UserError(f"unknown stepper model '{kind}': use {' or '.join(KINDS)}")
     u = [0.0] * USER_SIZE

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
-from mechanism.steppers._drive import DriveMode
+from mechanism.steppers._drive import DriveMode, StepperKind
 from mechanism.steppers._motor import StepperParams
 from mechanism.steppers.step_profiles import StepProfile
 
@@ -17,7 +18,7 @@ class StepperRun:
     """One simulated sequence at the simulation's full time resolution. Angles are
     relative to the start (the rest position of step 0), unwrapped."""
 
-    kind: str
+    kind: StepperKind
     mode: DriveMode
     params: StepperParams
     profile: StepProfile
@@ -28,7 +29,7 @@ class StepperRun:
     current_a_A: np.ndarray
     current_b_A: np.ndarray
     torque_Nm: np.ndarray
-    backend: str = "native"
+    backend: Literal["native", "python"] = "native"  # the callbacks that ran
     wall_s: float = 0.0
     summary: dict = field(default_factory=dict)
 
@@ -171,7 +172,7 @@ def plot_run(run: StepperRun, path) -> None:
     save_figure(fig, path)
 
 
-def plot_sweep(results: dict[str, list[dict]], path) -> None:
+def plot_sweep(results: dict[StepperKind, list[dict]], path) -> None:
     """Lost steps against the step rate, one line per model."""
     from mechanism.files.plotting import plt, save_figure
 

@@ -10,9 +10,10 @@ import numpy as np
 
 from mechanism.errors import UserError
 from mechanism.steppers._actuator import build_model, default_timestep
-from mechanism.steppers._callbacks import install, python_callbacks
+from mechanism.steppers._callbacks import CallbackBackend, install, python_callbacks
 from mechanism.steppers._drive import (
     DriveMode,
+    StepperKind,
     _physical_current,
     drive,
     drive_mode,
@@ -48,7 +49,7 @@ def _state_slices(model):
     )
 
 
-def initial_state(model, params: StepperParams, mode: DriveMode, kind: str):
+def initial_state(model, params: StepperParams, mode: DriveMode, kind: StepperKind):
     """The motor at rest at step 0, energised (currents at their references)."""
     import mujoco
 
@@ -70,7 +71,9 @@ def command_array(
     return rest_angle_rad(params, mode, profile.position_steps(time_s))
 
 
-def run_rollout(model, states0: np.ndarray, controls: np.ndarray, backend: str = "auto"):
+def run_rollout(
+    model, states0: np.ndarray, controls: np.ndarray, backend: CallbackBackend = "auto"
+):
     """Roll out ``controls`` (nbatch x nstep) from ``states0`` (nbatch x nstate); returns the
     states *before* each step and the sensor data of each step, aligned in time."""
     import mujoco
@@ -100,12 +103,12 @@ def run_rollout(model, states0: np.ndarray, controls: np.ndarray, backend: str =
 
 def simulate(
     profile: StepProfile,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str | DriveMode = "full",
     params: StepperParams | None = None,
     timestep: float | None = None,
     settle_s: float = 0.1,
-    backend: str = "auto",
+    backend: CallbackBackend = "auto",
 ) -> StepperRun:
     """Run ``profile`` on the bare motor and analyse it (``run.summary``)."""
     params = params or pm25s048()
@@ -162,13 +165,13 @@ def _make_run(model, params, kind, mode, profile, time_s, controls, before, sens
 
 def sweep_rates(
     rates,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str | DriveMode = "full",
     params: StepperParams | None = None,
     ramp_s: float = 0.1,
     hold_s: float = 0.05,
     settle_s: float = 0.05,
-    backend: str = "auto",
+    backend: CallbackBackend = "auto",
     progress: bool = False,
 ) -> list[dict]:
     """Ramp up to each rate, hold, ramp down and settle; report the slips. The rate at
@@ -211,7 +214,7 @@ def sweep_rates(
 
 
 def pull_out_rate(
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str | DriveMode = "full",
     params: StepperParams | None = None,
     low: float = 250.0,
@@ -241,11 +244,11 @@ def pull_out_rate(
 
 def holding_torque(
     displacement_rad,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str | DriveMode = "full",
     params: StepperParams | None = None,
     hold_s: float = 0.004,
-    backend: str = "auto",
+    backend: CallbackBackend = "auto",
 ) -> np.ndarray:
     """Static torque [N m] with the rotor held at ``displacement_rad`` from the rest position
     of step 0, motor energised (the data sheet's torque-displacement curve). The rotor is

@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from mechanism.steppers import step_profiles
+from mechanism.steppers._drive import StepperKind
 from mechanism.steppers._motor import StepperParams, described_step_rate, pm25s048
 from mechanism.steppers._simulation import simulate
 from mechanism.errors import UserError
@@ -168,20 +169,20 @@ class NeedleProfile:
 
 def machine_needle_profile(description=None, model_path=None) -> NeedleProfile:
     """The tool (needle) height over shaft angle of a described machine (default: the shipped
-    one; ``model_path`` replaces its MJCF), from its kinematics (``mechanism.inspection.needle``)."""
+    one; ``model_path`` replaces its MJCF), from its kinematics (``mechanism.inspection.tool``)."""
     from dataclasses import replace
     from pathlib import Path
 
-    from mechanism.inspection.needle import needle_motion
+    from mechanism.inspection.tool import tool_motion
     from mechanism.machine.machine import Machine, resolve_description
 
     description = resolve_description(description)
     if model_path is not None:
         description = replace(description, model=Path(model_path))
-    motion = needle_motion(Machine(description), samples=720)
+    motion = tool_motion(Machine(description), samples=720)
     return NeedleProfile.from_table(
-        np.deg2rad(motion.arm_angle_deg),
-        motion.needle_z_mm,
+        np.deg2rad(motion.shaft_angle_deg),
+        motion.tool_z_mm,
         f"machine {description.name}" if model_path is None else str(model_path),
     )
 
@@ -243,7 +244,7 @@ def check_move(
     rate: float | None = None,
     linkage: ZigzagLinkage | None = None,
     params: StepperParams | None = None,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str = "full",
     ramp_steps: float = 0.0,
     clearance_mm: float = 0.0,
@@ -308,7 +309,7 @@ def sew(
     rate: float | None = None,
     linkage: ZigzagLinkage | None = None,
     params: StepperParams | None = None,
-    kind: str = "circuit",
+    kind: StepperKind = "circuit",
     mode: str = "full",
     clearance_mm: float = 0.0,
     tolerance_mm: float | None = None,

@@ -36,10 +36,10 @@ TWO_PI = 2 * np.pi
 
 
 def ripple(result, last_s: float = 3.0, bins: int = 72) -> tuple[float, float]:
-    """(half peak-to-peak of the phase-averaged arm speed [rad/s], arm angle of its minimum [deg])."""
+    """(half peak-to-peak of the phase-averaged shaft speed [rad/s], shaft angle of its minimum [deg])."""
     window = result.window(last_s)
-    speed = result.arm_velocity_rad_s[window]
-    angle = np.mod(result.arm_angle_rad[window], TWO_PI)
+    speed = result.shaft_velocity_rad_s[window]
+    angle = np.mod(result.shaft_angle_rad[window], TWO_PI)
     index = np.minimum((angle / TWO_PI * bins).astype(int), bins - 1)
     profile = np.bincount(index, speed, bins) / np.maximum(np.bincount(index, minlength=bins), 1)
     return float(np.ptp(profile) / 2), float(np.degrees((np.argmin(profile) + 0.5) * TWO_PI / bins))
@@ -172,7 +172,7 @@ def fit_warming_and_supply(description=None, start=(0.5, 0.05, 3.5e-5, 30.0)):
             )
             run = reduced.simulate(float(volts), 6.0)
             out.append(
-                np.log(run.arm_velocity_rad_s[run.window(2.0)].mean() * 60 / TWO_PI / measured)
+                np.log(run.shaft_velocity_rad_s[run.window(2.0)].mean() * 60 / TWO_PI / measured)
             )
         return np.array(out)
 

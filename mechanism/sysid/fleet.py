@@ -29,6 +29,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from mechanism.batch.runner import Backend
 from mechanism.errors import UserError
 
 OUTLIER_Z = 3.5
@@ -149,7 +150,7 @@ def diagnose_fleet(
     paths: Sequence[str | os.PathLike],
     out_dir: str | os.PathLike,
     workers: int = 1,
-    backend: str = "local",
+    backend: Backend = "local",
     ray_address: str | None = None,
     progress: bool = True,
     on_recording: Callable[[str, dict], None] | None = None,
@@ -201,7 +202,7 @@ def diagnose_fleet(
     return result
 
 
-def _fit_threads(backend: str, workers: int) -> int | None:
+def _fit_threads(backend: Backend, workers: int) -> int | None:
     """Threads for the fits inside one diagnosis: alone, its default (as a single run); beside
     other local workers, a share of the cores; on Ray, the one CPU its task holds."""
     if backend != "local":

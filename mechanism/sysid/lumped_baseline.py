@@ -3,6 +3,8 @@ with typed parameters (starting values and bounds from the described drive)."""
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 import numpy as np
 
 from mechanism.dynamics.lumped import Drive, DriveNominal, MotorConstants, Signals, lagged_voltage
@@ -40,6 +42,12 @@ def motor_parameters(motor: MotorConstants, free: tuple[str, ...] = ()) -> list[
     return out
 
 
+Baseline = Literal["lumped", "multibody"]
+"""The baseline model identification and diagnosis fit: this lumped drive, or the machine's
+reduced multibody model (:class:`~mechanism.sysid.multibody_baseline.MultibodyBaseline`)."""
+BASELINES: tuple[Baseline, ...] = get_args(Baseline)
+
+
 class LumpedBaseline:
     """The thesis's lumped model without ripple: constant inertia, viscous and Coulomb
     friction, DC motor through the belt (ratio from the nominal drive). Parameters in the
@@ -54,7 +62,7 @@ class LumpedBaseline:
     for. It also absorbs when a logged voltage sample takes effect (a half-sample timing
     convention is a 0.5 ms lag)."""
 
-    name = "lumped"
+    name: Baseline = "lumped"
     linear: tuple[str, ...] = (
         "inertia_motor_side_kgm2",
         "viscous_motor_side_Nm_s_per_rad",

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 
 from mechanism.dynamics.lumped import Drive, Signals
-from mechanism.sysid.lumped_baseline import LumpedBaseline
+from mechanism.sysid.lumped_baseline import Baseline, LumpedBaseline
 from mechanism.sysid.parameters import Parameter
 from mechanism.tolerances import (
     CAD_GRAVITY_TOLERANCE,
@@ -30,7 +30,7 @@ from mechanism.tolerances import (
 
 
 class MultibodyBaseline(LumpedBaseline):
-    name = "multibody"
+    name: Baseline = "multibody"
     linear = (
         "inertia_correction_motor_side_kgm2",
         "viscous_motor_side_Nm_s_per_rad",

@@ -41,14 +41,7 @@ def machine_drive_nominal(machine: Machine) -> DriveNominal:
         motor.resistance_ohm, motor.torque_constant_Nm_A, motor.back_emf_V_s_rad, ratio
     )
     description = machine.description
-    if description.zero_site is not None:
-        zero = (
-            f"{description.zero_site} highest"
-            if description.zero_site != machine.tool_site
-            else f"{description.zero_site} at its top"
-        )
-    else:
-        zero = f"{machine.shaft_joint} at {description.section('drive')['zero_angle_deg']:g} deg"
+    zero = machine.zero_meaning
     inertia = tables.mean_inertia_kgm2
     linkage: LinkageTables | None = tables
     lumped = description.section("lumped")

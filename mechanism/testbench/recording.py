@@ -11,6 +11,7 @@ import numpy as np
 
 from mechanism import __version__
 from mechanism.errors import UserError, close_matches
+from mechanism.files.formats import WriteFormat
 from mechanism.files.outputs import atomic_file, transaction
 from mechanism.testbench import rocking
 from mechanism.testbench import simulate as sim
@@ -531,10 +532,15 @@ def make_recording(
     )
 
 
-RECORDING_ENDINGS = {".csv": "csv", ".csv.gz": "csv.gz", ".parquet": "parquet", ".mat": "mat"}
+RECORDING_ENDINGS: dict[str, WriteFormat] = {
+    ".csv": "csv",
+    ".csv.gz": "csv.gz",
+    ".parquet": "parquet",
+    ".mat": "mat",
+}
 
 
-def recording_format(path: str | Path) -> tuple[str, str]:
+def recording_format(path: str | Path) -> tuple[WriteFormat, str]:
     """(format, ending) of a recording file name the bench writes; UserError for another."""
     name = Path(path).name.lower()
     for ending in sorted(RECORDING_ENDINGS, key=len, reverse=True):
@@ -552,7 +558,7 @@ def truth_path_for(csv_path: str | Path) -> Path:
 
 
 def write_recording(
-    recording: Recording, csv_path: str | Path, fmt: str | None = None
+    recording: Recording, csv_path: str | Path, fmt: WriteFormat | None = None
 ) -> tuple[Path, Path]:
     """Write the recording (contract columns only) in the format its name ends in (``fmt``,
     when given, must agree) and its truth JSON next to it, atomically."""
