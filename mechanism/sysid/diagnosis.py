@@ -86,6 +86,15 @@ TIE_BAND = 0.03
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
+# Fits that compare models (screening, refits, the backward and pruning steps, pairs) stop when
+# an iteration improves the cost by less than 1e-4 relative: far finer than the 3 % tie band
+# and the 30-35 % gains they decide, and a quarter fewer simulations than the 1e-5 that an
+# accepted model is converged to ("converging" below). Measured against 1e-5 on 35 bench
+# recordings (12 effects x 2 seeds, 3 clean, 5 pairs, 3 mixes of 3-4 effects): the same
+# findings in every one, the final validation rmse within 0.05 % in 33 and 8-9 % apart in two
+# non-smooth fits whose optimum moves even with rounding (backlash 0.031 -> 0.034 rad/s,
+# supply nonlinearity 0.0097 -> 0.0088); 25 % less CPU.
+COMPARE_TOLERANCE = 1e-4
 
 
 # ----------------------------------------------------------------------------- locate
@@ -515,6 +524,7 @@ def _screen_and_refit(
             {
                 "free": base_names + [p.name for p in e.parameters],
                 "max_nfev": 12,
+                "tolerance": COMPARE_TOLERANCE,
                 "part": "screen",
                 "scout_nfev": 0,
             },
@@ -537,7 +547,7 @@ def _screen_and_refit(
                 problem,
                 results[n].structure,
                 [results[n].values, {**current.values, **by_name[n].null()}],
-                {"max_nfev": 25, "scout_nfev": 0},
+                {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
             )
             for n in top
         ],
@@ -839,7 +849,7 @@ def _prune(
                 problem,
                 _without(start, findings, i),
                 [{k: v for k, v in current.values.items() if k not in own[i]}],
-                {"max_nfev": 25},
+                {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
             )
             for i in range(len(findings))
         ]
@@ -885,7 +895,7 @@ def _chain(
                     problem,
                     structure,
                     [{n: v for n, v in current.values.items() if n in names}],
-                    {"max_nfev": 25},
+                    {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
                 )
             )
         for k, prefix in zip(missing, _fit_all(jobs, workers)):
@@ -927,7 +937,7 @@ def _prefer_library(
                     problem,
                     structure,
                     [{**start, **s} for s in _starts(e, current, problem, located)],
-                    {"max_nfev": 25, "scout_nfev": 0},
+                    {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
                 )
             )
         tick(f"a library name for {finding.effect.name}?")
@@ -993,7 +1003,7 @@ def _best_pair(
     for a, b in pairs:
         structure = current.structure.with_effect(lib[a]).with_effect(lib[b])
         start = {**singles[b].values, **singles[a].values}
-        jobs.append((problem, structure, [start], {"max_nfev": 25}))
+        jobs.append((problem, structure, [start], {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE}))
     tick(f"refitting {len(pairs)} pairs")
     fits = _fit_all(jobs, workers)
     i = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
@@ -1016,7 +1026,14 @@ def _drop_redundant(
         return findings, current
     jobs = []
     for i in range(len(findings) - 1):
-        jobs.append((problem, _without(start, findings, i), [current.values], {"max_nfev": 25}))
+        jobs.append(
+            (
+                problem,
+                _without(start, findings, i),
+                [current.values],
+                {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
+            )
+        )
     tick("checking earlier findings")
     fits = _fit_all(jobs, workers)
     best_i = min(range(len(fits)), key=lambda i: fits[i].rmse_val)

@@ -290,12 +290,15 @@ def fit(
     scout_nfev: int = 3,
     progress: Callable[[], None] | None = None,
     part: str = "fit",
+    tolerance: float = 1e-5,
 ) -> FitResult:
     """Least-squares fit of the parameters of ``structure`` on the fit segments.
 
     ``starts`` are initial guesses (missing names take the nominal value). With several,
     each gets a few iterations (``scout_nfev``; 0: one evaluation) and only the best is refined. ``free``
     names the parameters to fit (default: all); the others stay at the first start's values.
+    ``tolerance``: the relative change of the cost (and of the scaled parameters) at which
+    the optimiser stops.
     """
     every = structure.parameters
     params = [p for p in every if free is None or p.name in free]
@@ -344,8 +347,8 @@ def fit(
                 diff_step=DIFF_STEP,
                 method="trf",
                 max_nfev=nfev,
-                xtol=1e-5,
-                ftol=1e-5,
+                xtol=tolerance,
+                ftol=tolerance,
                 gtol=1e-8,
             )
 
