@@ -28,6 +28,8 @@ STEPS_V = (
     np.array([0.2, 0.5, 0.8, 0.0, 0.3]),
 )
 TOP_VOLTAGE_V = 24.0
+# a servo's goal steps instead, at the same times: fractions of the shaft's travel
+GOAL_FRACTIONS = np.array([0.5, 0.8, 0.2, 0.5, 0.65])
 # added inertia up to 4x the shaft side's own
 FLYWHEEL_MULTIPLE, FLYWHEEL_STEPS, FLYWHEEL_RUN_S = (
     4.0,
@@ -53,7 +55,10 @@ def _convert(machine: mechanism.Machine, out: Path, final: Path) -> dict:
                 f"{machine.name}: no CAD export shipped; the model is {machine.model_path.name}"
             ]
         }
-    report = mechanism.convert(export, out / "model")
+    # the export's up axis: the description's, else the export's own gravity vector, else z
+    report = mechanism.convert(
+        export, out / "model", up=machine.description.section("machine").get("up")
+    )
     lines = [line.replace(str(out), str(final)) for line in mechanism.conversion_summary(report)]
     (out / "model" / "conversion.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     counts = {
@@ -123,14 +128,9 @@ def _simulate(machine: mechanism.Machine, out: Path) -> dict:
                 "measured steady shaft speeds (no tool load) against the full multibody model"
             ],
         )
-    times, fractions = STEPS_V
-    steps = mechanism.VoltageProfile(times, fractions * TOP_VOLTAGE_V)
-    run = mechanism.simulate(machine, voltage_V=steps, duration_s=7.0)
-    mechanism.write_table(
-        out / "simulate_steps.csv",
-        run.columns(),
-        comments=["voltage steps " + " / ".join(f"{v:g}" for v in steps.voltage_V) + " V"],
-    )
+    inputs, comment = _steps(machine)
+    run = mechanism.simulate(machine, voltage_V=inputs, duration_s=7.0)
+    mechanism.write_table(out / "simulate_steps.csv", run.columns(), comments=[comment])
     mechanism.plot_simulation(run, out / "simulate_steps.png")
     facts["steps_final_rpm"] = run.mean_speed_rpm
     if machine.fabric_capable:
@@ -143,6 +143,32 @@ def _simulate(machine: mechanism.Machine, out: Path) -> dict:
         mechanism.plot_simulation(sewing, out / "sewing_12_layers.png")
         facts["sewing_mean_rpm"] = sewing.mean_speed_rpm
     return facts
+
+
+def _steps(machine: mechanism.Machine) -> tuple:
+    """The main motor's input steps and what they are: voltage steps for a dc motor, goal steps
+    over the shaft's travel (in the servo joint's own coordinate) for a servo."""
+    times, fractions = STEPS_V
+    kind = machine.description.drive_tables[machine.motor_joint]["type"]
+    if kind == "dc":
+        steps = mechanism.VoltageProfile(times, fractions * TOP_VOLTAGE_V)
+        return steps, "voltage steps " + " / ".join(f"{v:g}" for v in steps.voltage_V) + " V"
+    if kind != "servo":
+        raise mechanism.UserError(
+            f"the demo steps a dc motor's voltage or a servo's goal; the main motor on "
+            f"{machine.motor_joint} is a {kind} drive"
+        )
+    low, high = machine.shaft_span_rad or (0.0, 2 * np.pi)
+    shaft = low + GOAL_FRACTIONS * (high - low)
+    goals = []
+    for angle in shaft:  # the servo joint's position with the shaft there
+        machine.reset(float(angle))
+        goals.append(float(machine.data.qpos[machine.motor_qpos]))
+    machine.reset(0.0)
+    text = " / ".join(f"{np.degrees(a):.4g}" for a in shaft)
+    return {machine.motor_joint: mechanism.VoltageProfile(times, np.array(goals))}, (
+        f"servo goal steps on {machine.motor_joint}: shaft at {text} deg"
+    )
 
 
 def _flywheel(machine: mechanism.Machine, out: Path) -> dict | None:
@@ -210,7 +236,7 @@ def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
     facts["conversion"] = _convert(machine, out, final / name)
     step(f"{name}: tool motion over one shaft revolution")
     facts["tool"] = _tool(machine, out)
-    step(f"{name}: simulate (steady speeds against measurements, voltage steps, a sewing run)")
+    step(f"{name}: simulate (steady speeds against measurements, input steps, a sewing run)")
     facts["simulation"] = _simulate(machine, out)
     step(f"{name}: flywheel study (speed ripple and settling against added shaft inertia)")
     facts["flywheel"] = _flywheel(machine, out)

@@ -1,6 +1,6 @@
 """Every shipped machine (menagerie style): its description loads, its self-contained MJCF
 and its scene compile and step in stock MuJoCo without a single warning, and the machine
-runs forward under a positive voltage."""
+runs forward under a positive voltage (a servo: towards a positive goal)."""
 
 import mujoco
 import numpy as np
@@ -36,9 +36,17 @@ def test_self_contained_mjcf_steps_in_stock_mujoco(name, tmp_path):
     machine = mechanism.load_machine(name)
     path = machine.to_xml(tmp_path / f"{name}.xml")
     model = mujoco.MjModel.from_xml_path(str(path))
+    shaft = model.joint(machine.shaft_joint)
+    if machine.description.drive_tables[machine.motor_joint]["type"] == "servo":
+        # a servo's actuator carries its position loop: ctrl is the goal of its joint (rad)
+        assert model.nu == 1 and model.actuator_biastype[0] == mujoco.mjtBias.mjBIAS_AFFINE
+        start = model.qpos0[shaft.qposadr[0]]
+        data = _step_without_warnings(model, 12.0, 1.0)
+        # forward towards a positive goal
+        assert machine.frame.direction * (data.qpos[shaft.qposadr[0]] - start) > 0
+        return
     assert model.nu == 1 and model.actuator_dyntype[0] == mujoco.mjtDyn.mjDYN_DCMOTOR
     data = _step_without_warnings(model, 12.0, 1.0)
-    shaft = model.joint(machine.shaft_joint)
     # forward under a positive voltage
     assert machine.frame.direction * data.qvel[shaft.dofadr[0]] > 0
 
