@@ -88,12 +88,12 @@ REFINE_TOP = 3  # candidates refitted with every parameter free after the screen
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
 # Fits that compare models (screening, refits, the backward and pruning steps, pairs) stop when
 # an iteration improves the cost by less than 1e-4 relative: far finer than the 3 % tie band
-# and the 30-35 % gains they decide, and a quarter fewer simulations than the 1e-5 that an
-# accepted model is converged to ("converging" below). Measured against 1e-5 on 35 bench
-# recordings (12 effects x 2 seeds, 3 clean, 5 pairs, 3 mixes of 3-4 effects): the same
-# findings in every one, the final validation rmse within 0.05 % in 33 and 8-9 % apart in two
-# non-smooth fits whose optimum moves even with rounding (backlash 0.031 -> 0.034 rad/s,
-# supply nonlinearity 0.0097 -> 0.0088); 25 % less CPU.
+# and the 30-35 % gains they decide. An accepted model is still converged to 1e-5
+# ("converging" below). Measured against 1e-5 on 35 bench recordings (12 effects x 2 seeds,
+# 3 clean, 5 pairs, 3 mixes of 3-4 effects): the same findings in every one, the final
+# validation rmse within 0.05 % in 33 and 8-9 % apart in two non-smooth fits whose optimum
+# moves even with rounding (backlash 0.031 -> 0.034 rad/s, supply nonlinearity 0.0097 ->
+# 0.0088); a fifth fewer simulations (16,519 -> 13,428 over six of them).
 COMPARE_TOLERANCE = 1e-4
 
 
