@@ -51,6 +51,10 @@ VERBS = {
         ["run.csv", "run.png"],
     ),
     "needle": (["needle", "--samples", "90", "--csv", "{out}/needle.csv"], ["needle.csv"]),
+    "tool": (
+        ["tool", "--samples", "90", "--csv", "{out}/tool.csv", "--plot", "{out}/tool.png"],
+        ["tool.csv", "tool.png"],
+    ),
     "probe": (
         [
             "probe",
@@ -70,7 +74,8 @@ VERBS = {
     ),
     "view": (["view", "--frames", "10", "--html", "{out}/view.html"], ["view.html"]),
     "convert": (["convert", str(EXPORT), "-o", "{out}/model"], ["model/"]),
-    "init": (["init", str(EXPORT), "-o", "{out}/machine.toml"], ["machine.toml"]),
+    # --force: the previous description is there on purpose (init keeps an edited one otherwise)
+    "init": (["init", str(EXPORT), "-o", "{out}/machine.toml", "--force"], ["machine.toml"]),
     "sweep": (
         ["sweep", "--variants", "{variants}", "--duration", "0.5", "--csv", "{out}/sweep.csv"],
         ["sweep.csv"],
