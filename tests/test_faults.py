@@ -565,3 +565,51 @@ def test_what_a_signal_broke_on_its_way_out_still_ends_as_interrupted(monkeypatc
     assert cli.main(["inspect-recording", str(REPO / "README.md")]) == 143
     err = capsys.readouterr().err
     assert err.strip().splitlines()[-1] == "error: interrupted" and "Traceback" not in err, err
+
+
+def test_a_signal_landing_where_python_ignores_exceptions_still_ends_the_run(monkeypatch, capsys):
+    """A signal can land in an at-fork hook (after each fork of Ray's or a subprocess's) or a
+    finaliser, where Python ignores the exception its handler raises: the run went on to its
+    end and exited 0. It is delivered again from outside, and the run ends as interrupted,
+    without Python's "Exception ignored" text."""
+    import mechanism.cli as cli
+    from mechanism.files import interrupts
+
+    class LandsInAFinaliser:
+        def __del__(self):
+            signal.raise_signal(signal.SIGTERM)
+            for _ in range(1000):  # the handler runs here, and its exception is ignored
+                pass
+
+    finished = []
+
+    def verb(args):
+        LandsInAFinaliser()  # collected at once
+        time.sleep(3.0)  # the run's work, which the signal must end
+        finished.append(True)
+        return 0
+
+    monkeypatch.setattr(cli, "run_verb", verb)
+    monkeypatch.setitem(interrupts._state, "interrupted", None)  # put back after the test
+    assert cli.main(["inspect-recording", str(REPO / "README.md")]) == 143
+    assert not finished
+    err = capsys.readouterr().err
+    assert err.strip().splitlines()[-1] == "error: interrupted", err
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+
+
+def test_a_cli_run_imports_ray_without_its_failure_signal_handler(monkeypatch):
+    """Ray's C++ failure-signal handler also catches SIGTERM and arms a 3 s alarm that aborted
+    runs signalled while ``ray.init`` ran (exit 134): a run of the CLI (its handlers installed)
+    imports Ray with the handler off; a notebook keeps Ray's default."""
+    pytest.importorskip("ray")
+    from mechanism.batch import runner
+    from mechanism.files import interrupts
+
+    monkeypatch.delenv(runner.NO_FAILURE_SIGNAL_HANDLER, raising=False)
+    monkeypatch.setitem(interrupts._state, "installed", False)
+    runner._import_ray()
+    assert runner.NO_FAILURE_SIGNAL_HANDLER not in os.environ
+    monkeypatch.setitem(interrupts._state, "installed", {signal.SIGTERM: signal.SIG_DFL})
+    runner._import_ray()
+    assert os.environ[runner.NO_FAILURE_SIGNAL_HANDLER] == "1"

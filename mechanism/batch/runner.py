@@ -229,7 +229,20 @@ def _terminate_workers(pool) -> None:
 # -- Ray --------------------------------------------------------------------------------------
 
 
+# Ray's switch for its C++ core's failure-signal handler, read once, when Ray is imported
+NO_FAILURE_SIGNAL_HANDLER = "RAY_DISABLE_FAILURE_SIGNAL_HANDLER"
+
+
 def _import_ray():
+    """Ray, for a run of the CLI without its C++ core's failure-signal handler: that handler
+    also catches SIGTERM, prints a stack and arms a 3 s alarm, which then aborts the run while it
+    cleans up (exit 134, not 143: 3 of 12 runs under load, signalled while ``ray.init`` started
+    the instance). The instance the run starts inherits the setting (its workers' crashes then
+    leave no C++ stack in their logs). A notebook keeps Ray's behaviour."""
+    from mechanism.files import interrupts
+
+    if interrupts.installed():
+        os.environ.setdefault(NO_FAILURE_SIGNAL_HANDLER, "1")
     try:
         import ray
     except ImportError:
@@ -254,9 +267,8 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
     if address:
         _check_reachable(address)
         try:
-            with (
-                _native_stderr_muted()
-            ):  # Ray's C++ core logs every failed attempt to reach the cluster
+            # Ray's C++ core logs every failed attempt to reach the cluster
+            with _native_stderr_muted(), _our_signal_handlers_kept(ray):
                 ray.init(address=address, **quiet)  # no resource arguments: the cluster has its own
         except (ConnectionError, RuntimeError, ValueError) as exc:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
@@ -273,7 +285,7 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
         try:
-            with _our_sigterm_handler_kept(ray):
+            with _our_signal_handlers_kept(ray):
                 ray.init(
                     address="local",
                     num_cpus=workers,
@@ -299,10 +311,11 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
 
 
 @contextlib.contextmanager
-def _our_sigterm_handler_kept(ray):
-    """While ``ray.init`` starts an instance, a SIGTERM still interrupts the run in order:
-    Ray would install handlers that ``sys.exit`` (status 15, or 1 after killing its processes)
-    and so bypass the run's cleanup. Only where the CLI's handlers are installed."""
+def _our_signal_handlers_kept(ray):
+    """While ``ray.init`` starts an instance or connects, a SIGTERM still interrupts the run in
+    order: Ray would install handlers that ``sys.exit`` (status 15, or 1 after killing its
+    processes) and so bypass the run's cleanup. Only where the CLI's handlers are installed (a
+    notebook keeps Ray's behaviour); see also :func:`_import_ray`."""
     from mechanism.files import interrupts
 
     utils = getattr(getattr(ray, "_private", None), "utils", None)

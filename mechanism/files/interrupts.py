@@ -16,7 +16,9 @@ there takes effect when the block ends.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 import threading
 from typing import Any
 
@@ -36,7 +38,13 @@ class Interrupted(KeyboardInterrupt):
         return EXIT_STATUS.get(self.signum, 130)
 
 
-_state: dict[str, Any] = {"installed": False, "interrupted": None, "depth": 0, "pending": None}
+_state: dict[str, Any] = {
+    "installed": False,
+    "interrupted": None,
+    "depth": 0,
+    "pending": None,
+    "unraisablehook": sys.unraisablehook,
+}
 
 
 def _handler(signum, frame):  # noqa: ARG001 - signal API
@@ -47,6 +55,25 @@ def _handler(signum, frame):  # noqa: ARG001 - signal API
         return
     _state["interrupted"] = signum
     raise Interrupted(signum)
+
+
+def _unraisable(unraisable) -> None:
+    """The signal's exception was raised where Python ignores exceptions (a signal landing in an
+    at-fork hook, as after a fork of Ray's or a subprocess's: the run went on to the end and
+    exited 0): deliver the signal again, from outside that place, a moment later."""
+    exc = unraisable.exc_value
+    if isinstance(exc, Interrupted) and _state["interrupted"] == exc.signum:
+        _state["interrupted"] = None
+        again = threading.Timer(0.01, _deliver_again, (exc.signum,))
+        again.daemon = True
+        again.start()
+        return
+    _state["unraisablehook"](unraisable)
+
+
+def _deliver_again(signum: int) -> None:
+    if installed():  # not once a test calling main in-process has its own handlers back
+        os.kill(os.getpid(), signum)
 
 
 def install() -> None:
@@ -61,6 +88,9 @@ def install() -> None:
     signal.signal(signal.SIGTERM, _handler)
     if hasattr(signal, "SIGXFSZ"):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    if sys.unraisablehook is not _unraisable:
+        _state["unraisablehook"] = sys.unraisablehook
+        sys.unraisablehook = _unraisable
     _state.update(installed=previous, interrupted=None, depth=0, pending=None)
 
 
@@ -93,6 +123,8 @@ def restore() -> None:
         for number, handler in previous.items():
             if handler is not None:
                 signal.signal(number, handler)
+        if sys.unraisablehook is _unraisable:
+            sys.unraisablehook = _state["unraisablehook"]
     _state["installed"] = False
 
 
