@@ -6,11 +6,9 @@ table's historical column names, header and help, unchanged (scripts read its fi
 
 from __future__ import annotations
 
-from mechanism.files.limits import number
-
 import argparse
 
-from mechanism.cli._machine import add_machine_arguments
+from mechanism.cli.tool import add_options
 
 ORDER = 21  # after its generic name, mechanism tool
 
@@ -42,34 +40,8 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    add_machine_arguments(parser)
-    parser.add_argument(
-        "--csv",
-        required=True,
-        metavar="OUT.csv",
-        help="table over the revolution (units in column names)",
-    )
-    parser.add_argument(
-        "--plot",
-        metavar="OUT.png",
-        help="position, velocity and acceleration vs arm angle (PNG, SVG or PDF)",
-    )
-    parser.add_argument(
-        "--samples",
-        type=int,
-        default=360,
-        metavar="N",
-        help="equally spaced arm angles over the revolution (36 to 36000, default 360 = 1 deg)",
-    )
-    parser.add_argument(
-        "--speed",
-        type=number(0, 1e5, "rpm", low_open=True),
-        metavar="RPM",
-        help="arm-shaft speed [rpm]: adds velocity in mm/s and acceleration in mm/s^2 at that constant speed",
-    )
-    parser.set_defaults(
-        handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",)
-    )
+    add_options(parser, angle="arm angle", speed="arm-shaft speed")
+    parser.set_defaults(handler=run)
 
 
 def run(args) -> int:

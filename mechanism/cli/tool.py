@@ -48,6 +48,14 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    add_options(parser, angle="shaft angle", speed="shaft speed")
+    parser.set_defaults(handler=run)
+
+
+def add_options(parser: argparse.ArgumentParser, angle: str, speed: str) -> None:
+    """The machine, the outputs, the sampling and the speed: the options of ``tool`` and of
+    ``needle``, in the words of each (``angle``: what the table runs over; ``speed``: what
+    --speed is)."""
     add_machine_arguments(parser)
     parser.add_argument(
         "--csv",
@@ -58,24 +66,22 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--plot",
         metavar="OUT.png",
-        help="position, velocity and acceleration vs shaft angle (PNG, SVG or PDF)",
+        help=f"position, velocity and acceleration vs {angle} (PNG, SVG or PDF)",
     )
     parser.add_argument(
         "--samples",
         type=int,
         default=360,
         metavar="N",
-        help="equally spaced shaft angles over the revolution (36 to 36000, default 360 = 1 deg)",
+        help=f"equally spaced {angle}s over the revolution (36 to 36000, default 360 = 1 deg)",
     )
     parser.add_argument(
         "--speed",
         type=number(0, 1e5, "rpm", low_open=True),
         metavar="RPM",
-        help="shaft speed [rpm]: adds velocity in mm/s and acceleration in mm/s^2 at that constant speed",
+        help=f"{speed} [rpm]: adds velocity in mm/s and acceleration in mm/s^2 at that constant speed",
     )
-    parser.set_defaults(
-        handler=run, inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",)
-    )
+    parser.set_defaults(inputs=("machine", "model"), outputs=("csv", "plot"), plots=("plot",))
 
 
 def run(args) -> int:
