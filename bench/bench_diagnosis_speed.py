@@ -79,3 +79,35 @@ def main() -> None:
     print(
         f"four effects ({FOUR}): {seconds:.2f} s = {seconds / ref:.0f} x reference; found {', '.join(names)} (goal 10 s)"
     )
+    _compiled_against_numpy(rec, nominal)
+
+
+def _compiled_against_numpy(rec, nominal) -> None:
+    """One fit-part simulation of the fitted baseline: the angle and the differentiator compiled
+    (lumped.c) against their numpy fallback, in the same run."""
+    from mechanism.dynamics import lumped
+    from mechanism.sysid.identification import ModelStructure, Problem, identify
+
+    ident = identify(rec, nominal=nominal)
+    problem = Problem(rec, nominal)
+    structure = ModelStructure(ident.fit.structure.baseline)
+
+    def median_ms() -> float:
+        times = []
+        for _ in range(100):
+            start = time.perf_counter()
+            problem.simulate(structure, ident.params, "fit")
+            times.append(time.perf_counter() - start)
+        return statistics.median(times) * 1e3
+
+    compiled = median_ms()
+    kernels = lumped._signal_kernels
+    lumped._signal_kernels = lambda: None  # the numpy fallback
+    try:
+        fallback = median_ms()
+    finally:
+        lumped._signal_kernels = kernels
+    print(
+        f"one fit simulation of the baseline: {compiled:.2f} ms with the compiled angle and "
+        f"differentiator, {fallback:.2f} ms with numpy ({fallback / compiled:.2f}x)"
+    )

@@ -143,6 +143,8 @@ def test_the_compiled_angle_and_differentiator_equal_numpy_and_the_calculus(monk
     np.testing.assert_allclose(
         compiled_velocity, windowed_dot(angle, first, c), rtol=1e-12, atol=1e-9
     )
+    with pytest.raises(ValueError, match="beyond the signal"):
+        windowed_dot(angle, np.array([7 * 900 - len(c) + 1]), c)
     # w = a + b t: trapezoids integrate it exactly, and the differentiator gives w back
     t = np.arange(900) * DT
     line = (4.0 + 30.0 * t)[None, :]

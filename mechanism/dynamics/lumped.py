@@ -469,6 +469,9 @@ def windowed_dot(x: np.ndarray, first: np.ndarray, coefficients: np.ndarray) -> 
     x = np.ascontiguousarray(x, dtype=np.float64).ravel()
     first = np.ascontiguousarray(first, dtype=np.int64)
     c = np.ascontiguousarray(coefficients, dtype=np.float64)
+    if len(first) and (first.min() < 0 or first.max() + len(c) > len(x)):
+        # the compiled loop reads without checking: a window beyond x is a caller's error
+        raise ValueError("a filter window reaches beyond the signal")
     kernels = _signal_kernels()
     if kernels is None:
         return x[first[:, None] + np.arange(len(c))] @ c
