@@ -13,6 +13,7 @@
  * at a half-step prediction (exponential midpoint, second order). Position-dependent
  * coefficients are evaluated by the caller at the mid-sample angle. Output: arm velocity at every sample of every segment.
  */
+#include <limits.h>
 #include <math.h>
 
 typedef struct {
@@ -46,16 +47,24 @@ typedef struct {
  * stretches (often the whole recording): computed again only when either changes */
 typedef struct {
     double c, j, decay, decay_half;
-    double fk, fx, fade;   /* Stribeck: above the speed ratio ``fade`` the excess no longer changes fk + fx e^... */
+    double fx, fade;   /* Stribeck: above the speed ratio ``fade`` the excess no longer changes fk + fx e^... */
+    int fk_exponent;   /* ... which depends on fk only through its binary exponent */
 } decays;
 
 /* The speed ratio |w|/ws above which fk + fx exp(-(|w|/ws)^delta) rounds to fk exactly: the
  * excess is then below a quarter of fk's last bit (a factor e to spare, and 1e-9 for the
  * rounding of pow and log). Infinite where no such ratio is safe (fk 0, fx not positive). */
-static double fade_ratio(double fk, double fx, double delta) {
-    if (!(fx > 0.0) || fk == 0.0 || !isfinite(fk)) return INFINITY;
+static int fade_key(double fk) {
+    /* fade_ratio's only dependence on fk: infinite (0, not finite) or the exponent e with
+     * |fk| in [2^(e-1), 2^e), whose last bit is 2^(e-53) */
+    if (fk == 0.0 || !isfinite(fk)) return INT_MIN;
     int e;
-    frexp(fabs(fk), &e);                       /* |fk| in [2^(e-1), 2^e): its last bit is 2^(e-53) */
+    frexp(fabs(fk), &e);
+    return e;
+}
+
+static double fade_ratio(int e, double fx, double delta) {
+    if (!(fx > 0.0) || e == INT_MIN) return INFINITY;
     double x = log(fx / ldexp(1.0, e - 55)) + 1.0;
     if (!(x > 1.0)) x = 1.0;
     return pow(x, 1.0 / delta) * (1.0 + 1e-9);
@@ -79,10 +88,15 @@ static inline double rigid_step(const drive_params *p, const coefficients *a, in
     double decay = d->decay, decay_half = d->decay_half;
     double drive = p->gain * a->u[k] - a->tm[k] - a->ta[k];
     double fk = a->fk[k], fx = a->fx[k], q = a->q[k];
-    if (fx != 0.0 && (fk != d->fk || fx != d->fx)) {
-        d->fk = fk;
-        d->fx = fx;
-        d->fade = fade_ratio(fk, fx, p->delta);
+    if (fx != 0.0) {
+        /* fk changes at every sample under a drift or a position-dependent friction; the fade
+         * ratio (a log and a pow) only when fx or fk's binary exponent does */
+        int e = fade_key(fk);
+        if (e != d->fk_exponent || fx != d->fx) {
+            d->fk_exponent = e;
+            d->fx = fx;
+            d->fade = fade_ratio(e, fx, p->delta);
+        }
     }
     for (int s = 0; s < p->substeps; s++) {
         double f = drive - q * w * w;
@@ -106,7 +120,7 @@ static inline double rigid_step(const drive_params *p, const coefficients *a, in
 static void run_rigid(const drive_params *p, const coefficients *a, int start, int length, double w0, double *out) {
     double w = w0;
     double h = p->dt / p->substeps;
-    decays d = {NAN, NAN, 0.0, 0.0, NAN, NAN, INFINITY};
+    decays d = {NAN, NAN, 0.0, 0.0, NAN, INFINITY, INT_MAX};
     for (int i = 0; i < length; i++) {
         out[i] = w;
         w = rigid_step(p, a, start + i, w, h, &d);
@@ -128,8 +142,9 @@ static void run_rigid_lanes(const drive_params *p, const coefficients *a, const 
                     w[l] = w0[l];
                     d[l].c = d[l].j = NAN;
                     d[l].decay = d[l].decay_half = 0.0;
-                    d[l].fk = d[l].fx = NAN;
+                    d[l].fx = NAN;
                     d[l].fade = INFINITY;
+                    d[l].fk_exponent = INT_MAX;
                 }
                 out[l][i] = w[l];
                 w[l] = rigid_step(p, a, starts[l] + i, w[l], h, &d[l]);
@@ -141,8 +156,9 @@ static void run_rigid_lanes(const drive_params *p, const coefficients *a, const 
         d[l].c = NAN;
         d[l].j = NAN;
         d[l].decay = d[l].decay_half = 0.0;
-        d[l].fk = d[l].fx = NAN;
+        d[l].fx = NAN;
         d[l].fade = INFINITY;
+        d[l].fk_exponent = INT_MAX;
     }
     for (int i = 0; i < length; i++) {
         for (int l = 0; l < LANES; l++) {
