@@ -87,10 +87,14 @@ def _tool(machine: mechanism.Machine, out: Path) -> dict | None:
     }
 
 
+def _steady_speeds_path(machine: mechanism.Machine) -> Path:
+    return mechanism.shipped_folder("measurements", machine.name) / "steady_speeds.csv"
+
+
 def steady_speeds(machine: mechanism.Machine) -> list[dict]:
     """The machine's shipped steady-speed measurements (``assets/measurements/<name>/steady_speeds.csv``:
     motor voltage, warm-up time, shaft speed; no tool load) against the full model."""
-    path = mechanism.shipped_folder("measurements", machine.name) / "steady_speeds.csv"
+    path = _steady_speeds_path(machine)
     if not path.is_file():
         return []
     table = mechanism.read_table(path, required=["motor_voltage_V", "warm_s", "speed_rpm"])
@@ -227,6 +231,34 @@ def _diagnose(machine: mechanism.Machine, out: Path) -> dict:
     }
 
 
+# each step's line says what this machine's section does (a rocker has no revolution, a servo
+# arm no sewing run, a machine without described flywheel voltages no flywheel study)
+def _tool_step(machine: mechanism.Machine) -> str:
+    if not machine.tool_site:
+        return "tool motion (none: the description names no tool)"
+    return "tool motion over " + (
+        "one shaft revolution" if machine.rotates else "the shaft's travel between its stops"
+    )
+
+
+def _simulate_step(machine: mechanism.Machine) -> str:
+    kind = machine.description.drive_tables[machine.motor_joint]["type"]
+    parts = [
+        "steady speeds against measurements"
+        if _steady_speeds_path(machine).is_file()
+        else None,
+        "voltage steps" if kind == "dc" else "goal steps",
+        "a sewing run" if machine.fabric_capable else None,
+    ]
+    return "simulate (" + ", ".join(p for p in parts if p) + ")"
+
+
+def _flywheel_step(machine: mechanism.Machine) -> str:
+    if not machine.description.section("inspect").get("flywheel_voltages_V"):
+        return "flywheel study (none: the description gives no flywheel voltages)"
+    return "flywheel study (speed ripple and settling against added shaft inertia)"
+
+
 def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
     machine = mechanism.load_machine(name)
     out = work / name
@@ -234,11 +266,11 @@ def machine_section(name: str, work: Path, final: Path, step: _Steps) -> dict:
     facts: dict = {"name": name, "title": machine.description.section("machine").get("name", name)}
     step(f"{name}: convert its CAD export")
     facts["conversion"] = _convert(machine, out, final / name)
-    step(f"{name}: tool motion over one shaft revolution")
+    step(f"{name}: {_tool_step(machine)}")
     facts["tool"] = _tool(machine, out)
-    step(f"{name}: simulate (steady speeds against measurements, input steps, a sewing run)")
+    step(f"{name}: {_simulate_step(machine)}")
     facts["simulation"] = _simulate(machine, out)
-    step(f"{name}: flywheel study (speed ripple and settling against added shaft inertia)")
+    step(f"{name}: {_flywheel_step(machine)}")
     facts["flywheel"] = _flywheel(machine, out)
     step(f"{name}: probes, clearance with a faulty variant, 3-D animation")
     facts["inspection"] = [p.name for p in mechanism.inspect(machine, out)]

@@ -80,3 +80,17 @@ def _check_readme_tour_is_this_runs(out):
     found = re.search(r"<!-- tour: (\w+) .*?-->\n(.*?)<!-- /tour -->", readme, re.S)
     assert found, "README has no generated Tour table"
     assert found.group(2) == (out / found.group(1) / "tour.md").read_text()
+
+
+@pytest.mark.parametrize("name", mechanism.shipped_machines())
+def test_each_demo_step_says_what_this_machines_section_does(name):
+    from mechanism.demo import _flywheel_step, _simulate_step, _tool_step
+
+    machine = mechanism.load_machine(name)
+    tool, simulate, flywheel = _tool_step(machine), _simulate_step(machine), _flywheel_step(machine)
+    assert ("revolution" in tool) == (machine.rotates and bool(machine.tool_site)), tool
+    assert ("sewing" in simulate) == machine.fabric_capable, simulate
+    kind = machine.description.drive_tables[machine.motor_joint]["type"]
+    assert ("voltage steps" in simulate) == (kind == "dc"), simulate
+    described = bool(machine.description.section("inspect").get("flywheel_voltages_V"))
+    assert ("none" not in flywheel) == described, flywheel
