@@ -244,9 +244,7 @@ def _tool_step(machine: mechanism.Machine) -> str:
 def _simulate_step(machine: mechanism.Machine) -> str:
     kind = machine.description.drive_tables[machine.motor_joint]["type"]
     parts = [
-        "steady speeds against measurements"
-        if _steady_speeds_path(machine).is_file()
-        else None,
+        "steady speeds against measurements" if _steady_speeds_path(machine).is_file() else None,
         "voltage steps" if kind == "dc" else "goal steps",
         "a sewing run" if machine.fabric_capable else None,
     ]
