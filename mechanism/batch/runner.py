@@ -105,7 +105,8 @@ def run_batch(
             items,
             chunks,
             workers,
-            _connect(ray, workers, ray_address),
+            started := _connect(ray, workers, ray_address),
+            private=started and ray_address_from(ray_address) is None,
         )
     elif workers == 1 or len(chunks) <= 1:
         done = _serial_chunks(function, setup, shared, items, chunks)
@@ -402,7 +403,12 @@ def _native_stderr_muted():
         os.close(saved)
 
 
-def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, started: bool):
+RAY_WAIT_S = 0.1
+
+
+def _ray_chunks(
+    ray, function, setup, shared, items, chunks, workers: int, started: bool, private: bool
+):
     pending: dict = {}
     try:
         shared_ref = ray.put(shared)
@@ -418,7 +424,10 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
                 ref = task.remote(function, setup, [shared_ref], [(i, items[i]) for i in chunk])
                 pending[ref] = chunk
             try:
-                ready, _ = ray.wait(list(pending), num_returns=1)
+                ready: list = []
+                while not ready:  # back in Python every 0.1 s: a signal is handled at once
+                    # (inside one long wait Ray looks for signals about once a second)
+                    ready, _ = ray.wait(list(pending), num_returns=1, timeout=RAY_WAIT_S)
                 results = [(ref, _ray_result(ray, ref, pending[ref])) for ref in ready[:1]]
             except (UserError, ray.exceptions.RayTaskError):
                 raise
@@ -436,10 +445,16 @@ def _ray_chunks(ray, function, setup, shared, items, chunks, workers: int, start
                 pending.pop(ref)
                 yield result
     finally:
-        from mechanism.files.interrupts import deferred
+        from mechanism.files.interrupts import deferred, process_ends_after_cleanup
 
         with deferred():  # a second Ctrl-C must not leave the instance running
-            if (
+            if private and process_ends_after_cleanup():
+                # a private instance of an interrupted run whose process ends after its cleanup
+                # (os._exit in cli.main): its processes go at once. Ray's orderly shutdown
+                # took 1.2-1.4 s here idle and up to 3 s under load, past the 2 s an interrupt
+                # may take; after the kill it waits 5 s for the processes it no longer finds
+                _kill(_descendants(os.getpid()))
+            elif (
                 started
             ):  # shutdown stops the instance, or ends our job on a cluster: its workers with it
                 ray.shutdown()

@@ -80,8 +80,9 @@ def debug_enabled() -> bool:
 def main(argv: list[str] | None = None) -> int:
     from mechanism.files import interrupts
 
+    interrupts.end_process_after_cleanup(argv is None)
     status = _main_in_order(argv)
-    if argv is None and interrupts.interrupted() and "ray" in sys.modules:
+    if interrupts.process_ends_after_cleanup() and "ray" in sys.modules:
         # The run has cleaned up and said so. Ray's C++ core can crash in its own teardown after a
         # signal reached it while ray.init ran (a segfault seconds later: 2 of 16 runs under
         # load): the process ends here, without the interpreter's and Ray's teardown.

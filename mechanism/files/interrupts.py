@@ -44,6 +44,7 @@ _state: dict[str, Any] = {
     "depth": 0,
     "pending": None,
     "unraisablehook": sys.unraisablehook,
+    "ends_process": False,
 }
 
 
@@ -92,6 +93,18 @@ def install() -> None:
         _state["unraisablehook"] = sys.unraisablehook
         sys.unraisablehook = _unraisable
     _state.update(installed=previous, interrupted=None, depth=0, pending=None)
+
+
+def end_process_after_cleanup(ends: bool) -> None:
+    """Say whether an interrupted run ends its process with ``os._exit`` once it has cleaned up
+    (the command line; not a caller of ``cli.main`` in its own process)."""
+    _state["ends_process"] = ends
+
+
+def process_ends_after_cleanup() -> bool:
+    """True when an interrupted run's process ends right after its cleanup: what it started
+    may then be killed rather than shut down in order."""
+    return bool(_state["ends_process"]) and interrupted()
 
 
 def installed() -> bool:
