@@ -613,3 +613,64 @@ def test_a_cli_run_imports_ray_without_its_failure_signal_handler(monkeypatch):
     monkeypatch.setitem(interrupts._state, "installed", {signal.SIGTERM: signal.SIG_DFL})
     runner._import_ray()
     assert os.environ[runner.NO_FAILURE_SIGNAL_HANDLER] == "1"
+
+
+def test_an_interrupt_that_a_library_swallowed_still_ends_the_run_and_publishes_nothing(tmp_path):
+    """trimesh imports its optional modules under ``except BaseException``: a Ctrl-C landing in
+    such an import vanished, and the run went on, published its outputs and exited 0."""
+    from mechanism.files import interrupts
+    from mechanism.files.outputs import atomic_file
+
+    target = tmp_path / "out.csv"
+    target.write_text("old\n")
+    interrupts.install()
+    try:
+        with pytest.raises(interrupts.Interrupted):
+            try:  # a library's optional import
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)  # the handler raises here
+            except BaseException:  # noqa: BLE001, S110 - what the library does
+                pass
+            with atomic_file(target) as handle:
+                handle.write("new\n")
+    finally:
+        interrupts.finish()
+        interrupts.restore()
+    assert target.read_text() == "old\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at_once(
+    shared, tmp_path
+):
+    """OpenCASCADE tessellates a STEP part for seconds inside C++, where a signal waits for it
+    to return: the parts are read in worker processes, which the interrupted run stops."""
+    out = tmp_path / "out"
+    before = old_outputs(out)
+    args = [
+        sys.executable,
+        "-m",
+        "mechanism",
+        "convert",
+        str(shared / "cad-exports/youbot-onshape/youBot.xml"),
+    ]
+    proc = subprocess.Popen(
+        [*args, "-o", str(out / "model")],
+        env=environment(tmp_path),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and proc.poll() is None and not children(proc.pid):
+        time.sleep(0.02)
+    time.sleep(0.5)  # inside OpenCASCADE
+    workers = children(proc.pid)
+    assert workers and proc.poll() is None, proc.communicate()
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and error_lines(stderr) == ["error: interrupted"], stderr
+    assert time.monotonic() - sent < INTERRUPT_MARGIN_S
+    assert all(gone(pid) for pid in workers)
+    assert visible(out) == before and hidden(out) == [] and not (out / "model").exists()

@@ -203,28 +203,9 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
                     ) from None
         finished_all = True
     finally:
-        from mechanism.files.interrupts import deferred
+        from mechanism.files.interrupts import stop_pool
 
-        with deferred():
-            if (
-                not finished_all
-            ):  # an error or an interrupt: stop the workers now, not after their chunks
-                _terminate_workers(pool)
-            pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _terminate_workers(pool) -> None:
-    """Stop a process pool's workers at once (SIGTERM, then SIGKILL for any still there)."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    for process in processes:
-        with contextlib.suppress(Exception):
-            process.terminate()
-    for process in processes:
-        with contextlib.suppress(Exception):
-            process.join(1.0)
-            if process.is_alive():
-                process.kill()
-                process.join(1.0)
+        stop_pool(pool, at_once=not finished_all)
 
 
 # -- Ray --------------------------------------------------------------------------------------

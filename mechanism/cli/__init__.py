@@ -134,7 +134,9 @@ def _run(args: argparse.Namespace) -> int:
     sys.stderr = stderr
     try:
         check_paths(args)
-        return run_verb(args)
+        status = run_verb(args)
+        interrupts.checkpoint()  # an interrupt that a library swallowed still ends the run so
+        return status
     except SystemExit:
         raise
     except BaseException as exc:  # noqa: BLE001 - the one place every failure becomes one line

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mechanism.errors import UserError
-from mechanism.files.interrupts import deferred
+from mechanism.files.interrupts import checkpoint, deferred
 
 _active: contextvars.ContextVar["Transaction | None"] = contextvars.ContextVar(
     "mechanism_transaction", default=None
@@ -337,6 +337,7 @@ class Transaction:
         under the outputs' locks, so two runs publishing the same outputs at once leave the
         whole of one; a signal waits until it is done."""
         try:
+            checkpoint()  # an interrupt that a library swallowed: nothing is published
             lock = output_lock([destination for _, destination, _ in self.staged])
             lock.__enter__()
         except BaseException:
