@@ -26,12 +26,6 @@ def _is_ray_test(nodeid: str) -> bool:
     return bool(re.search(r"(^|_)rays?(_|$)", name))
 
 
-def pytest_collection_modifyitems(items):
-    # the tests marked slow first (a stable sort: each file's order kept): two workers then end
-    # on short tests together, instead of one running a minute-long test while the other idles
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
-
-
 def pytest_runtest_setup(item):
     if item.get_closest_marker("xdist_group") and not _is_ray_test(item.nodeid):
         pytest.fail(

@@ -54,7 +54,7 @@ def fake_ray(results_before_loss: int):
             state["built"][key] = setup(ref.value) if setup is not None else ref.value
         return Ref([(index, function(state["built"][key], item)) for index, item in chunk_items])
 
-    def wait(refs, num_returns=1):
+    def wait(refs, num_returns=1, timeout=None):
         if state["served"] >= results_before_loss:
             raise RaySystemError(
                 "System error: Failed to get the GCS address: the head node died\nmore text"
