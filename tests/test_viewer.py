@@ -74,6 +74,15 @@ def test_html_is_self_contained(model_file, tmp_path):
     assert "needle:hook: min 0.100 mm at 195.0 deg" in text
 
 
+def test_the_same_scene_writes_the_same_bytes(model_file, tmp_path):
+    """meshcat names scene elements by the clock (uuid1): the viewer counts them instead, so
+    that two runs on the same inputs write the same file (diffable, and a mix of two is seen)."""
+    first, second = tmp_path / "first.html", tmp_path / "second.html"
+    for html in (first, second):
+        view(html, model_file, frames=4, probe_names=["needle_tip"], driver="arm_shaft")
+    assert first.read_bytes() == second.read_bytes()
+
+
 @pytest.mark.slow
 def test_html_renders_in_headless_chromium_with_the_requested_frames(model_file, tmp_path):
     chromium = _chromium()

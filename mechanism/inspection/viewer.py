@@ -21,6 +21,8 @@ simulated joint positions), or a recording (the identification CSV contract: ``t
 from __future__ import annotations
 
 import base64
+import contextlib
+import itertools
 import json
 import os
 from dataclasses import dataclass, field
@@ -237,11 +239,35 @@ class Overlays:
     notes: list[str] = field(default_factory=list)
 
 
+@contextlib.contextmanager
+def _reproducible_ids():
+    """meshcat names every scene element with ``uuid.uuid1()`` (the clock and the host): the
+    same scene wrote a different file at every run. Counted ids instead, while one scene is
+    built, so that the same inputs give the same bytes."""
+    import types
+    import uuid
+
+    import meshcat.geometry
+
+    counter = itertools.count(1)
+    original = meshcat.geometry.uuid
+    meshcat.geometry.uuid = types.SimpleNamespace(uuid1=lambda: uuid.UUID(int=next(counter)))
+    try:
+        yield
+    finally:
+        meshcat.geometry.uuid = original
+
+
 def build_scene(
     model: mujoco.MjModel, motion: Motion, overlays: Overlays | None = None, visualizer=None
 ):
     """Send the scene and its animation to a meshcat ``visualizer`` (a recorder by default);
     returns the visualizer."""
+    with _reproducible_ids():
+        return _build_scene(model, motion, overlays, visualizer)
+
+
+def _build_scene(model, motion, overlays, visualizer):
     meshcat = _meshcat()
     import meshcat.geometry as g
     from meshcat.animation import Animation
