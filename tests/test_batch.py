@@ -53,6 +53,52 @@ def _die_once(marker_dir, item):
 # -- local ------------------------------------------------------------------------------------
 
 
+def _die_in_item_5(marker_dir, item, times=1):
+    """Kill the whole worker process the first ``times`` times item 5 is attempted."""
+    markers = sorted(Path(marker_dir).glob("died_5_*"))
+    if item == 5 and len(markers) < times:
+        (Path(marker_dir) / f"died_5_{len(markers)}").write_text(str(os.getpid()))
+        os._exit(1)
+    return item * item
+
+
+def _always_die_in_item_5(marker_dir, item):
+    return _die_in_item_5(marker_dir, item, times=10**6)
+
+
+def test_the_local_pool_reruns_the_items_of_a_worker_that_died(tmp_path):
+    """A worker process that dies (out of memory, killed) breaks the whole pool: what had not
+    come back runs again on a new pool, each item's result streamed once."""
+    seen = []
+    results = run_batch(
+        _die_in_item_5,
+        list(range(12)),
+        shared=str(tmp_path),
+        workers=2,
+        chunk_size=2,
+        on_result=lambda i, r: seen.append(i),
+        progress=False,
+    )
+    assert len(list(tmp_path.glob("died_5_*"))) == 1  # a worker process really died
+    assert results == [i * i for i in range(12)]
+    assert sorted(seen) == list(range(12))
+
+
+def test_an_item_that_kills_every_worker_ends_the_batch_naming_it(tmp_path):
+    from mechanism.batch.runner import RAY_TASK_RETRIES
+
+    with pytest.raises(UserError, match=r"died 4 times mid-batch .* of 12 items did not finish"):
+        run_batch(
+            _always_die_in_item_5,
+            list(range(12)),
+            shared=str(tmp_path),
+            workers=2,
+            chunk_size=2,
+            progress=False,
+        )
+    assert len(list(tmp_path.glob("died_5_*"))) == RAY_TASK_RETRIES + 1
+
+
 @pytest.mark.parametrize("start_method", ["spawn", None])
 def test_local_pool_orders_results_and_sets_up_once_per_worker(start_method):
     seen = []

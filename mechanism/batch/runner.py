@@ -35,7 +35,7 @@ from mechanism.errors import UserError
 Backend = Literal["local", "ray"]  # where a batch runs: local processes, or Ray
 BACKENDS: tuple[Backend, ...] = get_args(Backend)
 MAX_WORKERS = 1024
-RAY_TASK_RETRIES = 3  # reruns of a chunk whose worker process or node died
+RAY_TASK_RETRIES = 3  # reruns of a chunk whose worker process or node died (local pools too)
 RAY_INSTALL_HINT = "pip install 'mechanism[ray]'"
 
 
@@ -172,6 +172,27 @@ def _local_chunk(function, chunk_items: list[tuple[int, Any]]) -> list[tuple[int
 
 
 def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
+    """The chunks on a pool of worker processes. A worker that dies (out of memory, or killed)
+    breaks the whole pool: the chunks that had not come back run again on a new one, as Ray
+    reruns a dead worker's tasks, at most ``RAY_TASK_RETRIES`` times."""
+    todo, restarts = list(chunks), 0
+    while todo:
+        lost: list = []
+        yield from _one_pool(function, setup, shared, items, todo, workers, start_method, lost)
+        if lost and restarts >= RAY_TASK_RETRIES:
+            unfinished = sorted(i for chunk in lost for i in chunk)
+            raise UserError(
+                f"a worker process died {restarts + 1} times mid-batch (out of memory, or killed): "
+                f"{len(unfinished)} of {len(items)} items did not finish (items "
+                f"{item_ranges(unfinished)}); the others did"
+            )
+        restarts += bool(lost)
+        todo = lost
+
+
+def _one_pool(function, setup, shared, items, chunks, workers, start_method, lost: list):
+    """Run ``chunks`` on one pool, yielding each chunk's results; the chunks a dead worker took
+    with it (the whole pool breaks) are appended to ``lost``."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
@@ -189,19 +210,20 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
     try:
         # the items of a chunk travel with it; the payload went once, through the initializer
         pending = {
-            pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]) for chunk in chunks
+            pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]): chunk
+            for chunk in chunks
         }
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+        waiting = set(pending)
+        while waiting:
+            finished, waiting = wait(waiting, return_when=FIRST_COMPLETED)
             for future in finished:
                 try:
-                    yield future.result()
+                    result = future.result()
                 except BrokenProcessPool:
-                    raise UserError(
-                        "a worker process died mid-batch (out of memory, or killed); "
-                        "run again, or use --backend ray, which reruns the lost items"
-                    ) from None
-        finished_all = True
+                    lost.append(pending[future])
+                    continue
+                yield result
+        finished_all = not lost
     finally:
         from mechanism.files.interrupts import stop_pool
 
