@@ -70,15 +70,18 @@ def test_the_local_pool_reruns_the_items_of_a_worker_that_died(tmp_path):
     """A worker process that dies (out of memory, killed) breaks the whole pool: what had not
     come back runs again on a new pool, each item's result streamed once."""
     seen = []
-    results = run_batch(
-        _die_in_item_5,
-        list(range(12)),
-        shared=str(tmp_path),
-        workers=2,
-        chunk_size=2,
-        on_result=lambda i, r: seen.append(i),
-        progress=False,
-    )
+    with pytest.warns(
+        UserWarning, match="a worker process died .* not yet done run on new workers"
+    ):
+        results = run_batch(
+            _die_in_item_5,
+            list(range(12)),
+            shared=str(tmp_path),
+            workers=2,
+            chunk_size=2,
+            on_result=lambda i, r: seen.append(i),
+            progress=False,
+        )
     assert len(list(tmp_path.glob("died_5_*"))) == 1  # a worker process really died
     assert results == [i * i for i in range(12)]
     assert sorted(seen) == list(range(12))
@@ -87,7 +90,10 @@ def test_the_local_pool_reruns_the_items_of_a_worker_that_died(tmp_path):
 def test_an_item_that_kills_every_worker_ends_the_batch_naming_it(tmp_path):
     from mechanism.batch.runner import RAY_TASK_RETRIES
 
-    with pytest.raises(UserError, match=r"died 4 times mid-batch .* of 12 items did not finish"):
+    with (
+        pytest.raises(UserError, match=r"died 4 times mid-batch .* of 12 items did not finish"),
+        pytest.warns(UserWarning, match="a worker process died"),
+    ):
         run_batch(
             _always_die_in_item_5,
             list(range(12)),

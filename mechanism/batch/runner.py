@@ -186,6 +186,15 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
                 f"{len(unfinished)} of {len(items)} items did not finish (items "
                 f"{item_ranges(unfinished)}); the others did"
             )
+        if lost:
+            import warnings
+
+            rerun = sum(len(chunk) for chunk in lost)
+            warnings.warn(
+                f"a worker process died (out of memory, or killed): the {rerun} items not yet "
+                f"done run on new workers",
+                stacklevel=2,
+            )
         restarts += bool(lost)
         todo = lost
 

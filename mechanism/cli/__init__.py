@@ -69,7 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _format_warning(message, category, filename, lineno, line=None):
-    return f"warning: {' '.join(str(message).split())}\n"
+    # on a line of its own, also when a progress bar holds the current one
+    start = "" if getattr(sys.stderr, "at_line_start", True) else "\n"
+    return f"{start}warning: {' '.join(str(message).split())}\n"
 
 
 def debug_enabled() -> bool:
