@@ -661,11 +661,24 @@ def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and proc.poll() is None and not children(proc.pid):
+
+    def readers() -> set[int]:
+        # forked from the run (its command line), not a helper that a library starts and ends
+        # at import (a python -c probe of a shared library's version)
+        found = set()
+        for pid in children(proc.pid):
+            try:
+                if b"-m\x00mechanism\x00convert" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                    found.add(pid)
+            except OSError:
+                continue
+        return found
+
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None and not readers():
         time.sleep(0.02)
     time.sleep(0.5)  # inside OpenCASCADE
-    workers = children(proc.pid)
+    workers = readers()
     assert workers and proc.poll() is None, proc.communicate()
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
