@@ -297,6 +297,10 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
             ) from None
     else:
         # "local": a private instance even when a `ray start` cluster runs on this machine
+        from mechanism.files.interrupts import installed
+
+        if installed():  # a CLI run: its instance's processes carry its mark (see below)
+            os.environ[RAY_RUN_MARK] = f"{os.getpid()}-{os.urandom(6).hex()}"
         try:
             with _our_signal_handlers_kept(ray):
                 ray.init(
@@ -313,7 +317,7 @@ def _connect(ray, workers: int, ray_address: str | None) -> bool:
 
             with deferred():
                 # at once: Ray's own shutdown of a half-started instance takes seconds
-                _kill(_descendants(os.getpid()))
+                _stop_private_instance()
                 with contextlib.suppress(Exception):
                     ray.shutdown()
             raise
@@ -361,6 +365,41 @@ def _descendants(pid: int) -> list[int]:
             new = [k for k in kids if k not in found]
             found.extend(new)
             todo.extend(new)
+    return found
+
+
+# Every process of a CLI run's private Ray instance inherits this variable, with the run's own
+# value: an interrupted run finds them all, also an agent that the raylet started after the run
+# last looked at its descendants and that the raylet's death then left to init (under load, a
+# DashboardAgent and a RuntimeEnvAgent outlived the run by more than 10 s)
+RAY_RUN_MARK = "MECHANISM_RAY_RUN"
+
+
+def _stop_private_instance() -> None:
+    """Kill the run's private Ray instance at once: its descendants, then every process that
+    holds the run's mark."""
+    _kill(_descendants(os.getpid()))
+    mark = os.environ.get(RAY_RUN_MARK)
+    if mark:
+        _kill(_marked(f"{RAY_RUN_MARK}={mark}".encode()))
+
+
+def _marked(entry: bytes) -> list[int]:
+    """The other processes whose environment holds ``entry`` (Linux /proc; elsewhere none)."""
+    found: list[int] = []
+    try:
+        names = os.listdir("/proc")
+    except OSError:
+        return found
+    for name in names:
+        if not name.isdigit() or int(name) == os.getpid():
+            continue
+        try:
+            with open(f"/proc/{name}/environ", "rb") as handle:
+                if entry in handle.read().split(b"\0"):
+                    found.append(int(name))
+        except OSError:
+            continue
     return found
 
 
@@ -465,7 +504,7 @@ def _ray_chunks(
                 # (os._exit in cli.main): its processes go at once. Ray's orderly shutdown
                 # took 1.2-1.4 s here idle and up to 3 s under load, past the 2 s an interrupt
                 # may take; after the kill it waits 5 s for the processes it no longer finds
-                _kill(_descendants(os.getpid()))
+                _stop_private_instance()
             elif (
                 started
             ):  # shutdown stops the instance, or ends our job on a cluster: its workers with it
