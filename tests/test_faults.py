@@ -34,6 +34,11 @@ def own_cache(monkeypatch, cache):
     monkeypatch.setenv("MECHANISM_CACHE", str(cache))
 
 
+def mechanism_command(*args: str) -> list[str]:
+    """``python -m mechanism ARGS`` with this interpreter, as a user runs it."""
+    return [sys.executable, "-m", "mechanism", *args]
+
+
 def environment(tmp_path: Path, **extra) -> dict[str, str]:
     env = {
         **os.environ,
@@ -99,7 +104,7 @@ def test_a_file_size_limit_ends_the_run_with_one_line_and_keeps_the_old_outputs(
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, resource.RLIM_INFINITY))
 
     proc = subprocess.run(
-        [sys.executable, "-m", "mechanism", *simulate_args(out)],
+        mechanism_command(*simulate_args(out)),
         capture_output=True,
         text=True,
         env=environment(tmp_path),
@@ -227,16 +232,7 @@ def sweep_command(tmp_path: Path, *options: str) -> tuple[list[str], Path, dict]
     variants.write_text("voltage_V\n" + "".join(f"{6 + i * 0.001:.3f}\n" for i in range(3000)))
     out = tmp_path / "out"
     before = old_outputs(out)
-    args = [
-        sys.executable,
-        "-m",
-        "mechanism",
-        "sweep",
-        "--variants",
-        str(variants),
-        "--duration",
-        "2",
-    ]
+    args = mechanism_command("sweep", "--variants", str(variants), "--duration", "2")
     return [*args, *options, "--csv", str(out / "run.csv")], out, before
 
 
@@ -647,15 +643,13 @@ def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at
     to return: the parts are read in worker processes, which the interrupted run stops."""
     out = tmp_path / "out"
     before = old_outputs(out)
-    args = [
-        sys.executable,
-        "-m",
-        "mechanism",
-        "convert",
-        str(shared / "cad-exports/youbot-onshape/youBot.xml"),
-    ]
     proc = subprocess.Popen(
-        [*args, "-o", str(out / "model")],
+        mechanism_command(
+            "convert",
+            str(shared / "cad-exports/youbot-onshape/youBot.xml"),
+            "-o",
+            str(out / "model"),
+        ),
         env=environment(tmp_path),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -687,3 +681,35 @@ def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at
     assert time.monotonic() - sent < INTERRUPT_MARGIN_S
     assert all(gone(pid) for pid in workers)
     assert visible(out) == before and hidden(out) == [] and not (out / "model").exists()
+
+
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_the_cli_imports_itself_is_one_line(tmp_path, signum, status):
+    """The command installs its handlers before importing the CLI: a signal that arrives while
+    the CLI's modules load is an ``error: interrupted`` line, not a KeyboardInterrupt traceback
+    (sent here from inside the import of mechanism.cli, which is where it lands otherwise)."""
+    script = (
+        "import builtins, os, signal, sys, time\n"
+        "original = builtins.__import__\n"
+        "def importing(name, *args, **kwargs):\n"
+        "    if name == 'mechanism.cli':\n"
+        "        builtins.__import__ = original\n"
+        f"        os.kill(os.getpid(), {int(signum)})\n"
+        "        time.sleep(5)\n"
+        "    return original(name, *args, **kwargs)\n"
+        "builtins.__import__ = importing\n"
+        "from mechanism.__main__ import run\n"
+        "sys.argv = ['mechanism', '--version']\n"
+        "sys.exit(run())\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        env=environment(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == status and error_lines(proc.stderr) == ["error: interrupted"], (
+        proc.returncode,
+        proc.stderr,
+    )

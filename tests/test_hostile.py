@@ -496,6 +496,24 @@ def test_an_error_after_a_progress_fragment_starts_its_own_line():
     assert stream.getvalue().splitlines()[-1] == "error: ray is not installed"
 
 
+def test_a_warning_after_a_progress_fragment_starts_its_own_line(monkeypatch):
+    """The CLI's warning format (what Python's showwarning writes to stderr) starts a line of
+    its own after a progress bar's fragment, and no empty line after a whole one."""
+    import io
+
+    from mechanism.cli import _format_warning
+    from mechanism.files.capture import LineTracker
+
+    stream = io.StringIO()
+    tracker = LineTracker(stream)
+    monkeypatch.setattr(sys, "stderr", tracker)
+    tracker.write("variants:  50%|#####")
+    tracker.write(_format_warning("a worker process died", UserWarning, "runner.py", 1))
+    tracker.write(_format_warning("again", UserWarning, "runner.py", 1))
+    lines = stream.getvalue().splitlines()
+    assert lines == ["variants:  50%|#####", "warning: a worker process died", "warning: again"]
+
+
 def test_text_c_code_prints_on_stdout_becomes_one_warning_line_without_colour_codes(capfd):
     """OpenCASCADE (through cascadio) prints coloured messages on descriptor 1: the verb's own
     output stays on stdout, theirs becomes one plain ``warning:`` line on stderr."""

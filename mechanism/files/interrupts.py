@@ -153,7 +153,7 @@ def checkpoint() -> None:
     """Raise the run's interrupt again where a library swallowed it: trimesh imports its
     optional modules under ``except BaseException``, and a Ctrl-C landing in such an import
     vanished (the run went on, published and exited 0: 1 in 6 signals sent 9.8 s into a youBot
-    conversion). Called before a run publishes, when a deferred block starts and when the verb
+    conversion). Called before a run publishes, when a deferred block ends and when the verb
     returns; a no-op while the interrupt is on its way out (it is the exception being handled)
     and once the run has ended."""
     signum = _state["interrupted"]
@@ -183,8 +183,9 @@ def exit_status(exc: BaseException) -> int:
 
 @contextlib.contextmanager
 def deferred():
-    """A block that a signal does not cut in two: the signal takes effect when it ends."""
-    checkpoint()
+    """A block that a signal does not cut in two: the signal takes effect when it ends (and
+    an interrupt that a library swallowed is raised again there, never before the block: many
+    are cleanups, which must run)."""
     _state["depth"] += 1
     try:
         yield
@@ -196,6 +197,8 @@ def deferred():
             if _state["interrupted"] is None:
                 _state["interrupted"] = pending
                 raise Interrupted(pending)
+        if _state["depth"] == 0:
+            checkpoint()
 
 
 def ignore_in_worker() -> None:
