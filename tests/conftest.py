@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.cli_server import CliServer
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -89,12 +91,18 @@ class CliResult:
 def run_cli(
     *args: str, timeout: float = 600, cwd: Path | None = None, env: dict | None = None
 ) -> CliResult:
-    """Run ``python -m mechanism ARGS`` in a fresh process, as a user would."""
+    """``mechanism ARGS`` in a process of its own, as a user would run it: forked from a server
+    that has imported the CLI (:mod:`tests.helpers.cli_server`), or ``python -m mechanism`` in a
+    fresh interpreter where the environment differs from the server's."""
     full_env = dict(os.environ)
     full_env.pop("MECHANISM_DEBUG", None)
     full_env.setdefault("MPLBACKEND", "Agg")
     if env:
         full_env.update(env)
+    fresh = env or os.environ.get("MECHANISM_TEST_FRESH_CLI")  # the escape hatch: every run fresh
+    server = None if fresh else CliServer.get(full_env, REPO_ROOT)
+    if server is not None and server.serves(full_env):
+        return CliResult(server.run([str(a) for a in args], cwd or REPO_ROOT, full_env, timeout))
     proc = subprocess.run(
         [sys.executable, "-m", "mechanism", *map(str, args)],
         capture_output=True,
