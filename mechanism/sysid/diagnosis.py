@@ -24,6 +24,7 @@ physics from the candidate library, choose by validation, and show the fit impro
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -488,6 +489,13 @@ def _starts(effect: Effect, current: FitResult, problem: Problem, located: Locat
     ]
 
 
+def _starts_from(
+    start: dict, effect: Effect, current: FitResult, problem: Problem, located: Located
+) -> list[dict]:
+    """:func:`_starts`, each on top of ``start``."""
+    return [{**start, **s} for s in _starts(effect, current, problem, located)]
+
+
 def _rank(results: dict[str, FitResult], current: FitResult) -> str:
     def score(name):
         added = len(results[name].structure.parameters) - len(current.structure.parameters)
@@ -502,11 +510,18 @@ def _rank(results: dict[str, FitResult], current: FitResult) -> str:
 
 def _fit_all(jobs: list[tuple], workers: int) -> list[FitResult]:
     """Run independent fits (problem, structure, starts, kwargs) on threads: the kernel and
-    most numpy work release the GIL, so two cores give close to twice the speed."""
+    most numpy work release the GIL. ``starts`` may be a function that gives them: finding a
+    start (an equation-error regression) then runs on the fit's thread too, not before the
+    threads start (a quarter of a single effect's diagnosis ran there on one core)."""
+
+    def one(job):
+        problem, structure, starts, kwargs = job
+        return fit(problem, structure, starts() if callable(starts) else starts, **kwargs)
+
     if workers <= 1 or len(jobs) <= 1:
-        return [fit(p, st, starts, **kw) for p, st, starts, kw in jobs]
+        return [one(job) for job in jobs]
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(lambda job: fit(job[0], job[1], job[2], **job[3]), jobs))
+        return list(pool.map(one, jobs))
 
 
 def _screen_and_refit(
@@ -520,7 +535,7 @@ def _screen_and_refit(
         (
             problem,
             current.structure.with_effect(e),
-            _starts(e, current, problem, located),
+            functools.partial(_starts, e, current, problem, located),
             {
                 "free": base_names + [p.name for p in e.parameters],
                 "max_nfev": 12,
@@ -936,7 +951,7 @@ def _prefer_library(
                 (
                     problem,
                     structure,
-                    [{**start, **s} for s in _starts(e, current, problem, located)],
+                    functools.partial(_starts_from, start, e, current, problem, located),
                     {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
                 )
             )
