@@ -191,14 +191,14 @@ def _read_all(paths: list[Path]) -> dict[Path, tuple | GeometryError | None]:
 
 def _read_in_workers(paths: list[Path]) -> dict[Path, tuple | GeometryError | None]:
     import multiprocessing
-    import os
     from concurrent.futures import ProcessPoolExecutor
 
     from mechanism.files.interrupts import ignore_in_worker, stop_pool
+    from mechanism.files.limits import usable_cores
 
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     pool = ProcessPoolExecutor(
-        max_workers=max(1, min(len(paths), os.cpu_count() or 1)),
+        max_workers=max(1, min(len(paths), usable_cores())),
         mp_context=multiprocessing.get_context(method),
         initializer=ignore_in_worker,
     )

@@ -53,6 +53,17 @@ else:
         return None  # another distribution asked for by name: xdist's own
 
 
+def pytest_configure(config):
+    """Each pytest-xdist worker keeps busy its share of the cores, as a run that shares a
+    machine should (``MECHANISM_CORES``): a diagnosis on two threads beside another worker's
+    only contends (10-12 % more CPU for the same fits). The CLI runs inherit it."""
+    from mechanism.files.limits import usable_cores
+
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if workers > 1 and "MECHANISM_CORES" not in os.environ:
+        os.environ["MECHANISM_CORES"] = str(max(1, usable_cores() // workers))
+
+
 def shared_dir() -> Path | None:
     """The project's shared folder (fixtures, thesis): $MECHANISM_SHARED or ../shared."""
     candidates = [os.environ.get("MECHANISM_SHARED"), REPO_ROOT.parent / "shared"]

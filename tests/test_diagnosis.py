@@ -54,6 +54,15 @@ def test_each_effect_is_named_in_its_own_bench_recording(bench, effect):
 
 
 @pytest.mark.slow
+def test_a_diagnosis_on_two_threads_is_the_one_on_one_to_the_last_bit(bench):
+    """The fits of a round, and the starts they need, run on threads: the same numbers in the
+    same order, whatever the number of threads (the tests' workers otherwise keep to one)."""
+    recording = read_recording(bench("torque_ripple", seed=21))
+    one, two = (diagnose(recording, workers=n).to_json() for n in (1, 2))
+    assert json.dumps(one, sort_keys=True) == json.dumps(two, sort_keys=True)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [22, 23])
 def test_clean_bench_recording_yields_no_effect(bench, seed):
     check(diagnose(read_recording(bench("none", seed=seed))), set())

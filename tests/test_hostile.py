@@ -435,6 +435,25 @@ def test_a_long_run_at_a_high_rate_is_refused_before_allocating(cli, tmp_path):
     assert "GiB" in line and "MECHANISM_MAX_ELEMENTS" in line
 
 
+@pytest.mark.parametrize("value", ["two", "0", "-1", "1.5"])
+def test_a_share_of_cores_that_is_no_whole_number_is_one_line_naming_it(
+    cli_here, value, monkeypatch, tmp_path
+):
+    monkeypatch.setenv("MECHANISM_CORES", value)
+    recording = Path(__file__).resolve().parent.parent / "assets/recordings/torque_ripple_seed3.csv"
+    line = cli_here("diagnose", recording, "--json", tmp_path / "d.json").assert_bad_input()
+    assert "MECHANISM_CORES" in line and repr(value) in line
+
+
+def test_the_share_of_cores_bounds_the_threads_and_workers(monkeypatch):
+    from mechanism.files.limits import usable_cores
+
+    monkeypatch.setenv("MECHANISM_CORES", "3")
+    assert usable_cores() == 3
+    monkeypatch.delenv("MECHANISM_CORES")
+    assert usable_cores() == len(os.sched_getaffinity(0))
+
+
 # -- 7. nothing stray on stderr -----------------------------------------------------------------------
 
 

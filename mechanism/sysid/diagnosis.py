@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -35,6 +34,7 @@ import numpy as np
 from scipy.signal import find_peaks, welch
 
 from mechanism.sysid.report import Traces
+from mechanism.files.limits import usable_cores
 from mechanism.sysid.effects import Effect, Located, library as effect_library
 from mechanism.sysid.identification import (
     FitResult,
@@ -605,7 +605,7 @@ def diagnose(
 
 
 def _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers) -> Diagnosis:
-    workers = workers or min(4, os.cpu_count() or 1)
+    workers = workers or min(4, usable_cores())
     problem = Problem(recording, nominal)
     tick = (lambda what: progress(what)) if progress else (lambda what: None)
     tick("baseline")

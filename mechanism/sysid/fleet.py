@@ -31,6 +31,7 @@ import numpy as np
 
 from mechanism.batch.runner import Backend
 from mechanism.errors import UserError
+from mechanism.files.limits import usable_cores
 
 OUTLIER_Z = 3.5
 OUTLIER_MIN_RECORDINGS = 5  # fewer: the MAD of a handful of values says nothing
@@ -207,7 +208,7 @@ def _fit_threads(backend: Backend, workers: int) -> int | None:
     other local workers, a share of the cores; on Ray, the one CPU its task holds."""
     if backend != "local":
         return 1
-    return None if workers == 1 else max(1, (os.cpu_count() or 1) // workers)
+    return None if workers == 1 else max(1, usable_cores() // workers)
 
 
 def _write_json(path: Path, data: dict) -> None:
