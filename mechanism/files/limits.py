@@ -46,7 +46,9 @@ def usable_cores() -> int:
         except ValueError:
             value = 0
         if value < 1:
-            raise UserError(f"$MECHANISM_CORES must be a whole number of cores, at least 1, got {text!r}")
+            raise UserError(
+                f"$MECHANISM_CORES must be a whole number of cores, at least 1, got {text!r}"
+            )
         return value
     try:
         return len(os.sched_getaffinity(0))
