@@ -20,6 +20,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -138,6 +139,7 @@ class CliServer:
 
     def __init__(self, env: dict[str, str], cwd: Path):
         self.env = dict(env)
+        self._one_at_a_time = threading.Lock()  # one request, then its answers, on the pipes
         read_answers, write_answers = os.pipe()
         self.process = subprocess.Popen(
             [
@@ -205,7 +207,7 @@ class CliServer:
         timeout: float,
         after_start: Callable[[int], object] | None = None,
     ) -> subprocess.CompletedProcess:
-        with tempfile.TemporaryDirectory(prefix="cli-run-") as folder:
+        with self._one_at_a_time, tempfile.TemporaryDirectory(prefix="cli-run-") as folder:
             out, err = Path(folder, "stdout"), Path(folder, "stderr")
             out.touch()
             err.touch()
