@@ -1,14 +1,16 @@
 """``mechanism ARGS`` in a process of its own without paying the interpreter's start and the
-imports each time: a server per test process imports the CLI once and forks one child per run.
+libraries' imports each time: a server per test process imports them and the CLI once and forks
+one child per run.
 
 The child is a separate process, as a user's run is: its own file descriptors 1 and 2 (files the
 caller reads), its own exit status (an exception at shutdown, ``os._exit`` and a death by signal
 all show), its own signal handlers, installed by the console script's entry
-(``mechanism.__main__.run``), which it runs with ``sys.argv`` as a shell would give it. What it
-skips is Python's start-up and the imports, about 0.6 s of CPU per run; anything those print is
-recorded once and put in front of every run's output. Runs that a changed environment could make
-differ at import (a test's own variables, ``env=``) and the tests about start-up itself take a
-fresh interpreter (``tests.conftest.run_cli``).
+(``mechanism.__main__.run``), which it runs with ``sys.argv`` as a shell would give it; the
+modules the verb imports while it runs it imports itself, in its own order. What it skips is
+Python's start-up, numpy, scipy, mujoco, trimesh, matplotlib and the CLI's parser, about 0.5 s of
+CPU per run; anything those print is recorded once and put in front of every run's output. Runs
+that a changed environment could make differ at import (a test's own variables, ``env=``) and the
+tests about start-up itself take a fresh interpreter (``tests.conftest.run_cli``).
 """
 
 from __future__ import annotations
@@ -24,26 +26,21 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-# imported before the first fork, with every module of the package and of the converters (not
-# Ray: a run imports it itself, after setting what Ray reads at import)
+# imported before the first fork: the libraries the verbs use, then the CLI as the console
+# script imports it, with its parser (built once: its first build imports each verb's module).
+# The modules a verb imports when it runs are left to the run, in the run's own order.
 PRELOAD = ("numpy", "scipy.optimize", "scipy.signal", "mujoco", "trimesh", "matplotlib.pyplot")
 
 
 def _preload() -> None:
     import importlib
-    import pkgutil
-
-    import converters
-    import mechanism
 
     for name in PRELOAD:
         importlib.import_module(name)
-    for package in (mechanism, converters):
-        for module in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
-            importlib.import_module(module.name)
+    import mechanism.__main__  # noqa: F401 - the console script's entry
     from mechanism.cli import build_parser
 
-    build_parser()  # its first call imports what each verb's options need
+    build_parser()
 
 
 # what differs between a test's run and the server's start without changing an import
