@@ -109,15 +109,26 @@ def _child(request: dict, answer_fd: int) -> None:
 
         try:
             status = run()
-        except SystemExit as exc:
-            status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-        except BaseException:  # what an uncaught exception does to a real process
+        except SystemExit as exc:  # as the interpreter ends on it
+            if exc.code is None or isinstance(exc.code, int):
+                status = exc.code or 0
+            else:
+                print(exc.code, file=sys.stderr)
+                status = 1
+        except BaseException as exc:  # what an uncaught exception does to a real process
             import traceback
 
             traceback.print_exc()
+            if isinstance(exc, KeyboardInterrupt):  # Python ends by its own SIGINT then
+                sys.stderr.flush()
+                signal.signal(signal.SIGINT, signal.SIG_DFL)
+                os.kill(os.getpid(), signal.SIGINT)
             status = 1
         import atexit
+        import threading
 
+        # the interpreter's end: it waits for the threads that are not daemons, then atexit
+        threading._shutdown()  # type: ignore[attr-defined]
         atexit._run_exitfuncs()
     finally:
         try:
