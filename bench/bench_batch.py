@@ -126,9 +126,11 @@ def _variants(count: int, scratch: Path) -> None:
 def main() -> None:
     count = int(os.environ.get("MECHANISM_BENCH_FLEET", "3"))
     variants = int(os.environ.get("MECHANISM_BENCH_BATCH_VARIANTS", "40"))
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    from mechanism.files.limits import usable_cores
+
+    cores = usable_cores()
     print(
-        f"{cores} CPU cores visible; load average {os.getloadavg()[0]:.2f} (ratios are only meaningful on idle cores)"
+        f"{cores} CPU cores usable; load average {os.getloadavg()[0]:.2f} (ratios are only meaningful on idle cores)"
     )
     with tempfile.TemporaryDirectory() as scratch:
         reference = int(os.environ.get("MECHANISM_BENCH_FLEET_REFERENCE", "0")) or None

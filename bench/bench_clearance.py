@@ -130,9 +130,11 @@ def main() -> None:
     count = int(os.environ.get("MECHANISM_BENCH_VARIANTS", "1000"))
     model, label, timing = _model()
     pairs = [Pair("needle", "hook")]
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    from mechanism.files.limits import usable_cores
+
+    cores = usable_cores()
     print(
-        f"model: {label}; pair needle:hook; one revolution at 0.5 deg; {cores} CPU cores visible; "
+        f"model: {label}; pair needle:hook; one revolution at 0.5 deg; {cores} CPU cores usable; "
         f"load average {os.getloadavg()[0]:.2f} (the machine may be shared: speed-ups are only meaningful when idle)"
     )
     with tempfile.TemporaryDirectory() as scratch:

@@ -54,8 +54,10 @@ def main() -> None:
         result = diagnose(rec, nominal=nominal)
         return time.perf_counter() - start, result.effect_names
 
+    from mechanism.files.limits import usable_cores
+
     print(
-        f"60 s recordings at 1 kHz, {os.cpu_count()} CPU(s); reference = one baseline simulation of all segments"
+        f"60 s recordings at 1 kHz, {usable_cores()} CPU core(s) usable; reference = one baseline simulation of all segments"
     )
     singles, ratios = [], []
     for seed in seeds:
