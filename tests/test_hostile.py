@@ -447,9 +447,33 @@ def test_a_share_of_cores_that_is_no_whole_number_is_one_line_naming_it(
 
 def test_the_share_of_cores_bounds_the_threads_and_workers(monkeypatch):
     from mechanism.files.limits import usable_cores
+    from mechanism.sysid import diagnosis, fleet
+    from mechanism.sysid.recording import read_recording
+
+    from tests.helpers.nominal import diagnose
 
     monkeypatch.setenv("MECHANISM_CORES", "3")
     assert usable_cores() == 3
+    assert fleet._fit_threads("local", 2) == 1 and fleet._fit_threads("local", 1) is None
+
+    class FirstRound(Exception):
+        pass
+
+    def first_round(jobs, workers):
+        raise FirstRound(workers)
+
+    monkeypatch.setattr(diagnosis, "_fit_all", first_round)
+    recording = read_recording(
+        Path(__file__).resolve().parent.parent / "assets/recordings/torque_ripple_seed3.csv"
+    )
+    with pytest.raises(FirstRound) as threads:
+        diagnose(recording)
+    assert threads.value.args == (3,)  # the diagnosis fits on its share
+    monkeypatch.setenv("MECHANISM_CORES", "8")
+    with pytest.raises(FirstRound) as threads:
+        diagnose(recording)
+    assert threads.value.args == (4,)  # and on 4 threads at most
+
     monkeypatch.delenv("MECHANISM_CORES")
     affinity = getattr(os, "sched_getaffinity", None)
     assert usable_cores() == (len(affinity(0)) if affinity else os.cpu_count())
