@@ -8,7 +8,11 @@ imports its own modules in an order that could circle.
 from __future__ import annotations
 
 import importlib
-from typing import Any, Callable
+
+# not typing's: importing typing costs the CLI milliseconds before its signal handlers
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from typing import Any, Callable
 
 
 def lazy_exports(

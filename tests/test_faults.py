@@ -684,15 +684,18 @@ def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at
 
 
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_a_signal_while_the_cli_imports_itself_is_one_line(tmp_path, signum, status):
+@pytest.mark.parametrize("landing", ["mechanism.files", "mechanism.cli"])
+def test_a_signal_while_the_cli_imports_itself_is_one_line(tmp_path, signum, status, landing):
     """The command installs its handlers before importing the CLI: a signal that arrives while
     the CLI's modules load is an ``error: interrupted`` line, not a KeyboardInterrupt traceback
-    (sent here from inside the import of mechanism.cli, which is where it lands otherwise)."""
+    (sent here from inside the import of mechanism.cli, which is where it lands otherwise), and
+    also while the handlers' own module loads (mechanism.files: a first handler that needs only
+    ``signal`` covers it)."""
     script = (
         "import builtins, os, signal, sys, time\n"
         "original = builtins.__import__\n"
         "def importing(name, *args, **kwargs):\n"
-        "    if name == 'mechanism.cli':\n"
+        f"    if name == {landing!r}:\n"
         "        builtins.__import__ = original\n"
         f"        os.kill(os.getpid(), {int(signum)})\n"
         "        time.sleep(5)\n"
@@ -713,3 +716,26 @@ def test_a_signal_while_the_cli_imports_itself_is_one_line(tmp_path, signum, sta
         proc.returncode,
         proc.stderr,
     )
+
+
+def test_the_command_imports_nothing_before_its_first_signal_handler(tmp_path):
+    """What runs before the CLI's first handler is Python's start-up and ``import
+    mechanism.__main__``: that import adds only the package's own small modules and ``signal``
+    (a module like typing or re costs milliseconds, during which a Ctrl-C is a traceback and a
+    kill a silent death)."""
+    script = (
+        "import sys\n"
+        "before = set(sys.modules)\n"
+        "import mechanism.__main__\n"
+        "print(' '.join(sorted(set(sys.modules) - before)))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        env=environment(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    added = set(proc.stdout.split())
+    allowed = {"mechanism", "mechanism.__main__", "mechanism.errors", "mechanism.lazy", "signal"}
+    assert proc.returncode == 0 and added and added <= allowed, (added - allowed, proc.stderr)
