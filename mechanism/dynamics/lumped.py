@@ -272,6 +272,20 @@ class Signals:
             self._cache[key] = fn(order * self.drive_angle_rad)
         return self._cache[key]
 
+    def harmonic_sum(self, orders, cos_amplitudes, sin_amplitudes) -> np.ndarray:
+        """sum_k a_k cos(order_k angle) + b_k sin(order_k angle) at every drive angle: one
+        product with the stacked harmonics (cached), not a pass over the samples per term."""
+        orders = tuple(orders)
+        key = ("stacked", orders)
+        if key not in self._cache:
+            self._cache[key] = np.stack(
+                [self.harmonic(order, kind) for order in orders for kind in ("cos", "sin")]
+            )
+        amplitudes = np.empty(2 * len(orders))
+        amplitudes[0::2] = cos_amplitudes
+        amplitudes[1::2] = sin_amplitudes
+        return amplitudes @ self._cache[key]
+
 
 @dataclass
 class Drive:
@@ -412,9 +426,10 @@ def _kernel():
     if lib is None:
         return None
     fn = lib.simulate_segments
-    dp = ctypes.POINTER(ctypes.c_double)
-    ip = ctypes.POINTER(ctypes.c_int)
-    fn.argtypes = [ctypes.POINTER(_DriveParams)] + [dp] * 8 + [ctypes.c_int, ip, ip, ip, dp, dp]
+    # arrays go by address (``ndarray.ctypes.data``): building a typed pointer per array
+    # (``data_as``) cost a tenth of the kernel's own time on the diagnosis's short segments
+    p = ctypes.c_void_p
+    fn.argtypes = [ctypes.POINTER(_DriveParams)] + [p] * 8 + [ctypes.c_int, p, p, p, p, p]
     fn.restype = None
     return fn
 
@@ -427,10 +442,10 @@ def _signal_kernels():
     lib = native.load("lumped")
     if lib is None:
         return None
-    dp = ctypes.POINTER(ctypes.c_double)
+    p = ctypes.c_void_p  # by address, as the kernel's arrays
     integrate, dot = lib.angle_from_velocity, lib.windowed_dot
-    integrate.argtypes = [dp, ctypes.c_int, ctypes.c_int, ctypes.c_double, dp, dp]
-    dot.argtypes = [dp, ctypes.c_int, ctypes.POINTER(ctypes.c_longlong), dp, ctypes.c_int, dp]
+    integrate.argtypes = [p, ctypes.c_int, ctypes.c_int, ctypes.c_double, p, p]
+    dot.argtypes = [p, ctypes.c_int, p, p, ctypes.c_int, p]
     integrate.restype = dot.restype = None
     return integrate, dot
 
@@ -442,15 +457,7 @@ def angle_from_velocity(w: np.ndarray, dt: float, start_angle: np.ndarray) -> np
     angle = np.empty_like(w)
     kernels = _signal_kernels()
     if kernels is not None:
-        dp = ctypes.POINTER(ctypes.c_double)
-        kernels[0](
-            w.ctypes.data_as(dp),
-            w.shape[0],
-            w.shape[1],
-            dt,
-            start.ctypes.data_as(dp),
-            angle.ctypes.data_as(dp),
-        )
+        kernels[0](w.ctypes.data, w.shape[0], w.shape[1], dt, start.ctypes.data, angle.ctypes.data)
         return angle
     # a0 + dt * cumsum(0.5 * (w[1:] + w[:-1])), in place
     angle[:, 0] = 0.0
@@ -476,15 +483,7 @@ def windowed_dot(x: np.ndarray, first: np.ndarray, coefficients: np.ndarray) -> 
     if kernels is None:
         return x[first[:, None] + np.arange(len(c))] @ c
     out = np.empty(len(first))
-    dp = ctypes.POINTER(ctypes.c_double)
-    kernels[1](
-        x.ctypes.data_as(dp),
-        len(first),
-        first.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong)),
-        c.ctypes.data_as(dp),
-        len(c),
-        out.ctypes.data_as(dp),
-    )
+    kernels[1](x.ctypes.data, len(first), first.ctypes.data, c.ctypes.data, len(c), out.ctypes.data)
     return out
 
 
@@ -524,17 +523,15 @@ def simulate(
         int(substeps),
         drive.belt_gap_rad,
     )
-    dp = ctypes.POINTER(ctypes.c_double)
-    ip = ctypes.POINTER(ctypes.c_int)
     kernel(
         ctypes.byref(params),
-        *[a.ctypes.data_as(dp) for a in arrays],
+        *[a.ctypes.data for a in arrays],
         n_seg,
-        starts.ctypes.data_as(ip),
-        lengths.ctypes.data_as(ip),
-        offsets.ctypes.data_as(ip),
-        w0.ctypes.data_as(dp),
-        out.ctypes.data_as(dp),
+        starts.ctypes.data,
+        lengths.ctypes.data,
+        offsets.ctypes.data,
+        w0.ctypes.data,
+        out.ctypes.data,
     )
     return out
 

@@ -179,11 +179,11 @@ class TorqueRipple(Effect):
     )
 
     def apply(self, v, s, drive):
-        torque = np.zeros(len(s))
-        for k in self.MOTOR_ORDERS:
-            order = k * s.ratio
-            torque += v[f"ripple_motor_order{k}_cos_Nm"] * s.harmonic(order, "cos")
-            torque += v[f"ripple_motor_order{k}_sin_Nm"] * s.harmonic(order, "sin")
+        torque = s.harmonic_sum(
+            [k * s.ratio for k in self.MOTOR_ORDERS],
+            [v[f"ripple_motor_order{k}_cos_Nm"] for k in self.MOTOR_ORDERS],
+            [v[f"ripple_motor_order{k}_sin_Nm"] for k in self.MOTOR_ORDERS],
+        )
         drive.tau_motor_Nm += s.ratio * torque
 
     def summary(self, v, s=None):
@@ -340,10 +340,10 @@ class PositionFriction(Effect):
         )
 
     def apply(self, v, s, drive):
-        drive.coulomb_Nm += sum(
-            v[f"coulomb_order{k}_cos_Nm"] * s.harmonic(k, "cos")
-            + v[f"coulomb_order{k}_sin_Nm"] * s.harmonic(k, "sin")
-            for k in self.ORDERS
+        drive.coulomb_Nm += s.harmonic_sum(
+            self.ORDERS,
+            [v[f"coulomb_order{k}_cos_Nm"] for k in self.ORDERS],
+            [v[f"coulomb_order{k}_sin_Nm"] for k in self.ORDERS],
         )
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)
 

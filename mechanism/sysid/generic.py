@@ -80,10 +80,11 @@ class GenericShaftTorque(GenericEffect):
         )
 
     def apply(self, v, s, drive):
-        torque = np.zeros(len(s))
-        for k in self.orders:
-            torque += v[f"generic_{self.shaft}_order{k}_cos_Nm"] * s.harmonic(k * self.ratio, "cos")
-            torque += v[f"generic_{self.shaft}_order{k}_sin_Nm"] * s.harmonic(k * self.ratio, "sin")
+        torque = s.harmonic_sum(
+            [k * self.ratio for k in self.orders],
+            [v[f"generic_{self.shaft}_order{k}_cos_Nm"] for k in self.orders],
+            [v[f"generic_{self.shaft}_order{k}_sin_Nm"] for k in self.orders],
+        )
         # virtual work: a torque on a shaft turning ``ratio`` times faster acts ``ratio`` times on the described shaft
         if self.shaft == "motor":
             drive.tau_motor_Nm += self.ratio * torque
