@@ -683,6 +683,17 @@ def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at
     assert visible(out) == before and hidden(out) == [] and not (out / "model").exists()
 
 
+def _python(script: str, tmp_path: Path) -> subprocess.CompletedProcess:
+    """``script`` in a fresh interpreter with the tests' environment."""
+    return subprocess.run(
+        [sys.executable, "-c", script],
+        env=environment(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
 @pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 @pytest.mark.parametrize("landing", ["mechanism.files", "mechanism.cli"])
 def test_a_signal_while_the_cli_imports_itself_is_one_line(tmp_path, signum, status, landing):
@@ -705,13 +716,7 @@ def test_a_signal_while_the_cli_imports_itself_is_one_line(tmp_path, signum, sta
         "sys.argv = ['mechanism', '--version']\n"
         "sys.exit(run())\n"
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", script],
-        env=environment(tmp_path),
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    proc = _python(script, tmp_path)
     assert proc.returncode == status and error_lines(proc.stderr) == ["error: interrupted"], (
         proc.returncode,
         proc.stderr,
@@ -729,13 +734,7 @@ def test_the_command_imports_nothing_before_its_first_signal_handler(tmp_path):
         "import mechanism.__main__\n"
         "print(' '.join(sorted(set(sys.modules) - before)))\n"
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", script],
-        env=environment(tmp_path),
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    proc = _python(script, tmp_path)
     added = set(proc.stdout.split())
     allowed = {"mechanism", "mechanism.__main__", "mechanism.errors", "mechanism.lazy", "signal"}
     assert proc.returncode == 0 and added and added <= allowed, (added - allowed, proc.stderr)
