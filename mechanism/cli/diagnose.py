@@ -106,15 +106,17 @@ def run(args) -> int:
                 model_path=args.model,
                 nominal=nominal,
             )
+            # the report's plots take seconds: the bar stays and says so
+            tick("writing the outputs")
+            from mechanism.sysid.report import diagnosis_report
+
+            data = result.to_json()
+            write_outputs(args, data, lambda folder: diagnosis_report(result, folder))
     except NotIdentifiable as exc:
         # a finding, not a crash: say so in the JSON as well as on stderr (exit 2)
         write_outputs(args, not_identifiable_json(rec.source, str(exc), rec.reading))
         sys.stderr.write(f"error: recording {rec.source}: not identifiable: {exc}\n")
         return 2
-    from mechanism.sysid.report import diagnosis_report
-
-    data = result.to_json()
-    write_outputs(args, data, lambda folder: diagnosis_report(result, folder))
     print(f"baseline ({args.baseline}): rmse {data['baseline']['rmse']:.4g} rad/s")
     if not data["effects"]:
         print("nothing is missing: no candidate effect lowers the validation error clearly")

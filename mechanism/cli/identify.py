@@ -161,9 +161,10 @@ def run(args) -> int:
             model_path=args.model,
             nominal=nominal,
         )
-    from mechanism.sysid.report import identification_report
+        tick("writing the outputs")  # the report's plots take seconds
+        from mechanism.sysid.report import identification_report
 
-    write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))
+        write_outputs(args, result.to_json(), lambda folder: identification_report(result, folder))
     for name, value in result.params.items():
         unc = result.fit.uncertainties.get(name)
         print(
