@@ -157,10 +157,12 @@ def load_meshes(assembly: Assembly) -> dict[str, Mesh | None]:
                 f"equivalent-inertia box instead"
             )
             continue
-        vertices, faces, has_units = loaded
+        vertices, faces, has_units, convex = loaded
         scale = 1.0 if has_units else _choose_scale(assembly, part, vertices, faces)
         if (part.geometry, scale) not in scaled:
-            scaled[(part.geometry, scale)] = _mesh(part, vertices * scale, faces, namer, by_digest)
+            scaled[(part.geometry, scale)] = _mesh(
+                part, vertices * scale, faces, namer, by_digest, convex if scale == 1.0 else None
+            )
         mesh = meshes[part.key] = scaled[(part.geometry, scale)]
         _check_placement(assembly, part, mesh)
     if missing:
@@ -191,7 +193,10 @@ def _read_all(paths: list[Path]) -> dict[Path, tuple | GeometryError | None]:
 
 def _read_in_workers(paths: list[Path]) -> dict[Path, tuple | GeometryError | None]:
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    import sys
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from tqdm import tqdm
 
     from mechanism.files.interrupts import ignore_in_worker, stop_pool
     from mechanism.files.limits import usable_cores
@@ -206,23 +211,38 @@ def _read_in_workers(paths: list[Path]) -> dict[Path, tuple | GeometryError | No
     try:
         # the largest first: the workers then end together
         order = sorted(paths, key=lambda p: -p.stat().st_size)
-        futures = {path: pool.submit(_read, path) for path in order}
-        found = {path: future.result() for path, future in futures.items()}
+        futures = {pool.submit(_read, path, True): path for path in order}
+        found = {}
+        # a bar on a terminal (hidden otherwise): an export of many parts reads for seconds
+        with tqdm(
+            total=len(futures),
+            desc="reading STEP geometry",
+            unit=" file",
+            file=sys.stderr,
+            disable=None,
+            leave=False,
+        ) as bar:
+            for future in as_completed(futures):
+                found[futures[future]] = future.result()
+                bar.update(1)
         finished = True
         return found
     finally:
         stop_pool(pool, at_once=not finished)
 
 
-def _read(path: Path) -> tuple | GeometryError | None:
-    """(vertices, faces, carries_units) of a geometry file in its own units, None if it does not exist."""
+def _read(path: Path, judge_convexity: bool = False) -> tuple | GeometryError | None:
+    """(vertices, faces, carries_units, convex) of a geometry file in its own units, None if it
+    does not exist. ``convex`` is None unless asked for (a worker judges it beside the reading:
+    a second or two of an export of many parts, then on every core)."""
     if not path.exists():
         return None
     try:
         vertices, faces = _clean(*_load(path, 1.0))
     except GeometryError as exc:
         return exc
-    return vertices, faces, FORMATS.get(path.suffix.lower()) == "step"
+    convex = is_convex(vertices, faces) if judge_convexity else None
+    return vertices, faces, FORMATS.get(path.suffix.lower()) == "step", convex
 
 
 def _holds_com(part: Part, vertices: np.ndarray, scale: float) -> bool:
@@ -262,7 +282,11 @@ def _choose_scale(assembly: Assembly, part: Part, vertices, faces) -> float:
     return scale
 
 
-def _mesh(part: Part, vertices, faces, namer: Namer, by_digest: dict) -> Mesh:
+def _mesh(
+    part: Part, vertices, faces, namer: Namer, by_digest: dict, convex: bool | None = None
+) -> Mesh:
+    """The part's mesh asset (one per distinct STL); ``convex`` if already judged on these very
+    vertices."""
     data = stl_bytes(vertices, faces)
     digest = hashlib.sha256(data).hexdigest()
     if digest not in by_digest:
@@ -271,7 +295,7 @@ def _mesh(part: Part, vertices, faces, namer: Namer, by_digest: dict) -> Mesh:
             vertices=vertices,
             faces=faces,
             data=data,
-            convex=is_convex(vertices, faces),
+            convex=is_convex(vertices, faces) if convex is None else convex,
         )
     return by_digest[digest]
 
