@@ -39,7 +39,8 @@ def main() -> None:
         return read_recording(path)
 
     def reference(rec):
-        """Time one baseline simulation: a function giving 20 more samples each call."""
+        """Timings of one baseline simulation: each call of the function returned adds 20 and
+        gives all so far."""
         ident = identify(rec, nominal=nominal)
         problem = Problem(rec, nominal)
         structure = ModelStructure(ident.fit.structure.baseline)

@@ -211,7 +211,7 @@ def _read_in_workers(paths: list[Path]) -> dict[Path, tuple | GeometryError | No
     try:
         # the largest first: the workers then end together
         order = sorted(paths, key=lambda p: -p.stat().st_size)
-        futures = {pool.submit(_read, path, True): path for path in order}
+        futures = {pool.submit(_read, path, judge_convexity=True): path for path in order}
         found = {}
         # a bar on a terminal (hidden otherwise): an export of many parts reads for seconds
         with tqdm(

@@ -3,8 +3,6 @@
 import signal
 import sys
 
-# 130 for Ctrl-C, 143 for a kill, as mechanism.files.interrupts says once it is imported
-_EARLY_STATUS: dict[int, int] = {signal.SIGINT: 130, signal.SIGTERM: 143}
 _early_signal: list[int] = []
 
 
@@ -32,13 +30,15 @@ def run() -> int:
         interrupts.install()
         from mechanism.cli import main
     except BaseException as exc:  # noqa: BLE001 - a signal during the imports (or what it broke)
-        interrupted = "interrupts" in locals() and interrupts.interrupted()
+        handlers = locals().get("interrupts")  # bound only once its import has finished
+        interrupted = handlers is not None and handlers.interrupted()
         if not (isinstance(exc, KeyboardInterrupt) or _early_signal or interrupted):
             raise
         sys.stderr.write("error: interrupted\n")
-        if _early_signal and not interrupted:
-            return _EARLY_STATUS.get(_early_signal[0], 130)
-        return interrupts.exit_status(exc)
+        if handlers is None or (_early_signal and not interrupted):
+            # the shell's status for that signal: 130, 143
+            return 128 + (_early_signal[0] if _early_signal else signal.SIGINT)
+        return handlers.exit_status(exc)
     return main()
 
 
