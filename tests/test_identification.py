@@ -118,6 +118,30 @@ def test_free_motor_constant_is_fitted(clean_bench):
     assert ratio == pytest.approx(ratio_true, rel=0.05)
 
 
+def test_the_equation_error_regression_on_few_rows_is_the_same_bounded_problem():
+    """The starts' bounded regression runs on the triangular factor of its columns: the same
+    solution as on every sample, with bounds that bind, and the samples themselves where the
+    columns are dependent."""
+    from scipy.optimize import lsq_linear
+
+    from mechanism.sysid.identification import _on_few_rows
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 10, 20000)
+    A = np.column_stack([np.ones_like(t), np.sin(t), np.cos(3 * t), t / 10])
+    b = A @ np.array([0.5, -2.0, 1.5, 0.3]) + 0.05 * rng.standard_normal(len(t))
+    bounds = (np.array([-1, -1, 0, -1.0]), np.array([1, 1, 1, 1.0]))  # two of them bind
+    full = lsq_linear(A, b, bounds=bounds, method="bvls")
+    R, d = _on_few_rows(A, b)
+    assert R.shape == (4, 4)
+    few = lsq_linear(R, d, bounds=bounds, method="bvls")
+    assert np.allclose(few.x, full.x, rtol=1e-9, atol=1e-12)
+    assert few.x[1] == -1.0 and few.x[2] == 1.0
+    dependent = np.column_stack([A, 2 * A[:, 1]])
+    rows, target = _on_few_rows(dependent, b)
+    assert rows is dependent and target is b
+
+
 def test_steady_state_fit_is_exact_on_synthetic_points():
     motor = SAPPHIRE.motor
     d, fc = 3e-5, 0.2
