@@ -495,11 +495,11 @@ def equation_error_start(
 
 def _on_few_rows(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """min |A x - b| (with any bounds) as the same problem on as many rows as unknowns:
-    |A x - b|^2 = |R x - d|^2 + |b|^2 - |d|^2 with R^T R = A^T A and R^T d = A^T b. The solver's
-    every step then costs nothing, where tens of thousands of rows cost more than building
-    the columns. ``A, b`` themselves where the columns are (nearly) dependent: A^T A squares
-    the condition number, so its factor is used only where the columns' pivots stay within
-    1e-6 of each other."""
+    |A x - b|^2 = |R x - d|^2 + |b|^2 - |d|^2 with R^T R = A^T A and R^T d = A^T b. Each of the
+    solver's steps then costs microseconds, where on tens of thousands of rows they cost more than
+    building the columns. ``A, b`` themselves where the columns are (nearly) dependent: A^T A squares
+    the condition number, so its factor is used only where the smallest pivot stays above
+    1e-6 of the largest."""
     from scipy.linalg import solve_triangular
 
     try:
