@@ -6,6 +6,7 @@ import json
 import pytest
 
 from mechanism.sysid.diagnosis import TIE_BAND, Diagnosis, _rank
+from mechanism.sysid.residual import noise_floor
 from mechanism.sysid.identification import FitResult, ModelStructure
 from mechanism.sysid.lumped_baseline import LumpedBaseline
 from mechanism.sysid.recording import make_recording, read_recording
@@ -275,19 +276,28 @@ def test_four_effects_at_once_are_all_named_in_one_run(bench):
 def test_effects_that_pay_off_only_together_are_kept(bench):
     """Stribeck friction and a motor ripple beside a sensor delay and a warming winding: alone,
     neither ripple nor Stribeck cuts the first residual by 35 % (one effect at a time found only
-    a thermal drift here); in the joint model each cuts it by more than 30 %."""
-    result = diagnose(
-        read_recording(
-            bench("stribeck,sensor_delay,winding_heating,torque_ripple", seed=32, duration=60.0)
-        )
+    a thermal drift here); in the joint model each cuts it by more than 30 %. The delay needs
+    the ripple driven by the angle the log shows later, and it pays only once the others are
+    in: all four, and the final model at the recording's noise (before: the winding alone, at
+    19x the noise)."""
+    recording = read_recording(
+        bench("stribeck,sensor_delay,winding_heating,torque_ripple", seed=32)
     )
-    assert {"stribeck", "torque_ripple"} <= set(result.effect_names), (
-        result.effect_names,
-        result.rounds,
-    )
-    assert result.final.rmse_val <= 0.4 * result.baseline.rmse_val
-    # every effect kept earns its place against the others
-    assert len(result.effect_names) <= 4
+    result = diagnose(recording)
+    check(result, {"stribeck", "sensor_delay", "winding_heating", "torque_ripple"})
+    assert result.final.rmse_val <= 2 * noise_floor(recording).rmse
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 32])
+def test_a_sensor_delay_beside_a_motor_ripple_is_named_with_it(bench, seed):
+    """A ripple at the motor angle seen through an angle logged late: driven by the logged angle
+    the ripple's phase would be off by speed x delay (a motor turn at 8 ms and 800 rad/s), and
+    a delay fitted on top of it left 7-10x the noise (seed 32: a belt named for the delay)."""
+    recording = read_recording(bench("sensor_delay,torque_ripple", seed=seed))
+    result = diagnose(recording)
+    check(result, {"sensor_delay", "torque_ripple"})
+    assert result.final.rmse_val <= 2 * noise_floor(recording).rmse
 
 
 def test_diagnose_help_names_every_effect_of_the_library_and_its_thresholds(cli_here):

@@ -203,6 +203,33 @@ def test_lagged_voltage_is_the_exact_first_order_step_average():
     assert lagged_voltage(u, 1e-9, DT) is u
 
 
+def test_signals_advanced_by_a_delay_read_the_log_that_much_later():
+    """A sensor delay: the machine's angle at t is the logged one at t + delay. On a steady
+    turn (angle linear in time) linear interpolation is exact, also between samples and past
+    the log's end; a window of the signals is the same window of the advanced whole."""
+    n, speed = 200, 40.0
+    t = np.arange(n) * DT
+    angle = 0.3 + speed * t
+    whole = Signals(t, np.full(n, 12.0), angle, np.full(n, speed), DT, 8.0)
+    assert whole.advanced(0.0) is whole
+    for delay in (2e-3, 3.7e-3, 0.05):
+        ahead = whole.advanced(delay)
+        np.testing.assert_allclose(ahead.arm_angle_rad, angle + speed * delay, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ahead.velocity_rad_s, speed)
+        assert np.array_equal(ahead.voltage_V, whole.voltage_V)
+        window = np.arange(150, 200)
+        part = whole.subset(window)
+        np.testing.assert_allclose(
+            part.advanced(delay).arm_angle_rad, ahead.arm_angle_rad[window], rtol=0, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            part.advanced(delay).drive_angle_rad, ahead.drive_angle_rad[window], rtol=0, atol=1e-12
+        )
+    # between samples: a ramp of the velocity is read at the fraction of a sample
+    ramp = Signals(t, np.zeros(n), np.zeros(n), t.copy(), DT, 8.0)
+    np.testing.assert_allclose(ramp.advanced(2.5e-3).velocity_rad_s[:-3], t[:-3] + 2.5e-3)
+
+
 def test_baseline_parameters_carry_the_thesis_numbers():
     base = LumpedBaseline(SAPPHIRE)
     nominal = {p.name: p.nominal for p in base.parameters}

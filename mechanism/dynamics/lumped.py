@@ -218,6 +218,38 @@ class Signals:
         sub._cache["mid"] = self.drive_angle_rad[index]
         return sub
 
+    def advanced(self, delay_s: float) -> "Signals":
+        """These signals as a sensor that logs ``delay_s`` late hides them: the angle and the
+        velocity read ``delay_s`` later (linear interpolation; past the recording's end the
+        angle goes on at the last velocity), the voltage as logged. A model with a sensor delay
+        drives its position-dependent torques by this angle: with the logged one, a ripple at
+        the motor angle would be out of phase by speed times delay (a motor turn at 8 ms and
+        800 rad/s). Subsets are the same subset of the advanced whole recording."""
+        if not delay_s > 0.0:
+            return self
+        whole, source = self.whole, self.source_index
+        if whole is not None and source is not None:
+            return self.memo(
+                "advanced", delay_s, lambda: whole.advanced(delay_s).subset(source), keep=4
+            )
+        return self.memo("advanced", delay_s, lambda: self._advanced_whole(delay_s), keep=4)
+
+    def _advanced_whole(self, delay_s: float) -> "Signals":
+        n = len(self)
+        shift = delay_s / self.dt
+        at = np.arange(n) + shift
+        inside = np.minimum(at, n - 1)
+        i = np.minimum(inside.astype(np.int64), max(n - 2, 0))
+        frac = inside - i
+        j = np.minimum(i + 1, n - 1)
+
+        def read(x):
+            return x[i] + frac * (x[j] - x[i])
+
+        velocity = read(self.velocity_rad_s)
+        angle = read(self.arm_angle_rad) + (at - inside) * self.dt * self.velocity_rad_s[-1]
+        return Signals(self.time_s, self.voltage_V, angle, velocity, self.dt, ratio=self.ratio)
+
     def lagged(self, tau_s: float) -> np.ndarray:
         """The logged voltage behind the winding lag ``tau_s`` (:func:`lagged_voltage`), remembered per time constant."""
         if self.parent is not None:

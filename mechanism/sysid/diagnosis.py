@@ -17,8 +17,10 @@ physics from the candidate library, choose by validation, and show the fit impro
   one part of the recording does not lower the validation error. When no single candidate
   passes, pairs of the best few are fitted together (a motor ripple exciting an elastic
   belt shows only as a pair). After each acceptance a backward step drops an earlier effect
-  that the later ones made redundant. Stop when nothing passes (no cap on the number of
-  effects: a machine in service carries several at once).
+  that the later ones made redundant. When nothing more passes, an earlier finding is tried
+  once against the near ties of its own round (a proxy taken first: a bearing drift for a
+  warming winding), and the path goes on if one takes its place. Stop when nothing passes
+  (no cap on the number of effects: a machine in service carries several at once).
 - **show**: :meth:`Diagnosis.to_json` (the contract) and :mod:`mechanism.sysid.report`.
 """
 
@@ -87,6 +89,9 @@ TIE_BAND = 0.03
 PARAMETER_PENALTY = 0.004  # per added parameter, relative, in the ranking
 REFINE_TOP = 3  # candidates refitted with every parameter free after the screening fit
 PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are refitted together
+# When the forward path stops, an earlier finding is tried against the candidates that came
+# within this much of it in its own round, now that later findings have joined (see _swap)
+SWAP_BAND = 0.15
 # Fits that compare models (screening, refits, the backward and pruning steps, pairs) stop when
 # an iteration improves the cost by less than 1e-4 relative: far finer than the 3 % tie band
 # and the 30-35 % gains they decide. An accepted model is still converged to 1e-5
@@ -524,25 +529,37 @@ def _fit_all(jobs: list[tuple], workers: int) -> list[FitResult]:
         return list(pool.map(one, jobs))
 
 
+def _screening(current: FitResult, e: Effect) -> dict:
+    """How a candidate ``e`` added to ``current`` is fitted first: its own parameters and the
+    baseline's (which must be free to give back what the effect now explains), few iterations,
+    on the screening segments."""
+    base_names = [p.name for p in current.structure.baseline.parameters]
+    # a sensor delay moves the angle the model's torques are driven by: their amplitudes, fitted
+    # at no delay, must move with it (a motor-angle ripple turns out of phase), and from a start
+    # that they do not yet fit, one evaluation would say the delay makes things worse
+    amplitudes = [n for x in current.structure.effects for n in (x.linear or ())]
+    moves = bool(e.delay_parameter and amplitudes)
+    return {
+        "free": base_names + [p.name for p in e.parameters] + (amplitudes if moves else []),
+        "max_nfev": 12,
+        "tolerance": COMPARE_TOLERANCE,
+        "part": "screen",
+        "scout_nfev": 2 if moves else 0,
+    }
+
+
 def _screen_and_refit(
     problem, current: FitResult, effects: list[Effect], located: Located, tick, workers: int
 ) -> dict[str, FitResult]:
     """Fit each candidate added to ``current``: first its own and the baseline's parameters
     (the baseline's friction must be free to give back what the effect now explains), then
     the best few again with every parameter free."""
-    base_names = [p.name for p in current.structure.baseline.parameters]
     jobs = [
         (
             problem,
             current.structure.with_effect(e),
             functools.partial(_starts, e, current, problem, located),
-            {
-                "free": base_names + [p.name for p in e.parameters],
-                "max_nfev": 12,
-                "tolerance": COMPARE_TOLERANCE,
-                "part": "screen",
-                "scout_nfev": 0,
-            },
+            _screening(current, e),
         )
         for e in effects
     ]
@@ -763,7 +780,9 @@ def _select(
     - forward: the best candidate joins when it cuts the validation rmse by ``step_gain``
       (pairs of the best few when no single one does);
     - backward (with ``backward``): an earlier effect that the later ones made redundant (the
-      joint refit without it within ``step_gain``) leaves;
+      joint refit without it within ``step_gain``) leaves; and once, when nothing more joins,
+      an earlier effect gives way to a near tie of its own round that the model as it now is
+      prefers (:func:`_swap`), and the forward path goes on;
     - prune: in the final joint model every effect must still cut the validation rmse by
       ``keep_gain`` when added last (the model refitted without it); the weakest that does not
       leaves and the rest are refitted, until all do. Effects that pay off only together (four
@@ -777,7 +796,8 @@ def _select(
     start = current
     findings: list[Finding] = []
     rounds = []
-    for _ in range(len(lib)):
+    swapped = not backward
+    for _ in range(len(lib) + 1):
         remaining = [e for e in lib.values() if e.name not in current.structure.names]
         if not remaining:
             break
@@ -791,19 +811,8 @@ def _select(
             best = _rank(passing, current)
             findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
-        elif len(remaining) >= 2:
-            pair = _best_pair(problem, current, results, lib, tick, workers)
-            if pair is None:
-                break
+        elif pair := _passing_pair(problem, current, results, lib, tick, workers, step_gain):
             (first, second), together = pair
-            # the pair must pass against the current model, and each member must add the
-            # same gain on top of the other alone (no passenger)
-            alone = min(results[first].rmse_val, results[second].rmse_val)
-            if (
-                not _clear_gain(problem, current, together, step_gain)
-                or together.rmse_val > (1 - step_gain) * alone
-            ):
-                break
             rounds.append({f"{first}+{second}": together.rmse_val})
             findings.append(Finding(lib[first], results[first], current.rmse_val, "", tried))
             findings.append(
@@ -817,7 +826,16 @@ def _select(
             )
             current = together
         else:
-            break
+            swap = (
+                None
+                if swapped
+                else _swap(problem, start, findings, current, lib, located, tick, workers)
+            )
+            swapped = True
+            if swap is None:
+                break
+            findings, current, label = swap
+            rounds.append({label: current.rmse_val})
         if backward:
             findings, current = _drop_redundant(
                 problem, start, findings, current, tick, workers, step_gain
@@ -991,6 +1009,100 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
     if problem.rmse(current.structure, candidate.values, "fit") > current.rmse_fit:
         return current.rmse_val
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
+
+
+def _passing_pair(problem, current: FitResult, results, lib, tick, workers, step_gain: float):
+    """The best pair (:func:`_best_pair`) when it passes against the current model and each
+    member adds the same gain on top of the other alone (no passenger); else None."""
+    if len(results) < 2:
+        return None
+    pair = _best_pair(problem, current, results, lib, tick, workers)
+    if pair is None:
+        return None
+    (first, second), together = pair
+    alone = min(results[first].rmse_val, results[second].rmse_val)
+    if (
+        not _clear_gain(problem, current, together, step_gain)
+        or together.rmse_val > (1 - step_gain) * alone
+    ):
+        return None
+    return pair
+
+
+def _swap(
+    problem,
+    start: FitResult,
+    findings: list["Finding"],
+    current: FitResult,
+    lib: dict[str, Effect],
+    located: Located,
+    tick,
+    workers,
+):
+    """Sequential replacement (the floating search of Pudil et al., 1994): a greedy path can
+    take a proxy first (a bearing drift for a warming winding, 7 % apart) that later findings
+    then build on, and the true effect no longer adds anything on top of it. When the forward
+    path stops, each earlier finding is replaced by the candidates that came within
+    ``SWAP_BAND`` of it in its own round (and passed the step there themselves), in the model
+    as it now is. The best replacement that cuts the validation rmse by ``STEP_GAIN`` (and fits
+    the fit segments better) takes its place, and the forward path goes on. Returns (findings,
+    fit, label) or None. The last finding is not tried: its round was this model's."""
+    jobs, swaps = [], []
+    for i, finding in enumerate(findings[:-1]):
+        own = finding.candidates.get(finding.effect.name)
+        if finding.effect.generic or own is None:
+            continue
+        names = set(current.structure.names)
+        values = {
+            k: v
+            for k, v in current.values.items()
+            if k not in {p.name for p in finding.effect.parameters}
+        }
+        without = FitResult(_without(start, findings, i), values, {}, math.nan, math.nan)
+        for name, rmse in finding.candidates.items():
+            # a near tie that passed the step itself (not one that did nothing in that round)
+            if (
+                name in lib
+                and name not in names
+                and rmse <= own * (1 + SWAP_BAND)
+                and rmse <= (1 - STEP_GAIN) * finding.rmse_before
+            ):
+                e = lib[name]
+                jobs.append(
+                    (
+                        problem,
+                        without.structure.with_effect(e),
+                        functools.partial(_starts, e, without, problem, located),
+                        _screening(without, e),
+                    )
+                )
+                swaps.append((i, name))
+    if not jobs:
+        return None
+    tick(f"trying {', '.join(name for _, name in swaps)} in place of earlier findings")
+    # a screening fit each (the rest of the model held), then the best one with everything free
+    screened = _fit_all(jobs, workers)
+    k = min(range(len(screened)), key=lambda j: screened[j].rmse_val)
+    if not screened[k].rmse_val < current.rmse_val:
+        return None
+    swapped = fit(
+        problem,
+        screened[k].structure,
+        [screened[k].values],
+        max_nfev=25,
+        scout_nfev=0,
+        tolerance=COMPARE_TOLERANCE,
+    )
+    # against the model as it is (the swapped model's parameters are not all the current one's)
+    if not (
+        swapped.rmse_fit < current.rmse_fit
+        and swapped.rmse_val <= (1 - STEP_GAIN) * current.rmse_val
+    ):
+        return None
+    i, name = swaps[k]
+    kept = [f for j, f in enumerate(findings) if j != i]
+    label = f"{name} in place of {findings[i].effect.name}"
+    return kept + [Finding(lib[name], swapped, 0.0, "", {label: swapped.rmse_val})], swapped, label
 
 
 def _best_pair(

@@ -65,6 +65,9 @@ class Effect:
     feature: str = ""
     generic: bool = False  # a fallback family that names no mechanism
     physics: str = ""  # for a generic family: what physics could be behind it
+    # a sensor that logs the angle late: the parameter that says how late [s]. The model then
+    # drives its torques by the angle that much later (Signals.advanced)
+    delay_parameter: str | None = None
 
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal
@@ -894,6 +897,7 @@ class SensorDelay(Effect):
         "time-stamps late): a phase lag that grows with frequency, no effect on the machine"
     )
     enters = "measurement"
+    delay_parameter = "sensor_delay_s"
     feature = "transient"
     sentence = (
         "the angle logged {delay_ms:.3g} ms late (a phase lag that grows with frequency, no torque) explains the "

@@ -106,6 +106,14 @@ class ModelStructure:
         with a changed voltage (the winding lag filters it over the samples before)."""
         return all(e.enters not in ("voltage", "belt") for e in self.effects)
 
+    def delay_s(self, values: dict[str, float]) -> float:
+        """How late the modelled sensor logs the angle (0 without a sensor delay)."""
+        return sum(values[e.delay_parameter] for e in self.effects if e.delay_parameter)
+
+    def true_signals(self, values: dict[str, float], signals: Signals) -> Signals:
+        """The signals the machine itself saw: the logged ones, advanced by the sensor's delay."""
+        return signals.advanced(self.delay_s(values))
+
     def measured_angle(
         self, values: dict[str, float], signals: Signals, angle: np.ndarray
     ) -> np.ndarray:
@@ -209,9 +217,11 @@ class Problem:
             self.signals,
             self.parts[part],
         )
-        drive = structure.drive(values, signals)
+        # a delayed sensor: the machine's state and torques are those the log shows later
+        machine = structure.true_signals(values, signals)
+        drive = structure.drive(values, machine)
         motor = structure.baseline.motor(values)
-        w0 = signals.velocity_rad_s[seg.starts]
+        w0 = machine.velocity_rad_s[seg.starts]
         w0 = np.where(np.abs(w0) < REST_SPEED_RAD_S, 0.0, w0)
         w = simulate(drive, motor, seg, w0, self.dt)
         if not np.all(np.isfinite(w)) or np.max(np.abs(w), initial=0.0) > DIVERGED_RAD_S:
@@ -219,7 +229,7 @@ class Problem:
         # integrate to an angle from the measured start angle (trapezoids), pass it through the
         # sensor model, and differentiate it like the measurement (the same Savitzky-Golay
         # weights, evaluated only where they are needed)
-        angle = angle_from_velocity(w, self.dt, signals.arm_angle_rad[seg.starts])
+        angle = angle_from_velocity(w, self.dt, machine.arm_angle_rad[seg.starts])
         angle = structure.measured_angle(values, signals, angle)
         return windowed_dot(angle, self._window_first[part], self.coefficients)
 
@@ -444,7 +454,7 @@ def equation_error_start(
         raise ValueError(
             f"effect {effect.name} has no torque form (linear is None): it has no equation-error start"
         )
-    s = problem.signals
+    s = structure.true_signals(values, problem.signals)
     if "eq_error" not in s._cache:
         w = s.velocity_rad_s
         acc = smoothed_velocity(w, s.dt)
