@@ -851,6 +851,12 @@ def _select(
     return _chain(problem, start, findings, current, workers), current, rounds
 
 
+def _values_without(values: dict[str, float], effect: Effect) -> dict[str, float]:
+    """``values`` less ``effect``'s own parameters: the start of a model without it."""
+    own = {p.name for p in effect.parameters}
+    return {k: v for k, v in values.items() if k not in own}
+
+
 def _without(start: FitResult, findings: list["Finding"], i: int) -> "ModelStructure":
     return ModelStructure(
         start.structure.baseline,
@@ -876,12 +882,11 @@ def _prune(
             return [], start
         joint = min(gain, KEEP_GAIN_JOINT)
         tick("checking each finding against the others")
-        own = [{p.name for p in f.effect.parameters} for f in findings]
         jobs = [
             (
                 problem,
                 _without(start, findings, i),
-                [{k: v for k, v in current.values.items() if k not in own[i]}],
+                [_values_without(current.values, findings[i].effect)],
                 {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
             )
             for i in range(len(findings))
@@ -958,13 +963,9 @@ def _prefer_library(
         if not options:
             continue
         jobs = []
+        start = _values_without(current.values, finding.effect)
         for e in options:
             structure = ModelStructure(base.structure.baseline, [*others, e])
-            start = {
-                k: v
-                for k, v in current.values.items()
-                if k not in {p.name for p in finding.effect.parameters}
-            }
             jobs.append(
                 (
                     problem,
@@ -1053,12 +1054,13 @@ def _swap(
         if finding.effect.generic or own is None:
             continue
         names = set(current.structure.names)
-        values = {
-            k: v
-            for k, v in current.values.items()
-            if k not in {p.name for p in finding.effect.parameters}
-        }
-        without = FitResult(_without(start, findings, i), values, {}, math.nan, math.nan)
+        without = FitResult(
+            _without(start, findings, i),
+            _values_without(current.values, finding.effect),
+            {},
+            math.nan,
+            math.nan,
+        )
         for name, rmse in finding.candidates.items():
             # a near tie that passed the step itself (not one that did nothing in that round)
             if (
