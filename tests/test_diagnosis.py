@@ -241,6 +241,23 @@ def test_physics_outside_the_library_gets_a_generic_model_not_a_library_name(tmp
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("seed", [5, 6])
+def test_a_current_limited_drive_gets_a_generic_saturation_at_its_limit(seed):
+    """A driver that clips the motor current at 4 A (the independent truth model; no library
+    effect has it): the baseline bends its inertia and winding lag to mimic it and ends at
+    200-400x the noise. A generic saturation, started also from the described baseline, is
+    kept at the limit the truth has and takes the fit to the noise floor; no library name."""
+    t, u, angle, _ = simulate_truth(("current_limit",), seed=seed, duration=SHORT_S)
+    recording = make_recording(t, u, angle)
+    result = diagnose(recording)
+    data = result.to_json()
+    assert [e["name"] for e in data["effects"]] == ["generic_saturation"], result.rounds
+    assert data["effects"][0]["generic"]
+    assert data["effects"][0]["params"]["current_limit_A"] == pytest.approx(4.0, rel=0.05)
+    assert result.final.rmse_val <= 2 * noise_floor(recording).rmse
+
+
+@pytest.mark.slow
 def test_three_effects_at_once_are_all_named(bench):
     """No cap on the number of effects: a machine with a ripple, a warming winding and an
     eccentric encoder gets all three."""

@@ -2,12 +2,18 @@
 could be behind them, and the joint rule is stricter than the forward step."""
 
 from mechanism.sysid import diagnosis
+import numpy as np
+
+from mechanism.dynamics.lumped import Signals
 from mechanism.sysid.generic import (
     GenericChange,
+    GenericSaturation,
     GenericShaftTorque,
     GenericSpeedFriction,
     evidence,
+    peak_current_A,
 )
+from mechanism.sysid.lumped_baseline import LumpedBaseline
 from tests.helpers.nominal import SAPPHIRE
 
 
@@ -16,6 +22,7 @@ def test_generic_models_name_possible_physics_and_no_mechanism():
         GenericSpeedFriction(SAPPHIRE, 40.0),
         GenericChange(SAPPHIRE, 10.0, 60.0),
         GenericShaftTorque(SAPPHIRE, "shaft", 1.0, [4]),
+        GenericSaturation(SAPPHIRE, 15.0),
     ):
         values = {p.name: p.nominal for p in effect.parameters}
         text = evidence(effect, values, "periodic in the shaft angle", 0.2, 0.1)
@@ -30,3 +37,31 @@ def test_generic_models_name_possible_physics_and_no_mechanism():
 def test_the_joint_rule_is_stricter_than_the_forward_step():
     assert diagnosis.STEP_GAIN < diagnosis.KEEP_GAIN_JOINT <= diagnosis.MIN_RELATIVE_GAIN
     assert diagnosis.GENERIC_GAIN == 0.30
+
+
+def test_a_saturation_clips_the_motor_torque_at_its_current_and_its_null_is_the_model_it_extends():
+    """Net motor torque n Kt clip(i, +/- limit) at the logged voltage and measured speed, i the
+    described motor's current; at its null (the largest current the recording draws) nothing
+    changes, to the last bit."""
+    n = 400
+    t = np.arange(n) * 1e-3
+    speed = np.linspace(0.0, 120.0, n)
+    signals = Signals(t, np.where(t < 0.2, 18.0, 6.0), np.cumsum(speed) * 1e-3, speed, 1e-3, 8.0)
+    base = LumpedBaseline(SAPPHIRE)
+    values = {p.name: p.nominal for p in base.parameters}
+    m = SAPPHIRE.motor
+    current = (signals.voltage_V - m.back_emf_V_s_per_rad * m.ratio * speed) / m.resistance_ohm
+    peak = peak_current_A(SAPPHIRE, signals)
+    assert peak == np.abs(current).max()
+    effect = GenericSaturation(SAPPHIRE, peak)
+    untouched = base.drive(values, signals).tau_motor_Nm.copy()
+    drive = base.drive(values, signals)
+    effect.apply({"current_limit_A": peak}, signals, drive)
+    assert np.array_equal(drive.tau_motor_Nm, untouched)
+    drive = base.drive(values, signals)
+    effect.apply({"current_limit_A": 4.0}, signals, drive)
+    net = m.gain_arm * drive.voltage_V - m.emf_damping_arm * speed - drive.tau_motor_Nm + untouched
+    np.testing.assert_allclose(
+        net, m.ratio * m.torque_constant_Nm_per_A * np.clip(current, -4.0, 4.0), atol=1e-12
+    )
+    assert np.abs(current).max() > 4.0 > np.abs(current).min()  # both sides of the limit tested

@@ -485,13 +485,13 @@ def _starts(effect: Effect, current: FitResult, problem: Problem, located: Locat
         )
         return [start, null]
     own = list(effect.starts_from(current.values)) if hasattr(effect, "starts_from") else []
-    return [
-        *(
-            {**current.values, **start}
-            for start in [*own, *effect.starts(problem.signals, located)]
-        ),
-        null,
-    ]
+    guesses = [*own, *effect.starts(problem.signals, located)]
+    restarted = []
+    if effect.restarts_baseline:
+        # the baseline bent itself to mimic this physics: also start it over from the description
+        described = {p.name: p.nominal for p in current.structure.baseline.parameters}
+        restarted = [{**current.values, **described, **start} for start in guesses]
+    return [*({**current.values, **start} for start in guesses), *restarted, null]
 
 
 def _starts_from(

@@ -68,6 +68,9 @@ class Effect:
     # a sensor that logs the angle late: the parameter that says how late [s]. The model then
     # drives its torques by the angle that much later (Signals.advanced)
     delay_parameter: str | None = None
+    # physics a baseline without it mimics by bending its own parameters (a current limit: a
+    # larger inertia and a long winding lag): its fits also start from the described baseline
+    restarts_baseline: bool = False
 
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal

@@ -6,7 +6,9 @@ their shapes come from the residual's signature (:mod:`mechanism.sysid.residual`
 - ``generic_speed_friction``: a friction level that is a smooth (piecewise-linear) function
   of speed;
 - ``generic_change``: Coulomb and viscous friction and the torque gain change at one
-  instant (a smooth step).
+  instant (a smooth step);
+- ``generic_saturation``: the motor's torque stops following the voltage beyond a level (the
+  motor current clipped), in hard accelerations and braking.
 
 Accepted by the same validation rule as library effects.
 """
@@ -233,8 +235,71 @@ class GenericChange(GenericEffect):
         )
 
 
+class GenericSaturation(GenericEffect):
+    name = "generic_saturation"
+    physics = (
+        "a drive that limits the motor current (a current-limited amplifier, a supply that folds back under "
+        "load, a driver's protection): the torque stops following the voltage in hard accelerations and braking"
+    )
+    enters = "torque"
+    feature = "residual"
+    restarts_baseline = True
+    meaning = (
+        "the motor's torque clipped at a level (its current at the logged voltage and measured speed, "
+        "(U - Ke n w) / R, limited to +/- a maximum current)"
+    )
+
+    def __init__(self, nominal: DriveNominal, peak_current_A: float):
+        # no clipping at or above the largest current the recording can draw: the null
+        self.peak = max(float(peak_current_A), 1e-6)
+        super().__init__(nominal)
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter(
+                "current_limit_A",
+                self.peak,
+                0.02 * self.peak,
+                self.peak,
+                "the largest current the drive lets through",
+                log=True,
+            ),
+        )
+
+    def null(self):
+        return {"current_limit_A": self.peak}
+
+    def starts(self, s, located):
+        return [{"current_limit_A": f * self.peak} for f in (0.1, 0.2, 0.35, 0.5, 0.7)]
+
+    def apply(self, v, s, drive):
+        m = self.nominal.motor
+        # the motor's torque at the measured speed (arm side), n Kt i: what the limit cuts off is
+        # resisting torque at the motor (the kernel still applies the unclipped one)
+        torque = m.gain_arm * drive.voltage_V - m.emf_damping_arm * s.velocity_rad_s
+        if v["current_limit_A"] >= self.peak:
+            return  # the null: the model it extends, exactly
+        limit = m.ratio * m.torque_constant_Nm_per_A * v["current_limit_A"]
+        drive.tau_motor_Nm += torque - np.clip(torque, -limit, limit)
+
+    def words(self, v) -> str:
+        return (
+            f"a generic saturation of the motor's torque at a current of {v['current_limit_A']:.3g} A "
+            f"({100 * v['current_limit_A'] / self.peak:.0f}% of the largest the recording could draw)"
+        )
+
+
+def peak_current_A(nominal: DriveNominal, signals: Signals) -> float:
+    """The largest current the described motor draws over the recording (the logged voltage
+    against the back-emf at the measured speed)."""
+    m = nominal.motor
+    emf = m.back_emf_V_s_per_rad * m.ratio * signals.velocity_rad_s
+    return float(np.max(np.abs(signals.voltage_V - emf), initial=0.0)) / m.resistance_ohm
+
+
 def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[Effect]:
-    """The generic families the signature points to (the speed friction always)."""
+    """The generic families the signature points to (the speed friction and the saturation
+    always)."""
     out: list[Effect] = []
     if sig.periodic is not None:
         p = sig.periodic
@@ -244,6 +309,8 @@ def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[
     out.append(
         GenericSpeedFriction(nominal, float(np.percentile(np.abs(signals.velocity_rad_s), 99)))
     )
+    if peak_current_A(nominal, signals) > 0.0:
+        out.append(GenericSaturation(nominal, peak_current_A(nominal, signals)))
     return out
 
 

@@ -62,6 +62,7 @@ def simulate_truth(
     belt_f, belt_zeta, motor_share = 18.0, 0.04, 0.3
     ecc = 0.006 * s
     ecc_phase = rng.uniform(0, 2 * math.pi)
+    current_limit = 4.0 / s  # A: about twice the running current, a fifth of the largest step's
 
     def applied_voltage(u):
         if "voltage_nonlinearity" not in effects:
@@ -115,7 +116,10 @@ def simulate_truth(
         out_theta[k] = theta
         u = applied_voltage(u_log[k])
         for _ in range(sub):
-            drive_motor = N * KT / R * (u - KE * N * (wm if belt else w))
+            current = (u - KE * N * (wm if belt else w)) / R
+            if "current_limit" in effects:  # outside the library: a current-limited driver
+                current = max(-current_limit, min(current_limit, current))
+            drive_motor = N * KT * current
             if "torque_ripple" in effects:
                 drive_motor -= N * ripple_amp * math.sin(N * theta + ripple_phase)
             j_lin, grav, quad = 0.0, 0.0, 0.0
