@@ -273,12 +273,12 @@ class GenericSaturation(GenericEffect):
         return [{"current_limit_A": f * self.peak} for f in (0.1, 0.2, 0.35, 0.5, 0.7)]
 
     def apply(self, v, s, drive):
+        if v["current_limit_A"] >= self.peak:
+            return  # the null: the model it extends, exactly
         m = self.nominal.motor
         # the motor's torque at the measured speed (arm side), n Kt i: what the limit cuts off is
         # resisting torque at the motor (the kernel still applies the unclipped one)
         torque = m.gain_arm * drive.voltage_V - m.emf_damping_arm * s.velocity_rad_s
-        if v["current_limit_A"] >= self.peak:
-            return  # the null: the model it extends, exactly
         limit = m.ratio * m.torque_constant_Nm_per_A * v["current_limit_A"]
         drive.tau_motor_Nm += torque - np.clip(torque, -limit, limit)
 
