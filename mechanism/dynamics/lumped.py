@@ -236,6 +236,8 @@ class Signals:
 
     def _advanced_whole(self, delay_s: float) -> "Signals":
         n = len(self)
+        if n == 0:
+            return self
         shift = delay_s / self.dt
         at = np.arange(n) + shift
         inside = np.minimum(at, n - 1)
