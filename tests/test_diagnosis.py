@@ -306,6 +306,51 @@ def test_effects_that_pay_off_only_together_are_kept(bench):
 
 
 @pytest.mark.slow
+def test_a_proxy_taken_first_gives_way_to_its_near_tie_once_later_findings_joined(bench):
+    """The swap step on its own: a bearing drift was taken for a warming winding (the winding
+    its near tie in that round), then a ripple joined. With the ripple in, the winding takes
+    the drift's place and the model fits far better; a near tie outside the band, or one that
+    did not pass the step itself in its round, is not tried."""
+    from mechanism.sysid import diagnosis as D
+    from mechanism.sysid.identification import Problem, fit, fit_baseline
+    from mechanism.sysid.recording import at_fitting_rate
+
+    problem = Problem(
+        at_fitting_rate(read_recording(bench("winding_heating,torque_ripple", seed=0))), SAPPHIRE
+    )
+    base = fit_baseline(problem)
+    located = D.locate(problem, base).located()
+
+    def add(current, name):
+        e = EFFECTS[name]
+        structure = current.structure.with_effect(e)
+        return fit(problem, structure, D._starts(e, current, problem, located), max_nfev=40)
+
+    drift, winding = add(base, "thermal_drift"), add(base, "winding_heating")
+    ripple = add(drift, "torque_ripple")
+
+    def swap(winding_rmse, before=base.rmse_val):
+        tried = {"thermal_drift": drift.rmse_val, "winding_heating": winding_rmse}
+        findings = [
+            D.Finding(EFFECTS["thermal_drift"], drift, before, "", tried),
+            D.Finding(EFFECTS["torque_ripple"], ripple, drift.rmse_val, "", {}),
+        ]
+        return D._swap(problem, base, findings, ripple, EFFECTS, located, lambda _: None, 1)
+
+    findings, swapped, label = swap(min(winding.rmse_val, drift.rmse_val))
+    assert label == "winding_heating in place of thermal_drift"
+    assert [f.effect.name for f in findings] == ["torque_ripple", "winding_heating"]
+    assert findings[-1].fit is swapped and swapped.structure.names == [
+        "torque_ripple",
+        "winding_heating",
+    ]
+    assert swapped.rmse_val <= (1 - D.STEP_GAIN) * ripple.rmse_val
+    assert swap(drift.rmse_val * (1 + D.SWAP_BAND) * 1.01) is None  # outside the band
+    # within the band, but it cut nothing in its round
+    assert swap(drift.rmse_val, before=drift.rmse_val) is None
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 32])
 def test_a_sensor_delay_beside_a_motor_ripple_is_named_with_it(bench, seed):
     """A ripple at the motor angle seen through an angle logged late: driven by the logged angle

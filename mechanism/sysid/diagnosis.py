@@ -1049,11 +1049,11 @@ def _swap(
     the fit segments better) takes its place, and the forward path goes on. Returns (findings,
     fit, label) or None. The last finding is not tried: its round was this model's."""
     jobs, swaps = [], []
+    names = set(current.structure.names)
     for i, finding in enumerate(findings[:-1]):
         own = finding.candidates.get(finding.effect.name)
         if finding.effect.generic or own is None:
             continue
-        names = set(current.structure.names)
         without = FitResult(
             _without(start, findings, i),
             _values_without(current.values, finding.effect),
