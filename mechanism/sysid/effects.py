@@ -71,6 +71,7 @@ class Effect:
     # physics a baseline without it mimics by bending its own parameters (a current limit: a
     # larger inertia and a long winding lag): its fits also start from the described baseline
     restarts_baseline: bool = False
+    varies_inertia: bool = False  # it makes the inertia differ from sample to sample
 
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal
@@ -88,7 +89,15 @@ class Effect:
         }
 
     def apply(self, v: dict[str, float], s: Signals, drive: Drive) -> None:
-        """Add this effect to the drive coefficients (torque, friction, voltage, belt)."""
+        """Add this effect to the drive coefficients (torque, friction, belt); what a voltage
+        effect does to the voltage is :meth:`voltage`."""
+
+    def voltage(self, v: dict[str, float], s: Signals, u: np.ndarray) -> np.ndarray:
+        """The voltage reaching the winding for ``u`` at the samples of ``s`` (voltage effects).
+        Sample by sample (a quantity over the past through :meth:`Signals.history`), so that the
+        winding lag after it can run over the whole recording while the rest of the model runs
+        on a part of it."""
+        return u
 
     def measure(self, v: dict[str, float], s: Signals, angle: np.ndarray) -> np.ndarray:
         """The angle the sensor reports for the true ``angle`` (measurement effects)."""
@@ -213,6 +222,7 @@ class LinkageDynamics(Effect):
     )
     enters = "torque"
     linear = ("needle_bar_mass_kg",)
+    varies_inertia = True
 
     @classmethod
     def applies(cls, nominal: DriveNominal) -> bool:
@@ -839,8 +849,8 @@ class VoltageNonlinearity(Effect):
         # a switch between supply and motor can lose voltage (a dead band) but never reverse it
         return np.where(u >= 0, np.maximum(u + ramp * poly, 0.0), np.minimum(u + ramp * poly, 0.0))
 
-    def apply(self, v, s, drive):
-        drive.voltage_V = self.applied(v, drive.voltage_V)
+    def voltage(self, v, s, u):
+        return self.applied(v, u)
 
     def summary(self, v, s=None, levels=(5.0, 12.0, 20.0)):
         if s is not None:
@@ -1001,10 +1011,15 @@ class WindingHeating(Effect):
 
         return s.history("copper", tau, compute)
 
+    def factor(self, v, s):
+        """R / R(t): the torque per volt and the back-emf damping left at each sample."""
+        return 1.0 / (1.0 + v["winding_resistance_rise_fraction"] * self.heating(v, s))
+
+    def voltage(self, v, s, u):
+        return u * self.factor(v, s)
+
     def apply(self, v, s, drive):
-        factor = 1.0 / (1.0 + v["winding_resistance_rise_fraction"] * self.heating(v, s))
-        drive.voltage_V = drive.voltage_V * factor
-        drive.viscous_Nm_s -= self.nominal.motor.emf_damping_arm * (1.0 - factor)
+        drive.viscous_Nm_s -= self.nominal.motor.emf_damping_arm * (1.0 - self.factor(v, s))
 
     def grid(self, s, located):
         return [{"winding_time_constant_s": tau} for tau in (10.0, 30.0, 100.0, 300.0, 1000.0)]

@@ -215,9 +215,11 @@ class GenericChange(GenericEffect):
             "change_step", t0, lambda: 0.5 * (1 + np.tanh((s.time_s - t0) / self.WIDTH_S))
         )
 
+    def voltage(self, v, s, u):
+        return u * (1.0 + v["gain_change_fraction"] * self.step(v, s))
+
     def apply(self, v, s, drive):
         h = self.step(v, s)
-        drive.voltage_V = drive.voltage_V * (1.0 + v["gain_change_fraction"] * h)
         drive.coulomb_Nm *= 1.0 + v["coulomb_change_fraction"] * h
         drive.viscous_Nm_s *= 1.0 + v["viscous_change_fraction"] * h
         np.maximum(drive.coulomb_Nm, 0.0, out=drive.coulomb_Nm)

@@ -42,6 +42,7 @@ from mechanism.dynamics.lumped import (
     Segments,
     Signals,
     angle_from_velocity,
+    lagged_voltage,
     make_segments,
     simulate,
     windowed_dot,
@@ -92,19 +93,56 @@ class ModelStructure:
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         drive = self.baseline.drive(values, signals)
-        # voltage first (it is an input), the belt last (it reads the total inertia)
+        drive.voltage_V = self.voltage(values, signals)
+        # the voltage's effects first (it is an input), the belt last (it reads the total inertia)
         for e in sorted(self.effects, key=lambda e: {"voltage": 0, "belt": 2}.get(e.enters, 1)):
             e.apply(values, signals, drive)
-        self.baseline.finish(values, signals, drive)
+        self.baseline.finish(values, signals, drive, lambda tau: self.lagged(values, signals, tau))
         return drive
+
+    def _changing_voltage(self, values: dict[str, float]) -> tuple[list[Effect], tuple]:
+        """The voltage effects, and what of them the applied voltage depends on (a memo key)."""
+        changing = [e for e in self.effects if e.enters == "voltage"]
+        return changing, tuple((e.name, *(values[p.name] for p in e.parameters)) for e in changing)
+
+    def voltage(self, values: dict[str, float], signals: Signals) -> np.ndarray:
+        """The voltage reaching the winding at the samples of ``signals``: the logged one as the
+        voltage effects change it (before the winding's lag). Computed on the whole recording,
+        once per value of what changes it (the lag below needs it there), and read at these
+        samples."""
+        changing, key = self._changing_voltage(values)
+        if not changing:
+            return signals.voltage_V
+
+        def applied(whole: Signals) -> np.ndarray:
+            u = whole.voltage_V
+            for e in changing:
+                u = e.voltage(values, whole, u)
+            return u
+
+        return signals.history("applied_voltage", key, applied)
+
+    def lagged(self, values: dict[str, float], signals: Signals, tau_s: float) -> np.ndarray:
+        """:meth:`voltage` behind the winding lag ``tau_s``. The lag filters over the samples
+        before, so it runs on the whole recording and is read at these samples: a part's
+        windows alone then give the drive exactly."""
+        changing, key = self._changing_voltage(values)
+        if not changing:
+            return signals.lagged(tau_s)
+        return signals.history(
+            "lagged_applied_voltage",
+            (tau_s, key),
+            lambda whole: lagged_voltage(self.voltage(values, whole), tau_s, whole.dt),
+        )
 
     @property
     def per_sample(self) -> bool:
         """Whether the drive at a sample depends only on the signals at that sample (and on the
-        past through :meth:`~mechanism.dynamics.lumped.Signals.history`), so that a part's windows
-        alone give it exactly. Not with a belt (sized by the median inertia over the samples) nor
-        with a changed voltage (the winding lag filters it over the samples before)."""
-        return all(e.enters not in ("voltage", "belt") for e in self.effects)
+        past through :meth:`~mechanism.dynamics.lumped.Signals.history`, as the winding lag of a
+        changed voltage does), so that a part's windows alone give it exactly. Not with a belt
+        where the inertia varies: the belt is sized by the median inertia over the samples."""
+        varies = self.baseline.varies_inertia or any(e.varies_inertia for e in self.effects)
+        return not varies or all(e.enters != "belt" for e in self.effects)
 
     def delay_s(self, values: dict[str, float]) -> float:
         """How late the modelled sensor logs the angle (0 without a sensor delay)."""

@@ -3,7 +3,7 @@ with typed parameters (starting values and bounds from the described drive)."""
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+from typing import Callable, Literal, get_args
 
 import numpy as np
 
@@ -69,6 +69,9 @@ class LumpedBaseline:
         "coulomb_arm_Nm",
     )
     meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the belt"
+    varies_inertia = (
+        False  # the same inertia at every sample (an elastic belt's split is exact on any part)
+    )
 
     # bounds as factors of the description's values: wide enough for a machine 14x lighter or
     # 18x heavier than described, and friction from none to an order of magnitude more
@@ -224,18 +227,22 @@ class LumpedBaseline:
             drive.tau_arm_Nm = torque  # a fresh array: effects add to it in place
         return drive
 
-    def finish(self, values: dict[str, float], signals: Signals, drive: Drive) -> None:
+    def finish(
+        self,
+        values: dict[str, float],
+        signals: Signals,
+        drive: Drive,
+        lagged: Callable[[float], np.ndarray] | None = None,
+    ) -> None:
         """After the effects: the winding lag acts on what drives the current, the voltage the
-        motor finally sees and the back-emf (L di/dt = V - R i - Ke w: the current lags both).
+        motor finally sees (``lagged(tau)``: the applied voltage behind a lag ``tau``; default the
+        logged voltage's) and the back-emf (L di/dt = V - R i - Ke w: the current lags both).
         The back-emf's lag is taken on the measured speed, as a torque: the kernel's own
         back-emf damping acts on the simulated speed unlagged, and the difference, Ke (w_lag - w)
         in torque, is what the winding holds back (it matters where the mechanical time
         constant is not much longer than L/R: a light, fast rocker)."""
         tau = values["electrical_time_constant_s"]
-        if drive.voltage_V is signals.voltage_V:  # unmodified: remember it per time constant
-            drive.voltage_V = signals.lagged(tau)
-        else:
-            drive.voltage_V = lagged_voltage(drive.voltage_V, tau, signals.dt)
+        drive.voltage_V = (lagged or signals.lagged)(tau)
         if tau > 0.02 * signals.dt:
             # a filter over the past: on the whole recording, read at these samples
             lag = signals.history(

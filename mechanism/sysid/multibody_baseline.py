@@ -37,6 +37,7 @@ class MultibodyBaseline(LumpedBaseline):
         "coulomb_arm_Nm",
     )
     meaning = "the CAD model's reduced 1-DOF dynamics (angle-dependent inertia and gravity) with viscous and Coulomb friction"
+    varies_inertia = True
 
     def __init__(
         self,
