@@ -171,6 +171,8 @@ class Signals:
     # a subset (see :meth:`subset`): the signals it was taken from ...
     parent: "Signals | None" = None
     parent_index: np.ndarray | None = None  # ... and its samples there
+    # signals advanced by a sensor's delay (see :meth:`advanced`): the logged ones, whose voltage they share
+    logged: "Signals | None" = field(default=None, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
     _memos: dict = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -250,17 +252,24 @@ class Signals:
 
         velocity = read(self.velocity_rad_s)
         angle = read(self.arm_angle_rad) + (at - inside) * self.dt * self.velocity_rad_s[-1]
-        return Signals(self.time_s, self.voltage_V, angle, velocity, self.dt, ratio=self.ratio)
+        return Signals(
+            self.time_s, self.voltage_V, angle, velocity, self.dt, ratio=self.ratio, logged=self
+        )
 
     def lagged(self, tau_s: float) -> np.ndarray:
         """The logged voltage behind the winding lag ``tau_s`` (:func:`lagged_voltage`), remembered per time constant."""
         if self.parent is not None:
             return self.memo("lagged", tau_s, lambda: self.parent.lagged(tau_s)[self.parent_index])
+        if (
+            self.logged is not None
+        ):  # the same voltage: its lag is remembered there, for every delay
+            return self.logged.lagged(tau_s)
         return self.memo("lagged", tau_s, lambda: lagged_voltage(self.voltage_V, tau_s, self.dt))
 
     def history(self, kind: str, key, compute):
-        """A quantity that integrates over the recording's past (warmth, copper temperature):
-        ``compute(signals)`` on the whole recording, read at these samples."""
+        """A quantity that integrates over the recording's past (warmth, copper temperature, a
+        changed voltage behind the winding lag): ``compute(signals)`` on the whole recording,
+        remembered per ``key``, read at these samples."""
         if self.parent is not None:
             return self.memo(
                 kind, key, lambda: self.parent.history(kind, key, compute)[self.parent_index]
@@ -298,13 +307,46 @@ class Signals:
     def periodic_grid(cls) -> np.ndarray:
         return np.arange(cls.PERIODIC_GRID) * (2 * np.pi / cls.PERIODIC_GRID)
 
+    # whole orders up to this are powers of exp(i angle) (below); beyond, or fractional, trigonometry
+    MAX_POWER_ORDER = 4096
+
     def harmonic(self, order: float, kind: str) -> np.ndarray:
-        """cos/sin(order * drive angle), cached (orders 8k are motor-angle harmonics)."""
+        """cos/sin(order * drive angle), cached (orders 8k are motor-angle harmonics).
+
+        A whole order is a power of exp(i angle), by squaring: a few complex products per sample
+        instead of trigonometry of order * angle, which over a long run is a large argument
+        (1e6 rad at the 192nd order) that numpy reduces slowly and that rounding has already
+        moved by 1e-10 rad; the power's phase error is order * 1e-16."""
         key = (order, kind)
         if key not in self._cache:
-            fn = np.cos if kind == "cos" else np.sin
-            self._cache[key] = fn(order * self.drive_angle_rad)
+            whole = float(order).is_integer() and 0 < abs(order) <= self.MAX_POWER_ORDER
+            if whole:
+                z = self._power(abs(int(order)))
+                self._cache[(order, "cos")] = z.real.copy()
+                self._cache[(order, "sin")] = np.copysign(1.0, order) * z.imag
+            else:
+                fn = np.cos if kind == "cos" else np.sin
+                self._cache[key] = fn(order * self.drive_angle_rad)
         return self._cache[key]
+
+    def _power(self, n: int) -> np.ndarray:
+        """exp(i n angle) at the drive angles, by squaring the cached exp(i angle) (the squares
+        are not kept: a dozen complex products cost less than the memory of a long recording)."""
+        if "unit" not in self._cache:
+            angle = self.drive_angle_rad
+            self._cache["unit"] = np.cos(angle) + 1j * np.sin(angle)
+        square = self._cache["unit"]
+        while not n & 1:  # up to the lowest set bit (n >= 1)
+            square = square * square
+            n >>= 1
+        result = square
+        n >>= 1
+        while n:
+            square = square * square
+            if n & 1:
+                result = result * square
+            n >>= 1
+        return result
 
     def harmonic_sum(self, orders, cos_amplitudes, sin_amplitudes) -> np.ndarray:
         """sum_k a_k cos(order_k angle) + b_k sin(order_k angle) at every drive angle: one
