@@ -10,7 +10,7 @@ ORDER = 47
 
 
 def register(subparsers) -> None:
-    from mechanism.inspection.sweep import METRICS
+    from mechanism.inspection.sweep_metrics import METRICS
 
     parser = subparsers.add_parser(
         "sweep",

@@ -7,10 +7,13 @@ table's historical column names (``arm_angle_deg``, ``needle_z_mm``, ...).
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from mechanism.cli._machine import add_machine_arguments, machine_from_args
 from mechanism.files.limits import number
-from mechanism.inspection.tool import ColumnNames
+
+if TYPE_CHECKING:  # the simulator's imports belong to the run, not to every start of the command
+    from mechanism.inspection.tool import ColumnNames
 
 ORDER = 20
 

@@ -4,14 +4,14 @@ settling, current, tool timing, break-away voltage and bearing loads, from a run
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
-import mujoco
 import numpy as np
 
-from mechanism.dynamics.reduced import ReducedModel
-from mechanism.dynamics.simulation import SimulationResult
-from mechanism.machine.machine import Machine
+if TYPE_CHECKING:  # the CLI's help lists METRICS without the simulator's imports
+    from mechanism.dynamics.reduced import ReducedModel
+    from mechanism.dynamics.simulation import SimulationResult
+    from mechanism.machine.machine import Machine
 
 TWO_PI = 2 * np.pi
 SETTLING_BAND = 0.02  # settled: within the steady ripple band widened by 2 % of the mean speed
@@ -93,6 +93,8 @@ def driven_inertia_kgm2(machine: Machine) -> float:
     """The shaft side's own inertia: the mean effective inertia at the shaft without the
     motor rotor's share (its axial inertia times its ratio squared): what a flywheel on
     the shaft is compared with."""
+    import mujoco
+
     data = machine.reset(0.0)
     mass = np.zeros((machine.model.nv, machine.model.nv))
     mujoco.mj_fullM(machine.model, data, mass)
