@@ -400,3 +400,26 @@ def test_a_model_that_changes_the_voltage_runs_on_a_parts_windows_as_on_the_whol
     problem._runs.clear()  # every part on the whole recording
     for part, simulated in on_windows.items():
         assert np.array_equal(simulated, problem.simulate(structure, values, part)), part
+
+
+def test_an_effect_that_changes_the_voltage_in_apply_is_refused_not_dropped():
+    """The voltage an effect changes must go through Effect.voltage, where the winding lag
+    sees it; a change made in apply would be overwritten by the lag without a word."""
+    from mechanism.dynamics.lumped import Signals
+    from mechanism.sysid.effects import Effect
+    from mechanism.sysid.identification import ModelStructure, baseline_model
+
+    class OldStyleSupply(Effect):
+        name = "old_style_supply"
+        enters = "voltage"
+
+        def apply(self, v, s, drive):
+            drive.voltage_V = 0.9 * drive.voltage_V
+
+    n = 50
+    t = np.arange(n) * 1e-3
+    signals = Signals(t, np.full(n, 12.0), 10.0 * t, np.full(n, 10.0), 1e-3, SAPPHIRE.ratio)
+    structure = ModelStructure(baseline_model(SAPPHIRE), [OldStyleSupply(SAPPHIRE)])
+    values = {p.name: p.nominal for p in structure.parameters}
+    with pytest.raises(TypeError, match="old_style_supply changes the voltage in apply"):
+        structure.drive(values, signals)

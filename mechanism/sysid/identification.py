@@ -93,10 +93,14 @@ class ModelStructure:
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         drive = self.baseline.drive(values, signals)
-        drive.voltage_V = self.voltage(values, signals)
+        applied = drive.voltage_V = self.voltage(values, signals)
         # the voltage's effects first (it is an input), the belt last (it reads the total inertia)
         for e in sorted(self.effects, key=lambda e: {"voltage": 0, "belt": 2}.get(e.enters, 1)):
             e.apply(values, signals, drive)
+            if drive.voltage_V is not applied:  # the winding lag below would drop the change
+                raise TypeError(
+                    f"effect {e.name} changes the voltage in apply(); give it a voltage() method"
+                )
         self.baseline.finish(values, signals, drive, lambda tau: self.lagged(values, signals, tau))
         return drive
 
