@@ -170,6 +170,24 @@ def test_belt_rings_at_its_analytic_resonance():
     assert f[np.argmax(spectrum)] == pytest.approx(expected, abs=0.5)
 
 
+@pytest.mark.parametrize("use_native", [True, False])
+def test_across_free_play_the_arm_coasts_and_the_motor_carries_the_viscous_friction(use_native):
+    """The model's viscous friction is the motor's (its bearings; the thesis's b_m, referred to
+    the motor): where a belt's free play separates motor and arm, the motor slows under it and the
+    back-emf while the arm, with no Coulomb friction and no load, coasts at its speed exactly
+    (with the viscous friction on the arm it slowed by c/J_arm, 2.5 % in these 20 ms)."""
+    n = 200
+    viscous, arm, motor_share = 1e-3, 2e-3, 5e-4
+    drive = Drive.constant(signals_for(np.zeros(n)), np.zeros(n), arm, viscous, 0.0)
+    drive.belt_stiffness_Nm_rad, drive.motor_inertia_kgm2 = 30.0, motor_share
+    drive.belt_gap_rad = 1.0  # wide: no contact for the first tens of milliseconds
+    motor = MotorConstants(1.1, 0.017, 0.021, 8.0)
+    w = simulate(drive, motor, one_segment(n), np.array([50.0]), DT, use_native=use_native)[0]
+    assert np.all(w[:20] == 50.0)
+    # the motor's own deceleration (back-emf and viscous) closes the gap: later the arm is braked
+    assert w[-1] < 50.0
+
+
 def test_position_dependent_inertia_conserves_energy():
     # Without friction or drive, J(theta) w^2 / 2 is constant. Close the loop around the
     # kernel one step at a time (the diagnosis drives it with the measured angle instead).

@@ -375,7 +375,9 @@ class Drive:
     tau_arm_Nm: np.ndarray  # position-dependent torque on the arm, resisting
     coulomb_Nm: np.ndarray  # kinetic friction level (>= 0)
     static_excess_Nm: np.ndarray  # static minus kinetic friction (Stribeck)
-    viscous_Nm_s: np.ndarray  # viscous friction (arm side)
+    viscous_Nm_s: (
+        np.ndarray
+    )  # viscous friction (arm units; on the motor where a belt separates them)
     inertia_kgm2: np.ndarray  # arm-side inertia, may vary with angle
     quadratic_Nm_s2: np.ndarray  # coefficient of w^2 (1/2 dJ/dtheta)
     stribeck_velocity_rad_s: float = 1.0
@@ -675,7 +677,7 @@ def _simulate_belt_numpy(
     nsub = int(max(substeps, np.ceil(np.max(wr) * dt / 0.25)))
     h = dt / nsub
     wm = w.copy()
-    load = cv[k0] * w + ta[k0] + q[k0] * w * w + np.where(w != 0, fk[k0] * np.sign(w), 0.0)
+    load = ta[k0] + q[k0] * w * w + np.where(w != 0, fk[k0] * np.sign(w), 0.0)
     lim = fk[k0] + fx[k0]
     load = np.where(w == 0, np.clip(gain * u[k0] - tm[k0], -lim, lim), load)
     gap = drive.belt_gap_rad
@@ -686,8 +688,8 @@ def _simulate_belt_numpy(
         ja = jt[k] - jm
         for _ in range(nsub):
             fb = np.where(np.abs(x) > gap, kb * (x - gap * np.sign(x)) + cb * (wm - w), 0.0)
-            wm = wm + h * (gain * u[k] - c_emf * wm - tm[k] - fb) / jm
-            f = fb - cv[k] * w - ta[k] - q[k] * w * w
+            wm = wm + h * (gain * u[k] - (c_emf + cv[k]) * wm - tm[k] - fb) / jm
+            f = fb - ta[k] - q[k] * w * w
             at_rest = w == 0.0
             stuck = at_rest & (np.abs(f) <= fk[k] + fx[k])
             direction = np.where(at_rest, np.sign(f), np.sign(w))

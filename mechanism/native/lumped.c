@@ -169,8 +169,9 @@ static void run_rigid_lanes(const drive_params *p, const coefficients *a, const 
 }
 
 /* Elastic belt: motor velocity wm, arm velocity w, belt twist x (arm units). Motor torque,
- * back-emf and motor-angle-periodic torque act on the motor; friction, viscous, position
- * loads and the linkage on the arm. Semi-implicit Euler with enough substeps. */
+ * back-emf, the viscous friction (the model's is the motor's, as the thesis's b_m) and the
+ * motor-angle-periodic torque act on the motor; Coulomb friction, position loads and the
+ * linkage on the arm. Semi-implicit Euler with enough substeps. */
 typedef struct {
     double w, wm, x;
     int nsub;
@@ -192,8 +193,9 @@ static belt_state belt_start(const drive_params *p, const coefficients *a, int s
     if (need > nsub) nsub = need;
     b.nsub = nsub;
     b.h = p->dt / nsub;
-    /* quasi-static initial twist: the belt carries the arm's load */
-    double load = a->cv[k0] * w + a->ta[k0] + a->q[k0] * w * w + (w != 0.0 ? a->fk[k0] * sgn(w) : 0.0);
+    /* quasi-static initial twist: the belt carries the arm's load (the viscous friction is the
+     * motor's: its bearings and its winding's damping) */
+    double load = a->ta[k0] + a->q[k0] * w * w + (w != 0.0 ? a->fk[k0] * sgn(w) : 0.0);
     if (w == 0.0) {
         double drive = p->gain * a->u[k0] - a->tm[k0];
         double lim = a->fk[k0] + a->fx[k0];
@@ -211,9 +213,9 @@ static inline void belt_step(const drive_params *p, const coefficients *a, int k
     for (int s = 0; s < b->nsub; s++) {
         double fb = x > p->gap ? kb * (x - p->gap) + cb * (wm - w)
                   : (x < -p->gap ? kb * (x + p->gap) + cb * (wm - w) : 0.0);   /* free play: no torque */
-        double fm = p->gain * a->u[k] - p->c_emf * wm - a->tm[k] - fb;
+        double fm = p->gain * a->u[k] - (p->c_emf + a->cv[k]) * wm - a->tm[k] - fb;
         wm += h * fm / jm;
-        double f = fb - a->cv[k] * w - a->ta[k] - a->q[k] * w * w;
+        double f = fb - a->ta[k] - a->q[k] * w * w;
         double dir = sgn(w);
         int stuck = 0;
         if (w == 0.0) {
