@@ -260,9 +260,8 @@ class Signals:
         """The logged voltage behind the winding lag ``tau_s`` (:func:`lagged_voltage`), remembered per time constant."""
         if self.parent is not None:
             return self.memo("lagged", tau_s, lambda: self.parent.lagged(tau_s)[self.parent_index])
-        if (
-            self.logged is not None
-        ):  # the same voltage: its lag is remembered there, for every delay
+        if self.logged is not None:
+            # the same voltage: its lag is remembered there, for every delay
             return self.logged.lagged(tau_s)
         return self.memo("lagged", tau_s, lambda: lagged_voltage(self.voltage_V, tau_s, self.dt))
 
@@ -375,9 +374,8 @@ class Drive:
     tau_arm_Nm: np.ndarray  # position-dependent torque on the arm, resisting
     coulomb_Nm: np.ndarray  # kinetic friction level (>= 0)
     static_excess_Nm: np.ndarray  # static minus kinetic friction (Stribeck)
-    viscous_Nm_s: (
-        np.ndarray
-    )  # viscous friction (arm units; on the motor where a belt separates them)
+    # viscous friction (arm units; on the motor where a belt separates motor and arm)
+    viscous_Nm_s: np.ndarray
     inertia_kgm2: np.ndarray  # arm-side inertia, may vary with angle
     quadratic_Nm_s2: np.ndarray  # coefficient of w^2 (1/2 dJ/dtheta)
     stribeck_velocity_rad_s: float = 1.0
