@@ -235,6 +235,8 @@ def test_signals_advanced_by_a_delay_read_the_log_that_much_later():
         np.testing.assert_allclose(ahead.arm_angle_rad, angle + speed * delay, rtol=0, atol=1e-12)
         np.testing.assert_allclose(ahead.velocity_rad_s, speed)
         assert np.array_equal(ahead.voltage_V, whole.voltage_V)
+        # the voltage is not delayed: its winding lag is the logged one's, computed once for every delay
+        assert ahead.lagged(1e-3) is whole.lagged(1e-3)
         window = np.arange(150, 200)
         part = whole.subset(window)
         np.testing.assert_allclose(
