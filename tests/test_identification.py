@@ -423,3 +423,18 @@ def test_an_effect_that_changes_the_voltage_in_apply_is_refused_not_dropped():
     values = {p.name: p.nominal for p in structure.parameters}
     with pytest.raises(TypeError, match="old_style_supply changes the voltage in apply"):
         structure.drive(values, signals)
+
+
+@pytest.mark.parametrize("seconds, expected", [(30.0, 8), (48.0, 8), (60.0, 8), (16.0, 4)])
+def test_the_screening_part_keeps_eight_fit_segments_spread_over_the_recording(seconds, expected):
+    """Candidates are screened on every second to fourth fit segment, never fewer than eight
+    (fewer lost three effects of two mixes with a delay at 30 s) where the recording has them."""
+    from mechanism.dynamics.lumped import make_segments
+    from mechanism.sysid.identification import _parts
+
+    parts = _parts(make_segments(int(seconds * 1000), 1e-3))
+    fit, screen = parts["fit"].starts, parts["screen"].starts
+    assert len(screen) == expected and set(screen) <= set(fit)
+    steps = np.diff(np.searchsorted(fit, screen))
+    assert steps.min() == steps.max() and steps[0] in (2, 3, 4)
+    assert screen[-1] >= fit[-1] - steps[0] * (fit[1] - fit[0])  # reaches the end
