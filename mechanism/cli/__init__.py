@@ -198,7 +198,7 @@ def run_verb(args: argparse.Namespace) -> int:
     from mechanism.files.outputs import transaction
 
     _quiet_mujoco_log()
-    with transaction():
+    with transaction(completes_run=True):
         with captured_stderr() as captured, captured_stdout() as printed:
             status = int(args.handler(args) or 0)
         text = "".join(captured) + "".join(printed)

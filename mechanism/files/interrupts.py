@@ -46,10 +46,13 @@ _state: dict[str, Any] = {
     "finished": False,
     "unraisablehook": sys.unraisablehook,
     "ends_process": False,
+    "committed": False,
 }
 
 
 def _handler(signum, frame):  # noqa: ARG001 - signal API
+    if _state["committed"]:
+        return  # the run's outputs are published: it is complete, too late to interrupt
     if _state["interrupted"] is not None:
         return  # the run is already ending: a second signal must not cut its cleanup short
     if _state["depth"] > 0:
@@ -93,7 +96,9 @@ def install() -> None:
     if sys.unraisablehook is not _unraisable:
         _state["unraisablehook"] = sys.unraisablehook
         sys.unraisablehook = _unraisable
-    _state.update(installed=previous, interrupted=None, depth=0, pending=None, finished=False)
+    _state.update(
+        installed=previous, interrupted=None, depth=0, pending=None, finished=False, committed=False
+    )
 
 
 def end_process_after_cleanup(ends: bool) -> None:
@@ -149,6 +154,15 @@ def finish() -> None:
         _state["interrupted"] = 0
 
 
+def commit() -> None:
+    """The run's outputs are published: the run is complete. A signal from here on (while it
+    publishes, or between its last rename and its exit) is too late to stop it; an ``error:
+    interrupted`` and exit 130 then would say the previous outputs were kept when the new ones
+    are in place."""
+    _state["committed"] = True
+    _state["pending"] = None
+
+
 def checkpoint() -> None:
     """Raise the run's interrupt again where a library swallowed it: trimesh imports its
     optional modules under ``except BaseException``, and a Ctrl-C landing in such an import
@@ -161,6 +175,7 @@ def checkpoint() -> None:
         signum
         and _state["installed"]
         and not _state["finished"]
+        and not _state["committed"]
         and not isinstance(sys.exc_info()[1], (Interrupted, KeyboardInterrupt))
     ):
         raise Interrupted(signum)

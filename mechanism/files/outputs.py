@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mechanism.errors import UserError
-from mechanism.files.interrupts import checkpoint, deferred
+from mechanism.files.interrupts import checkpoint, commit, deferred
 
 _active: contextvars.ContextVar["Transaction | None"] = contextvars.ContextVar(
     "mechanism_transaction", default=None
@@ -323,6 +323,7 @@ class Transaction:
     staged: list[tuple[Path, Path, bool]] = field(default_factory=list)
     created: list[Path] = field(default_factory=list)
     building: list[Path] = field(default_factory=list)  # folders being filled (atomic_dir's block)
+    completes_run: bool = False  # the CLI's run: published, it is complete (interrupts.commit)
 
     def stage(self, temporary: Path, destination: Path, folder: bool) -> None:
         for i, (old_tmp, old_dst, _) in enumerate(self.staged):
@@ -346,6 +347,8 @@ class Transaction:
         try:
             with deferred():
                 self._publish()
+                if self.completes_run:
+                    commit()  # a signal that arrived while it published no longer interrupts
         finally:
             lock.__exit__(None, None, None)
 
@@ -410,16 +413,18 @@ class Transaction:
 
 
 @contextlib.contextmanager
-def transaction(independent: bool = False):
+def transaction(independent: bool = False, completes_run: bool = False):
     """All ``atomic_*`` outputs inside are published together at the end, or none on failure.
 
     A nested transaction joins the outer one, unless ``independent``: then it publishes at
-    its own end (for files the run reads back at once, such as a conversion into a cache)."""
+    its own end (for files the run reads back at once, such as a conversion into a cache).
+    ``completes_run`` (the CLI's one transaction per run): once published, the run is
+    complete and a signal no longer interrupts it (:func:`files.interrupts.commit`)."""
     current = _active.get()
     if current is not None and not independent:
         yield current
         return
-    current = Transaction()
+    current = Transaction(completes_run=completes_run)
     token = _active.set(current)
     try:
         yield current

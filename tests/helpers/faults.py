@@ -26,6 +26,8 @@ class Injector:
         self.fail_at, self.fault = fail_at, fault
         self.events = 0
         self.fired = False
+        self.publishing = False  # inside Transaction._publish: the renames that publish a run
+        self.fired_publishing = False
 
     def under(self, path) -> bool:
         try:
@@ -40,6 +42,7 @@ class Injector:
         if self.events <= self.fail_at:
             return
         self.fired = True
+        self.fired_publishing = self.publishing
         if self.fault.startswith("SIG"):
             # the handler runs at the next bytecode
             os.kill(os.getpid(), getattr(signal, self.fault))
@@ -118,6 +121,16 @@ def injected(root, fail_at: int, fault: str):
     os.mkdir = mkdir
     shutil.copyfile = on_target(real_copyfile, 1)
     outputs._exchange = on_target(real_exchange, 1)
+    real_publish = outputs.Transaction._publish
+
+    def publish(transaction):
+        injector.publishing = True
+        try:
+            return real_publish(transaction)
+        finally:
+            injector.publishing = False
+
+    outputs.Transaction._publish = publish
     try:
         yield injector
     finally:
@@ -125,3 +138,4 @@ def injected(root, fail_at: int, fault: str):
         for name, function in saved.items():
             setattr(os, name, function)
         shutil.copyfile, outputs._exchange = real_copyfile, real_exchange
+        outputs.Transaction._publish = real_publish
