@@ -336,7 +336,8 @@ class Transaction:
     def publish(self) -> None:
         """Files by rename (with a backup link so a failure rolls back), folders by swap;
         under the outputs' locks, so two runs publishing the same outputs at once leave the
-        whole of one; a signal waits until it is done."""
+        whole of one; a signal waits until it is done (and then finds a run that
+        ``completes_run`` complete: it no longer interrupts)."""
         try:
             checkpoint()  # an interrupt that a library swallowed: nothing is published
             lock = output_lock([destination for _, destination, _ in self.staged])
