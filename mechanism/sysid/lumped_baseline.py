@@ -69,9 +69,8 @@ class LumpedBaseline:
         "coulomb_arm_Nm",
     )
     meaning = "constant inertia, viscous and Coulomb friction, DC motor (datasheet constants, winding lag L/R) through the belt"
-    varies_inertia = (
-        False  # the same inertia at every sample (an elastic belt's split is exact on any part)
-    )
+    # the same inertia at every sample (an elastic belt's split is exact on any part)
+    varies_inertia = False
 
     # bounds as factors of the description's values: wide enough for a machine 14x lighter or
     # 18x heavier than described, and friction from none to an order of magnitude more

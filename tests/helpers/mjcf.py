@@ -24,8 +24,10 @@ def _numbers(text: str) -> np.ndarray | None:
 
 def difference(a: Path, b: Path, relative: float = RELATIVE) -> str | None:
     """Where the models in ``a`` and ``b`` differ (element, attribute, values), or None."""
-    left, right = ET.parse(a).getroot(), ET.parse(b).getroot()
-    for x, y in zip(left.iter(), right.iter(), strict=False):
+    left, right = list(ET.parse(a).getroot().iter()), list(ET.parse(b).getroot().iter())
+    if len(left) != len(right):
+        return f"{len(left)} elements against {len(right)}"
+    for x, y in zip(left, right):
         where = f"<{x.tag} name={x.get('name')!r}>"
         if x.tag != y.tag or sorted(x.attrib) != sorted(y.attrib):
             return f"{where} against <{y.tag} name={y.get('name')!r}> {sorted(y.attrib)}"
@@ -40,6 +42,4 @@ def difference(a: Path, b: Path, relative: float = RELATIVE) -> str | None:
             )
             if np.any(np.abs(u - v) > relative * scale):
                 return f"{where} {key}: {value} against {y.attrib[key]}"
-    if len(list(left.iter())) != len(list(right.iter())):
-        return "a different number of elements"
     return None
