@@ -60,3 +60,8 @@ MOTOR_DATASHEET_TOLERANCE = 0.05
 #   (resistance and torque constant each within a few % at 20 C); fitted only where the data fixes the torque scale
 # a prior's hard bounds lie this many of its sigmas from the described value
 PRIOR_BOUND_SIGMAS = 3.0
+
+# -- simulation of the lumped drive (dynamics.lumped) --
+# a first-order lag filter started this many time constants before the samples it is read at
+# has forgotten its start to e^-40 = 4e-18 of it, below a double's rounding of the filtered signal
+LAG_MEMORY_TIME_CONSTANTS = 40.0

@@ -221,6 +221,43 @@ def test_lagged_voltage_is_the_exact_first_order_step_average():
     assert lagged_voltage(u, 1e-9, DT) is u
 
 
+def test_a_lag_on_a_few_windows_is_the_lag_on_the_whole_recording_read_there():
+    """A part's windows (a few, spread over a long recording, one at its very start) get their
+    winding lag from stretches around them alone: the whole recording's values to rounding, for
+    every time constant, also where the stretches are most of the recording (then the whole)."""
+    rng = np.random.default_rng(3)
+    n = 20_000
+    whole = signals_for(np.cumsum(rng.normal(0, 0.3, n)) + 12.0)
+    whole.velocity_rad_s[:] = np.cumsum(rng.normal(0, 1.0, n))
+    windows = [
+        np.arange(0, 700),
+        np.arange(4000, 5270),
+        np.arange(9000, 10270),
+        np.arange(19000, n),
+    ]
+    few = whole.subset(np.concatenate(windows))
+    most = whole.subset(np.arange(100, n - 100))
+    for tau in (1e-9, 1e-4, 1.3e-3, 0.02):
+        for part in (few, most):
+            index = part.parent_index
+            np.testing.assert_allclose(
+                part.lagged(tau), lagged_voltage(whole.voltage_V, tau, DT)[index], rtol=1e-14
+            )
+            speed = part.lag_filtered(
+                "lagged_speed", tau, tau, lambda w: w.velocity_rad_s, lambda w: w * w
+            )
+            assert np.array_equal(speed, whole.velocity_rad_s[index] ** 2)
+        # a window's own stretch: its first samples are read from the start of the recording on
+        assert few._stretches(3) is not None and most._stretches(3) is None
+    # windows laid end to end out of order still read their own samples
+    shuffled = whole.subset(np.concatenate(windows[::-1]))
+    np.testing.assert_allclose(
+        shuffled.lagged(2e-3),
+        lagged_voltage(whole.voltage_V, 2e-3, DT)[shuffled.parent_index],
+        rtol=1e-14,
+    )
+
+
 def test_signals_advanced_by_a_delay_read_the_log_that_much_later():
     """A sensor delay: the machine's angle at t is the logged one at t + delay. On a steady
     turn (angle linear in time) linear interpolation is exact, also between samples and past

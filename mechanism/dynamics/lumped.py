@@ -38,6 +38,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mechanism.tolerances import LAG_MEMORY_TIME_CONSTANTS
+
 if TYPE_CHECKING:  # the tables need mujoco; the lumped drive does not
     from mechanism.kinematics.linkage import LinkageTables
 
@@ -156,6 +158,11 @@ class DriveNominal:
         )
 
 
+# a lag over stretches of the recording (Signals.lag_filtered) where they add up to less than this
+# share of it; beyond it the whole once, shared by every part, costs less
+STRETCH_SHARE = 0.6
+
+
 @dataclass
 class Signals:
     """The measured signals that drive the model, plus cached angle functions."""
@@ -258,12 +265,84 @@ class Signals:
 
     def lagged(self, tau_s: float) -> np.ndarray:
         """The logged voltage behind the winding lag ``tau_s`` (:func:`lagged_voltage`), remembered per time constant."""
-        if self.parent is not None:
-            return self.memo("lagged", tau_s, lambda: self.parent.lagged(tau_s)[self.parent_index])
-        if self.logged is not None:
-            # the same voltage: its lag is remembered there, for every delay
-            return self.logged.lagged(tau_s)
-        return self.memo("lagged", tau_s, lambda: lagged_voltage(self.voltage_V, tau_s, self.dt))
+        if self.source_index is None:
+            if self.logged is not None:
+                # the same voltage: its lag is remembered there, for every delay
+                return self.logged.lagged(tau_s)
+            return self.memo(
+                "lagged", tau_s, lambda: lagged_voltage(self.voltage_V, tau_s, self.dt)
+            )
+        whole = self._whole_of_part()
+        return self._on_stretches(
+            "lagged",
+            tau_s,
+            tau_s,
+            lambda: whole.lagged(tau_s),
+            lambda read: lagged_voltage(whole.voltage_V[read], tau_s, self.dt),
+        )
+
+    def lag_filtered(self, kind: str, key, tau_s: float, series, lag) -> np.ndarray:
+        """``lag(series(whole))`` at these samples, remembered per ``key``: ``lag`` a causal filter
+        whose memory is a first-order lag ``tau_s`` (:meth:`_on_stretches`), ``series`` the signal it
+        filters, from the whole recording's signals."""
+        if self.source_index is None:
+            return self.memo(kind, key, lambda: lag(series(self)))
+        whole = self._whole_of_part()
+        return self._on_stretches(
+            kind,
+            key,
+            tau_s,
+            lambda: whole.lag_filtered(kind, key, tau_s, series, lag),
+            lambda read: lag(series(whole)[read]),
+        )
+
+    def _whole_of_part(self) -> "Signals":
+        """The whole recording's signals these (a part of it: ``source_index`` set) were read from."""
+        if self.whole is None or self.source_index is None:
+            raise ValueError("these signals are the whole recording, not a part of it")
+        return self.whole
+
+    def _on_stretches(self, kind: str, key, tau_s: float, on_whole, on_read) -> np.ndarray:
+        """A lag filter ``tau_s`` at these samples (a part of the whole recording): ``on_read(read)``
+        filters the whole recording's samples ``read``. A first-order lag forgets where it started
+        after :data:`~mechanism.tolerances.LAG_MEMORY_TIME_CONSTANTS` time constants, so where these
+        samples are a small part of the recording (the windows of a part of the segments) it runs
+        only over stretches around them, each started that many time constants early: the same
+        values to a double's rounding, for a fraction of the work (a fit changes the time constant
+        at every step). Otherwise ``on_whole()`` (the whole recording, shared by every part)."""
+        lead = int(math.ceil(LAG_MEMORY_TIME_CONSTANTS * max(tau_s, 0.0) / self.dt)) + 1
+        stretches = self._stretches(lead)
+        if stretches is None:
+            return self.memo(kind, key, lambda: on_whole()[self.source_index])
+        read, at = stretches
+        return self.memo(kind, key, lambda: on_read(read)[at])
+
+    def _stretches(self, lead: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The whole recording's samples to filter for these signals' samples: each contiguous run
+        of them with the ``lead`` samples before it, laid end to end (before the recording's start,
+        its first sample again: the filters start at rest there); and where these samples are
+        among them. None where that is most of the recording."""
+        whole = self._whole_of_part()
+        if "runs" not in self._cache:
+            index = self.source_index
+            assert index is not None
+            breaks = np.flatnonzero(np.diff(index) != 1) + 1
+            first = index[np.r_[0, breaks]] if len(index) else index
+            count = np.diff(np.r_[0, breaks, len(index)]) if len(index) else first
+            self._cache["runs"] = (first, count)
+        first, count = self._cache["runs"]
+        if not len(first) or len(first) * lead + len(self) > STRETCH_SHARE * len(whole):
+            return None
+
+        def lay_out():
+            length = count + lead
+            ends = np.cumsum(length)
+            read = np.repeat(first - lead - (ends - length), length) + np.arange(ends[-1])
+            # each run's own samples are the last ``count`` of its stretch
+            at = np.repeat(ends - count - (np.cumsum(count) - count), count) + np.arange(len(self))
+            return np.maximum(read, 0), at
+
+        return self.memo("stretches", lead, lay_out, keep=4)
 
     def history(self, kind: str, key, compute):
         """A quantity that integrates over the recording's past (warmth, copper temperature, a

@@ -133,10 +133,12 @@ class ModelStructure:
         changing, key = self._changing_voltage(values)
         if not changing:
             return signals.lagged(tau_s)
-        return signals.history(
+        return signals.lag_filtered(
             "lagged_applied_voltage",
             (tau_s, key),
-            lambda whole: lagged_voltage(self.voltage(values, whole), tau_s, whole.dt),
+            tau_s,
+            lambda whole: self.voltage(values, whole),
+            lambda u: lagged_voltage(u, tau_s, signals.dt),
         )
 
     @property

@@ -244,11 +244,11 @@ class LumpedBaseline:
         drive.voltage_V = (lagged or signals.lagged)(tau)
         if tau > 0.02 * signals.dt:
             # a filter over the past: on the whole recording, read at these samples
-            lag = signals.history(
+            lag = signals.lag_filtered(
                 "lagged_speed",
                 tau,
-                lambda whole: (
-                    lagged_voltage(whole.velocity_rad_s, tau, whole.dt) - whole.velocity_rad_s
-                ),
+                tau,
+                lambda whole: whole.velocity_rad_s,
+                lambda w: lagged_voltage(w, tau, signals.dt) - w,
             )
             drive.tau_motor_Nm = drive.tau_motor_Nm + self.motor(values).emf_damping_arm * lag
