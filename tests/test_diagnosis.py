@@ -362,6 +362,34 @@ def test_a_sensor_delay_beside_a_motor_ripple_is_named_with_it(bench, seed):
     assert result.final.rmse_val <= 2 * noise_floor(recording).rmse
 
 
+@pytest.mark.slow
+def test_a_near_tie_of_the_first_round_taken_the_other_way_still_ends_at_the_truth(
+    bench, monkeypatch
+):
+    """The first round's pick among near ties is a coin toss that rounding can turn (a 60 s
+    recording: a free play 2.6 % behind the ripple, taken for its fewer parameters, and the
+    delay that pays only beside the ripple never joined). Here the toss is made to fall on the
+    free play (4 % behind the delay): the path from it ends at 8x the noise floor, so the near
+    tie is taken first in its place, and that path ends at the noise with the truth."""
+    from mechanism.sysid import diagnosis as D
+
+    recording = read_recording(bench("sensor_delay,torque_ripple", seed=1))
+    rank, calls = D._rank, []
+
+    def toss(results, current):
+        calls.append(sorted(results))
+        if len(calls) == 1:
+            assert "backlash" in results and "sensor_delay" in results
+            return "backlash"
+        return rank(results, current)
+
+    monkeypatch.setattr(D, "_rank", toss)
+    result = diagnose(recording)
+    check(result, {"sensor_delay", "torque_ripple"})
+    assert result.final.rmse_val <= 2 * noise_floor(recording).rmse
+    assert {"sensor_delay first in place of backlash"} in [set(r) for r in result.rounds]
+
+
 def test_diagnose_help_names_every_effect_of_the_library_and_its_thresholds(cli_here):
     from mechanism.sysid.diagnosis import KEEP_GAIN_JOINT, MIN_RELATIVE_GAIN
     from mechanism.sysid.effects import EFFECTS

@@ -92,6 +92,13 @@ PAIR_TOP = 3  # when no single candidate passes, pairs of the best this many are
 # When the forward path stops, an earlier finding is tried against the candidates that came
 # within this much of it in its own round, now that later findings have joined (see _swap)
 SWAP_BAND = 0.15
+# The first round's pick among near ties (within TIE_BAND, fewer parameters win) is a coin toss
+# that 1e-12 of rounding can turn: a motor ripple and a free play 2.6 % apart, the free play
+# taken, and the sensor delay that pays only beside the ripple never joined (19x the noise floor
+# left, nothing named). Where the library's search leaves the error above UNEXPLAINED_FACTOR x
+# the noise floor, each other near tie of that round is taken first in turn (at most this
+# many), and the path that ends lower (ranked as candidates are) is kept
+TIE_BRANCHES = 2
 # Fits that compare models (screening, refits, the backward and pruning steps, pairs) stop when
 # an iteration improves the cost by less than 1e-4 relative: far finer than the 3 % tie band
 # and the 30-35 % gains they decide. An accepted model is still converged to 1e-5
@@ -718,7 +725,17 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
     where = locate(problem, base)
     located = where.located()
     nominal, recording = problem.nominal, problem.recording
-    findings, current, rounds = _select(problem, base, base, lib, located, tick, workers)
+    findings, current, rounds, first = _select(problem, base, base, lib, located, tick, workers)
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse and first is not None:
+        for tie in first.ties:
+            tick(f"taking {tie} first in place of {first.take} (a near tie)")
+            other = _select(
+                problem, base, base, lib, located, tick, workers, first_round=first.taking(tie)
+            )
+            if _rank({"kept": current, "other": other[1]}, base) == "other":
+                label = f"{tie} first in place of {first.take}"
+                findings, current = other[0], other[1]
+                rounds = [*rounds, {label: current.rmse_val}, *other[2][1:]]
     description = ""
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
         # the library leaves a structured error: model it anyway, with families that name nothing
@@ -726,7 +743,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
         sig = signature(recording, locate(problem, current).residual, shafts)
         description = describe(sig, shafts)
         generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
-        more, current, more_rounds = _select(
+        more, current, more_rounds, _ = _select(
             problem,
             base,
             current,
@@ -746,7 +763,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
         if not all(f.effect.generic for f in more):
             # library physics took a generic's place: what else of the library now passes on top
             rest = {n: e for n, e in lib.items() if n not in current.structure.names}
-            again, current, again_rounds = _select(
+            again, current, again_rounds, _ = _select(
                 problem,
                 base,
                 current,
@@ -773,7 +790,8 @@ def _select(
     backward: bool = True,
     step_gain: float | None = None,
     keep_gain: float | None = None,
-) -> tuple[list["Finding"], FitResult, list]:
+    first_round: "FirstRound | None" = None,
+) -> tuple[list["Finding"], FitResult, list, "FirstRound | None"]:
     """Forward selection from ``current`` over ``lib`` with a joint refit at every step, a
     backward step after each acceptance, and a final pruning.
 
@@ -790,6 +808,10 @@ def _select(
       one and the strict test together; a proxy that soaked up part of a true effect's error
       before the true effect joined fails it (it cut at most 18 % of what the true effect
       leaves, on the calibration recordings).
+
+    Returns the findings, the final fit, the rounds, and the first round (its fits and the near
+    ties of its pick) where one passed; with ``first_round`` (from an earlier call from the same
+    ``current``) that round is not fitted again and its ``take`` joins first.
     """
     step_gain = STEP_GAIN if step_gain is None else step_gain
     keep_gain = MIN_RELATIVE_GAIN if keep_gain is None else keep_gain
@@ -797,18 +819,25 @@ def _select(
     findings: list[Finding] = []
     rounds = []
     swapped = not backward
-    for _ in range(len(lib) + 1):
+    first, given = None, first_round
+    for step in range(len(lib) + 1):
         remaining = [e for e in lib.values() if e.name not in current.structure.names]
         if not remaining:
             break
-        results = _screen_and_refit(problem, current, remaining, located, tick, workers)
+        if given is not None:
+            results = given.results
+        else:
+            results = _screen_and_refit(problem, current, remaining, located, tick, workers)
         rounds.append({name: r.rmse_val for name, r in results.items()})
         tried = {name: r.rmse_val for name, r in results.items()}
         passing = {
             name: r for name, r in results.items() if _clear_gain(problem, current, r, step_gain)
         }
         if passing:
-            best = _rank(passing, current)
+            best = given.take if given is not None else _rank(passing, current)
+            if step == 0:
+                first = FirstRound(results, best, _near_ties(passing, best))
+            given = None
             findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
         elif pair := _passing_pair(problem, current, results, lib, tick, workers, step_gain):
@@ -848,7 +877,27 @@ def _select(
             current = polished
             findings[-1].fit = polished
     findings, current = _prune(problem, start, findings, current, keep_gain, tick, workers)
-    return _chain(problem, start, findings, current, workers), current, rounds
+    return _chain(problem, start, findings, current, workers), current, rounds, first
+
+
+@dataclass
+class FirstRound:
+    """A selection's first round: every candidate's fit, the one taken, and the near ties
+    that could have been (see :data:`TIE_BRANCHES`)."""
+
+    results: dict[str, FitResult]
+    take: str
+    ties: list[str]
+
+    def taking(self, name: str) -> "FirstRound":
+        return FirstRound(self.results, name, [])
+
+
+def _near_ties(passing: dict[str, FitResult], taken: str) -> list[str]:
+    """The other passing candidates within the tie band of the one taken, best first."""
+    limit = passing[taken].rmse_val * (1 + TIE_BAND)
+    ties = [n for n in passing if n != taken and passing[n].rmse_val <= limit]
+    return sorted(ties, key=lambda n: passing[n].rmse_val)[:TIE_BRANCHES]
 
 
 def _values_without(values: dict[str, float], effect: Effect) -> dict[str, float]:
