@@ -397,7 +397,9 @@ class Diagnosis:
                 "rule": (
                     f"forward selection with joint refits: refit every candidate added to the current model on "
                     f"the fit segments; rank by validation rmse x (1 + {PARAMETER_PENALTY} per added parameter), "
-                    f"near-ties within {TIE_BAND:.0%} go to fewer parameters; a candidate joins when the validation "
+                    f"near-ties within {TIE_BAND:.0%} go to fewer parameters (where the search leaves the error above "
+                    f"{UNEXPLAINED_FACTOR:g}x the noise floor, each other near tie of the first round is taken first in "
+                    f"turn and the lower path kept); a candidate joins when the validation "
                     f"rmse falls by at least {STEP_GAIN:.0%} (pairs when no single one does), an earlier one leaves "
                     f"when the joint refit without it is within {STEP_GAIN:.0%}; the final model keeps a single "
                     f"effect only if it cuts the validation rmse by at least {MIN_RELATIVE_GAIN:.0%} (generic "
