@@ -384,7 +384,9 @@ def test_a_near_tie_of_the_first_round_taken_the_other_way_still_ends_at_the_tru
         return rank(results, current)
 
     monkeypatch.setattr(D, "_rank", toss)
-    result = diagnose(recording)
+    # the candidates of that round that came near (the rest, each fitted alone, changes nothing)
+    near = ("torque_ripple", "backlash", "sensor_delay", "belt_compliance", "stribeck")
+    result = diagnose(recording, candidates=near)
     check(result, {"sensor_delay", "torque_ripple"})
     assert result.final.rmse_val <= 2 * noise_floor(recording).rmse
     assert {"sensor_delay first in place of backlash"} in [set(r) for r in result.rounds]
