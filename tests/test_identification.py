@@ -438,3 +438,19 @@ def test_the_screening_part_keeps_eight_fit_segments_spread_over_the_recording(s
     steps = np.diff(np.searchsorted(fit, screen))
     assert steps.min() == steps.max() and steps[0] in (2, 3, 4)
     assert screen[-1] >= fit[-1] - steps[0] * (fit[1] - fit[0])  # reaches the end
+
+
+def test_the_equation_error_rows_are_every_other_moving_sample_thinned_evenly_to_a_budget():
+    """The starts' regression reads every other moving sample of a short recording and, of a
+    long one, at most EQUATION_ERROR_ROWS spread evenly from its start to its end (its cost
+    grows with the rows: 30 000 at 60 s were a fifth of a diagnosis)."""
+    from mechanism.sysid.identification import EQUATION_ERROR_ROWS, equation_error_rows
+
+    speed = np.full(60_000, 50.0)
+    speed[20_000:21_000] = 0.3  # a stop: not moving, not read
+    rows = equation_error_rows(speed)
+    assert len(rows) <= EQUATION_ERROR_ROWS and len(rows) > EQUATION_ERROR_ROWS // 2
+    assert np.all(np.abs(speed[rows]) > 1.0)
+    assert rows[0] == 0 and rows[-1] > len(speed) - 10
+    short = equation_error_rows(speed[:10_000])
+    assert np.array_equal(short, np.arange(0, 10_000, 2))

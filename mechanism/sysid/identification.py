@@ -490,7 +490,14 @@ def torque_balance(
 # the equation-error regression's rows: the moving samples, evenly thinned to at most this many.
 # It gives a start for a few amplitudes: its cost grows with the rows, its noise falls only as
 # their square root (a 60 s recording at 1 kHz kept 30 000 rows: a fifth of a diagnosis's time)
-EQUATION_ERROR_ROWS = 10**9
+EQUATION_ERROR_ROWS = 8000
+
+
+def equation_error_rows(velocity_rad_s: np.ndarray) -> np.ndarray:
+    """The samples the equation-error regression reads: every other moving one (over 1 rad/s),
+    thinned evenly to at most :data:`EQUATION_ERROR_ROWS`."""
+    moving = np.flatnonzero(np.abs(velocity_rad_s) > 1.0)
+    return moving[:: max(2, -(-len(moving) // EQUATION_ERROR_ROWS))]
 
 
 def equation_error_start(
@@ -519,8 +526,7 @@ def equation_error_start(
     if "eq_error" not in s._cache:
         w = s.velocity_rad_s
         acc = smoothed_velocity(w, s.dt)
-        moving = np.flatnonzero(np.abs(w) > 1.0)
-        moving = moving[:: max(2, -(-len(moving) // EQUATION_ERROR_ROWS))]
+        moving = equation_error_rows(w)
         s._cache["eq_error"] = (w[moving], acc[moving], moving, s.subset(moving))
     w, acc, sel, at_sel = s._cache["eq_error"]
     if len(sel) < 100:
