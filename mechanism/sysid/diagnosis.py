@@ -731,13 +731,13 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse and first is not None:
         for tie in first.ties:
             tick(f"taking {tie} first in place of {first.take} (a near tie)")
-            other = _select(
+            other, ending, other_rounds, _ = _select(
                 problem, base, base, lib, located, tick, workers, first_round=first.taking(tie)
             )
-            if _rank({"kept": current, "other": other[1]}, base) == "other":
+            if _rank({"kept": current, "other": ending}, base) == "other":
                 label = f"{tie} first in place of {first.take}"
-                findings, current = other[0], other[1]
-                rounds = [*rounds, {label: current.rmse_val}, *other[2][1:]]
+                findings, current = other, ending
+                rounds = [*rounds, {label: current.rmse_val}, *other_rounds[1:]]
     description = ""
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
         # the library leaves a structured error: model it anyway, with families that name nothing
