@@ -91,6 +91,7 @@ def main() -> None:
         f"four effects ({FOUR}): {seconds:.2f} s = {seconds / ref:.0f} x reference; found {', '.join(names)} (goal 10 s)"
     )
     _compiled_against_numpy(rec, nominal)
+    _lag_on_stretches_against_the_whole(rec, nominal)
 
 
 def _compiled_against_numpy(rec, nominal) -> None:
@@ -121,4 +122,38 @@ def _compiled_against_numpy(rec, nominal) -> None:
     print(
         f"one fit simulation of the baseline: {compiled:.2f} ms with the compiled angle and "
         f"differentiator, {fallback:.2f} ms with numpy ({fallback / compiled:.2f}x)"
+    )
+
+
+def _lag_on_stretches_against_the_whole(rec, nominal) -> None:
+    """A screening evaluation that changes the winding's time constant (as a fit's steps do):
+    the lag filtered on stretches around the part's windows (``Signals.lag_filtered``) against the
+    whole recording filtered and read there, in the same run."""
+    from mechanism.dynamics import lumped
+    from mechanism.sysid.identification import ModelStructure, Problem, identify
+
+    ident = identify(rec, nominal=nominal)
+    problem = Problem(rec, nominal)
+    structure = ModelStructure(ident.fit.structure.baseline)
+    tau = ident.params["electrical_time_constant_s"]
+
+    def median_ms() -> float:
+        times = []
+        for i in range(100):
+            values = {**ident.params, "electrical_time_constant_s": tau * (1 + 1e-4 * (i + 1))}
+            start = time.perf_counter()
+            problem.simulate(structure, values, "screen")
+            times.append(time.perf_counter() - start)
+        return statistics.median(times) * 1e3
+
+    stretches = median_ms()
+    share = lumped.STRETCH_SHARE
+    lumped.STRETCH_SHARE = 0.0  # every part filters the whole recording
+    try:
+        whole = median_ms()
+    finally:
+        lumped.STRETCH_SHARE = share
+    print(
+        f"one screening simulation with a new winding time constant: {stretches:.2f} ms with the lag "
+        f"on the part's stretches, {whole:.2f} ms on the whole recording ({whole / stretches:.2f}x)"
     )
