@@ -55,11 +55,33 @@ def test_each_effect_is_named_in_its_own_bench_recording(bench, effect):
 
 
 @pytest.mark.slow
-def test_a_diagnosis_on_two_threads_is_the_one_on_one_to_the_last_bit(bench):
-    """The fits of a round, and the starts they need, run on threads: the same numbers in the
-    same order, whatever the number of threads (the tests' workers otherwise keep to one)."""
+def test_a_diagnosis_on_two_worker_processes_is_the_one_in_one_process_to_the_last_bit(
+    bench, monkeypatch
+):
+    """The fits of a round, and the starts they need, run on worker processes (a fit each, or
+    one fit's Jacobian spread over them): the same numbers in the same order, whatever the
+    number of workers (the tests' pytest workers otherwise keep to one)."""
+    from mechanism.sysid.fit_runner import FitRunner
+
     recording = read_recording(bench("torque_ripple", seed=21))
-    one, two = (diagnose(recording, workers=n).to_json() for n in (1, 2))
+    ways = []
+    spread, one_at_a_time = FitRunner._points, FitRunner.run
+
+    def points(self, objective, at):
+        ways.append("jacobian")
+        return spread(self, objective, at)
+
+    def run(self, jobs):
+        ways.append("fits" if self.workers > 1 and len(jobs) >= self.workers else "here")
+        return one_at_a_time(self, jobs)
+
+    monkeypatch.setattr(FitRunner, "_points", points)
+    monkeypatch.setattr(FitRunner, "run", run)
+    one = diagnose(recording, workers=1).to_json()
+    assert set(ways) == {"here"}
+    ways.clear()
+    two = diagnose(recording, workers=2).to_json()
+    assert {"fits", "jacobian"} <= set(ways)
     assert json.dumps(one, sort_keys=True) == json.dumps(two, sort_keys=True)
 
 
@@ -176,6 +198,7 @@ def test_no_candidate_fits_worse_than_the_model_it_extends(tmp_path, effects, ov
     """Every candidate contains the model it extends (its null values): after screening and
     refitting, its fit-half rmse is never above the baseline's."""
     from mechanism.sysid.diagnosis import _screen_and_refit
+    from mechanism.sysid.fit_runner import FitRunner
     from mechanism.sysid.identification import Problem, fit_baseline
     from mechanism.testbench import write_recording
 
@@ -186,9 +209,10 @@ def test_no_candidate_fits_worse_than_the_model_it_extends(tmp_path, effects, ov
     base = fit_baseline(problem)
     from mechanism.sysid.effects import Located
 
-    results = _screen_and_refit(
-        problem, base, list(EFFECTS.values()), Located(), lambda what: None, 2
-    )
+    with FitRunner(problem, 2) as runner:
+        results = _screen_and_refit(
+            problem, base, list(EFFECTS.values()), Located(), lambda what: None, runner
+        )
     worse = {
         name: r.rmse_fit for name, r in results.items() if r.rmse_fit > base.rmse_fit * (1 + 1e-9)
     }
@@ -312,6 +336,7 @@ def test_a_proxy_taken_first_gives_way_to_its_near_tie_once_later_findings_joine
     the drift's place and the model fits far better; a near tie outside the band, or one that
     did not pass the step itself in its round, is not tried."""
     from mechanism.sysid import diagnosis as D
+    from mechanism.sysid.fit_runner import FitRunner
     from mechanism.sysid.identification import Problem, fit, fit_baseline
     from mechanism.sysid.recording import at_fitting_rate
 
@@ -335,7 +360,8 @@ def test_a_proxy_taken_first_gives_way_to_its_near_tie_once_later_findings_joine
             D.Finding(EFFECTS["thermal_drift"], drift, before, "", tried),
             D.Finding(EFFECTS["torque_ripple"], ripple, drift.rmse_val, "", {}),
         ]
-        return D._swap(problem, base, findings, ripple, EFFECTS, located, lambda _: None, 1)
+        runner = FitRunner(problem, 1)
+        return D._swap(problem, base, findings, ripple, EFFECTS, located, lambda _: None, runner)
 
     findings, swapped, label = swap(min(winding.rmse_val, drift.rmse_val))
     assert label == "winding_heating in place of thermal_drift"

@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -276,6 +277,88 @@ def test_an_interrupt_stops_a_run_and_its_workers_and_keeps_the_old_outputs(
     assert survivors(workers) == {}
     assert {k: v for k, v in visible(out).items() if k != "run.csv.partial"} == before
     assert hidden(out) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_diagnosis_interrupted_while_its_fit_workers_run_stops_them(tmp_path, signum, status):
+    """A diagnosis on two cores fits on worker processes: interrupted, it stops them and keeps
+    the old outputs."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "d.json").write_text("old\n")
+    recording = REPO / "assets" / "recordings" / "torque_ripple_seed3.csv"
+    proc = subprocess.Popen(
+        mechanism_command("diagnose", str(recording), "--json", str(out / "d.json")),
+        env=environment(tmp_path, MECHANISM_CORES="2"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline, workers = time.monotonic() + 120, set()
+    while time.monotonic() < deadline and proc.poll() is None and not workers:
+        workers = children(proc.pid)
+        time.sleep(0.02)
+    assert workers, ("the diagnosis fits on worker processes", proc.communicate())
+    time.sleep(0.3)  # into a round's fits
+    workers |= children(proc.pid)
+    sent = time.monotonic()
+    proc.send_signal(signum)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == status, stderr
+    assert error_lines(stderr) == ["error: interrupted"], stderr
+    assert time.monotonic() - sent < INTERRUPT_MARGIN_S
+    assert survivors(workers) == {}
+    assert visible(out) == {"d.json": b"old\n"}
+    assert hidden(out) == []
+
+
+IDLE_FIT_WORKERS = textwrap.dedent("""
+    import sys, time
+    from tests.test_identification import _Curved, _curved_job
+    from mechanism.sysid.fit_runner import FitRunner
+
+    runner = FitRunner(_Curved(), workers=2)
+    runner.run([_curved_job()] * 3)
+    print("idle", flush=True)
+    time.sleep(120)
+""")
+
+
+IDLE_BATCH_WORKERS = textwrap.dedent("""
+    import time
+    from mechanism.batch import run_batch
+
+    def item(state, number):
+        if number:
+            print("one busy, one waiting", flush=True)
+            time.sleep(120)
+        return number
+
+    run_batch(item, [0, 1], workers=2, progress=False)
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("script", [IDLE_FIT_WORKERS, IDLE_BATCH_WORKERS], ids=["fits", "batch"])
+def test_workers_end_with_a_run_killed_while_they_work_or_wait(tmp_path, script):
+    """SIGKILL leaves a run no way to stop its workers, and a worker waiting for the next round
+    or item would wait for ever: the kernel ends them with the run."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script],
+        env=environment(tmp_path),
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout.readline().strip() in ("idle", "one busy, one waiting")
+    workers = children(proc.pid) - {
+        pid for pid in children(proc.pid) if "resource_tracker" in command(pid)
+    }
+    assert len(workers) == 2, workers
+    proc.kill()
+    proc.wait(timeout=30)
+    assert survivors(workers) == {}
 
 
 @pytest.mark.slow

@@ -459,20 +459,20 @@ def test_the_share_of_cores_bounds_the_threads_and_workers(monkeypatch):
     class FirstRound(Exception):
         pass
 
-    def first_round(jobs, workers):
-        raise FirstRound(workers)
+    def first_round(jobs, runner):
+        raise FirstRound(runner.workers)
 
     monkeypatch.setattr(diagnosis, "_fit_all", first_round)
     recording = read_recording(
         Path(__file__).resolve().parent.parent / "assets/recordings/torque_ripple_seed3.csv"
     )
-    with pytest.raises(FirstRound) as threads:
+    with pytest.raises(FirstRound) as workers:
         diagnose(recording)
-    assert threads.value.args == (3,)  # the diagnosis fits on its share
+    assert workers.value.args == (3,)  # the diagnosis fits on its share
     monkeypatch.setenv("MECHANISM_CORES", "8")
-    with pytest.raises(FirstRound) as threads:
+    with pytest.raises(FirstRound) as workers:
         diagnose(recording)
-    assert threads.value.args == (4,)  # and on 4 threads at most
+    assert workers.value.args == (4,)  # and on 4 worker processes at most
 
     monkeypatch.delenv("MECHANISM_CORES")
     affinity = getattr(os, "sched_getaffinity", None)

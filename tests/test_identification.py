@@ -285,25 +285,99 @@ class _Overflowing:
 
 
 def test_parallel_fits_are_safe_under_overflow_as_error():
-    """The CLI makes numpy overflow an error for the whole process; fits on threads must neither
-    switch that off for each other (warnings filters are process-global) nor trip over it."""
+    """The CLI makes numpy overflow an error for the whole process; the fits a diagnosis spreads
+    over worker processes (a fit each, or one fit's Jacobian) must not trip over it, and must
+    leave the setting as it was."""
     import warnings
     from types import SimpleNamespace
 
-    from mechanism.sysid.diagnosis import _fit_all
+    from mechanism.sysid.fit_runner import FitRunner
     from mechanism.sysid.parameters import Parameter
 
     structure = SimpleNamespace(parameters=[Parameter("a", 0.5, 0.0, 1.0)])
-    jobs = [
-        (_Overflowing(), structure, [{"a": 0.95}, {"a": 0.9}], {"scout_nfev": 0, "max_nfev": 10})
-    ] * 4
+    job = (structure, [{"a": 0.95}, {"a": 0.9}], {"scout_nfev": 0, "max_nfev": 10})
     with warnings.catch_warnings():
         warnings.filterwarnings("error", message="overflow encountered", category=RuntimeWarning)
-        for _ in range(25):
-            results = _fit_all(jobs, workers=2)
-            assert all(abs(r.values["a"] - 0.3) < 1e-3 for r in results)
+        with FitRunner(_Overflowing(), workers=2) as runner:
+            for _ in range(25):
+                for jobs in ([job] * 4, [job]):  # a fit per worker; one fit, its Jacobian spread
+                    results = runner.run(jobs)
+                    assert all(abs(r.values["a"] - 0.3) < 1e-3 for r in results)
+            assert runner._pool is not None, "the fits ran on worker processes"
         with pytest.raises(RuntimeWarning):  # and the process-wide setting still holds afterwards
             np.exp(np.array([1000.0]))
+
+
+class _Curved:
+    """A problem of three parameters that a fit needs several Jacobians for."""
+
+    t = np.linspace(0.0, 1.0, 300)
+
+    def residual(self, structure, values, part="fit"):
+        a, b, c = values["a"], values["b"], values["c"]
+        truth = 1.2 * np.exp(-0.8 * self.t) - 0.5 * self.t**2
+        return truth - a * np.exp(-b * self.t) - c * self.t**2
+
+    def rmse(self, structure, values, part="val"):
+        return float(np.sqrt(np.mean(self.residual(structure, values) ** 2)))
+
+
+def _curved_job():
+    from types import SimpleNamespace
+
+    from mechanism.sysid.parameters import Parameter
+
+    names = ("a", "b", "c")
+    structure = SimpleNamespace(parameters=[Parameter(n, 0.5, -3.0, 3.0) for n in names])
+    return (structure, [{"a": 0.1, "b": 0.2, "c": -0.4}], {"max_nfev": 30, "tolerance": 1e-10})
+
+
+def test_fits_on_worker_processes_give_the_numbers_of_one_process_to_the_last_bit():
+    """A fit per worker, and one fit whose Jacobian's points are spread over the workers (and
+    put back in their order: swapped columns would send the fit elsewhere)."""
+    from mechanism.sysid.fit_runner import FitRunner
+
+    job = _curved_job()
+    here = FitRunner(_Curved(), workers=1).run([job])[0]
+    assert here.rmse_fit < 1e-6 and here.n_evaluations > 8
+    with FitRunner(_Curved(), workers=2) as runner:
+        for jobs in ([job], [job] * 3):
+            for result in runner.run(jobs):
+                assert result.values == here.values and result.uncertainties == here.uncertainties
+                assert result.n_evaluations == here.n_evaluations
+                assert result.structure is job[0]  # the caller's own structure comes back
+        assert runner._pool is not None
+
+
+def _dies_in_a_worker(marker, parent, real):
+    def fit(*args, **kwargs):
+        import os
+        import signal
+
+        if os.getpid() != parent and not marker.exists():
+            marker.touch()
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real(*args, **kwargs)
+
+    return fit
+
+
+def test_a_fit_worker_that_dies_has_its_round_run_again_here(tmp_path, monkeypatch):
+    """Out of memory or killed: the round's fits run again in this process, with a warning, and
+    the numbers are the ones a run without workers gives."""
+    import os
+
+    from mechanism.sysid import fit_runner
+
+    job = _curved_job()
+    here = fit_runner.FitRunner(_Curved(), workers=1).run([job])[0]
+    marker = tmp_path / "died"
+    monkeypatch.setattr(fit_runner, "fit", _dies_in_a_worker(marker, os.getpid(), fit_runner.fit))
+    with fit_runner.FitRunner(_Curved(), workers=2) as runner:
+        with pytest.warns(UserWarning, match="fit worker process died"):
+            results = runner.run([job] * 3)
+        assert marker.exists() and runner.workers == 1 and runner._pool is None
+        assert all(r.values == here.values for r in results)
 
 
 def test_identification_switches_no_process_wide_numeric_or_warning_state():

@@ -159,11 +159,12 @@ def _serial_chunks(function, setup, shared, items, chunks):
 _LOCAL_STATE: Any = None
 
 
-def _init_local_worker(setup, shared) -> None:
+def _init_local_worker(setup, shared, parent_pid: int) -> None:
     global _LOCAL_STATE
-    from mechanism.files.interrupts import ignore_in_worker
+    from mechanism.files.interrupts import die_with_parent, ignore_in_worker
 
     ignore_in_worker()  # a Ctrl-C reaches the whole terminal group: the parent stops the workers
+    die_with_parent(parent_pid)  # a killed parent cannot: a worker waiting for work would stay
     _LOCAL_STATE = _build_state(setup, shared)
 
 
@@ -213,7 +214,7 @@ def _one_pool(function, setup, shared, items, chunks, workers, start_method, los
         max_workers=min(workers, len(chunks)),
         mp_context=multiprocessing.get_context(method),
         initializer=_init_local_worker,
-        initargs=(setup, shared),
+        initargs=(setup, shared, os.getpid()),
     )
     finished_all = False
     try:

@@ -223,6 +223,28 @@ def ignore_in_worker() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+PR_SET_PDEATHSIG = 1  # Linux prctl: the signal a process gets when the thread that forked it ends
+
+
+def die_with_parent(parent_pid: int) -> bool:
+    """In a worker process forked by ``parent_pid``: be killed (SIGKILL) when the parent ends,
+    however it ends (a killed parent leaves no worker behind). Linux only: False elsewhere, or
+    where the kernel refuses. A parent already gone ends this worker at once."""
+    import ctypes
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
+            return False
+    except (OSError, AttributeError):
+        return False
+    if os.getppid() != parent_pid:  # it died before the line above
+        os._exit(1)
+    return True
+
+
 def stop_pool(pool, at_once: bool) -> None:
     """Shut a process pool down, its workers stopped at once (SIGTERM, then SIGKILL for any
     still there) where ``at_once``: after an error or an interrupt, not after their work."""

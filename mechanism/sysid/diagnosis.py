@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import functools
 import math
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -37,6 +36,7 @@ from scipy.signal import find_peaks, welch
 
 from mechanism.sysid.report import Traces
 from mechanism.files.limits import usable_cores
+from mechanism.sysid.fit_runner import FitRunner
 from mechanism.sysid.effects import Effect, Located, library as effect_library
 from mechanism.sysid.identification import (
     FitResult,
@@ -45,7 +45,6 @@ from mechanism.sysid.identification import (
     blas_single_threaded,
     damping_below_datasheet,
     equation_error_start,
-    fit,
     fit_baseline,
     require_identifiable,
 )
@@ -522,20 +521,17 @@ def _rank(results: dict[str, FitResult], current: FitResult) -> str:
     return min(near, key=score)
 
 
-def _fit_all(jobs: list[tuple], workers: int) -> list[FitResult]:
-    """Run independent fits (problem, structure, starts, kwargs) on threads: the kernel and
-    most numpy work release the GIL. ``starts`` may be a function that gives them: finding a
-    start (an equation-error regression) then runs on the fit's thread too, not before the
-    threads start (a quarter of a single effect's diagnosis ran there on one core)."""
+def _fit_all(jobs: list[tuple], runner: FitRunner) -> list[FitResult]:
+    """Run independent fits (problem, structure, starts, kwargs), on the runner's processes
+    where it has them. ``starts`` may be a function of the problem that gives them: finding a
+    start (an equation-error regression) then runs beside the other fits too, not before them
+    (a quarter of a single effect's diagnosis ran there on one core)."""
+    assert all(job[0] is runner.problem for job in jobs), "a fit of another problem"
+    return runner.run([job[1:] for job in jobs])
 
-    def one(job):
-        problem, structure, starts, kwargs = job
-        return fit(problem, structure, starts() if callable(starts) else starts, **kwargs)
 
-    if workers <= 1 or len(jobs) <= 1:
-        return [one(job) for job in jobs]
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(one, jobs))
+def _fit_one(problem, structure, starts, kwargs: dict, runner: FitRunner) -> FitResult:
+    return _fit_all([(problem, structure, starts, kwargs)], runner)[0]
 
 
 def _screening(current: FitResult, e: Effect) -> dict:
@@ -558,7 +554,7 @@ def _screening(current: FitResult, e: Effect) -> dict:
 
 
 def _screen_and_refit(
-    problem, current: FitResult, effects: list[Effect], located: Located, tick, workers: int
+    problem, current: FitResult, effects: list[Effect], located: Located, tick, runner: FitRunner
 ) -> dict[str, FitResult]:
     """Fit each candidate added to ``current``: first its own and the baseline's parameters
     (the baseline's friction must be free to give back what the effect now explains), then
@@ -567,13 +563,13 @@ def _screen_and_refit(
         (
             problem,
             current.structure.with_effect(e),
-            functools.partial(_starts, e, current, problem, located),
+            functools.partial(_starts, e, current, located=located),
             _screening(current, e),
         )
         for e in effects
     ]
     tick(f"screening {len(effects)} candidates")
-    results = dict(zip([e.name for e in effects], _fit_all(jobs, workers)))
+    results = dict(zip([e.name for e in effects], _fit_all(jobs, runner)))
     by_name = {e.name: e for e in effects}
     for name, result in results.items():
         # never worse than the model it extends: the effect switched off is a candidate fit too
@@ -592,7 +588,7 @@ def _screen_and_refit(
             )
             for n in top
         ],
-        workers,
+        runner,
     )
     for name, refined in zip(top, refits):
         if refined.rmse_fit <= results[name].rmse_fit:
@@ -631,7 +627,6 @@ def diagnose(
 
 
 def _diagnose(recording, nominal, baseline, candidates, progress, model_path, workers) -> Diagnosis:
-    workers = workers or min(4, usable_cores())
     problem = Problem(recording, nominal)
     tick = (lambda what: progress(what)) if progress else (lambda what: None)
     tick("baseline")
@@ -658,7 +653,8 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
         )
         if freed.rmse_val < base.rmse_val:
             bases.append(freed)
-    searches = [_search(problem, b, lib, floor, shafts, tick, workers) for b in bases]
+    with FitRunner(problem, workers or min(4, usable_cores())) as runner:
+        searches = [_search(problem, b, lib, floor, shafts, tick, runner) for b in bases]
     # the lower final validation rmse, ranked as candidates are (near-ties go to fewer parameters)
     pick = int(_rank({str(i): search[2] for i, search in enumerate(searches)}, bases[0]))
     base, (where, findings, current, rounds, description) = bases[pick], searches[pick]
@@ -721,18 +717,18 @@ def _calibrated_by_gravity(base: FitResult) -> bool:
     )
 
 
-def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
+def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
     """From a fitted baseline: locate, select library effects, then generic ones where the
     library leaves a structured error. Returns (localisation, findings, final fit, rounds, residual description)."""
     where = locate(problem, base)
     located = where.located()
     nominal, recording = problem.nominal, problem.recording
-    findings, current, rounds, first = _select(problem, base, base, lib, located, tick, workers)
+    findings, current, rounds, first = _select(problem, base, base, lib, located, tick, runner)
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse and first is not None:
         for tie in first.ties:
             tick(f"taking {tie} first in place of {first.take} (a near tie)")
             other, ending, other_rounds, _ = _select(
-                problem, base, base, lib, located, tick, workers, first_round=first.taking(tie)
+                problem, base, base, lib, located, tick, runner, first_round=first.taking(tie)
             )
             if _rank({"kept": current, "other": ending}, base) == "other":
                 label = f"{tie} first in place of {first.take}"
@@ -752,7 +748,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
             generic,
             located,
             tick,
-            workers,
+            runner,
             backward=False,
             step_gain=GENERIC_GAIN,
             keep_gain=GENERIC_GAIN,
@@ -760,7 +756,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
         findings += more
         rounds += more_rounds
         findings, current = _prefer_library(
-            problem, base, findings, current, lib, located, tick, workers
+            problem, base, findings, current, lib, located, tick, runner
         )
         if not all(f.effect.generic for f in more):
             # library physics took a generic's place: what else of the library now passes on top
@@ -772,7 +768,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, workers):
                 rest,
                 located,
                 tick,
-                workers,
+                runner,
                 backward=False,
                 step_gain=MIN_RELATIVE_GAIN,
             )
@@ -788,7 +784,7 @@ def _select(
     lib: dict[str, Effect],
     located: Located,
     tick,
-    workers,
+    runner,
     backward: bool = True,
     step_gain: float | None = None,
     keep_gain: float | None = None,
@@ -829,7 +825,7 @@ def _select(
         if given is not None:
             results = given.results
         else:
-            results = _screen_and_refit(problem, current, remaining, located, tick, workers)
+            results = _screen_and_refit(problem, current, remaining, located, tick, runner)
         rounds.append({name: r.rmse_val for name, r in results.items()})
         tried = {name: r.rmse_val for name, r in results.items()}
         passing = {
@@ -842,7 +838,7 @@ def _select(
             given = None
             findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
-        elif pair := _passing_pair(problem, current, results, lib, tick, workers, step_gain):
+        elif pair := _passing_pair(problem, current, results, lib, tick, runner, step_gain):
             (first, second), together = pair
             rounds.append({f"{first}+{second}": together.rmse_val})
             findings.append(Finding(lib[first], results[first], current.rmse_val, "", tried))
@@ -860,7 +856,7 @@ def _select(
             swap = (
                 None
                 if swapped
-                else _swap(problem, start, findings, current, lib, located, tick, workers)
+                else _swap(problem, start, findings, current, lib, located, tick, runner)
             )
             swapped = True
             if swap is None:
@@ -869,17 +865,17 @@ def _select(
             rounds.append({label: current.rmse_val})
         if backward:
             findings, current = _drop_redundant(
-                problem, start, findings, current, tick, workers, step_gain
+                problem, start, findings, current, tick, runner, step_gain
             )
         # converge the accepted model before the next round: otherwise the next candidates'
         # refits finish this optimisation and get the credit for it
         tick("converging")
-        polished = fit(problem, current.structure, [current.values], max_nfev=80)
+        polished = _fit_one(problem, current.structure, [current.values], {"max_nfev": 80}, runner)
         if polished.rmse_fit < current.rmse_fit:
             current = polished
             findings[-1].fit = polished
-    findings, current = _prune(problem, start, findings, current, keep_gain, tick, workers)
-    return _chain(problem, start, findings, current, workers), current, rounds, first
+    findings, current = _prune(problem, start, findings, current, keep_gain, tick, runner)
+    return _chain(problem, start, findings, current, runner), current, rounds, first
 
 
 @dataclass
@@ -922,7 +918,7 @@ def _prune(
     current: FitResult,
     gain: float,
     tick,
-    workers,
+    runner,
 ):
     """Keep only effects that cut the validation rmse by ``gain`` when added last to the
     others (see :func:`_select`)."""
@@ -942,7 +938,7 @@ def _prune(
             )
             for i in range(len(findings))
         ]
-        without = _fit_all(jobs, workers)
+        without = _fit_all(jobs, runner)
         cut = [
             1 - current.rmse_val / w.rmse_val
             if w.rmse_val > 0 and current.rmse_fit < w.rmse_fit
@@ -958,7 +954,7 @@ def _prune(
 
 
 def _chain(
-    problem, start: FitResult, findings: list["Finding"], current: FitResult, workers
+    problem, start: FitResult, findings: list["Finding"], current: FitResult, runner
 ) -> list["Finding"]:
     """Each finding's fit is the model up to it (its evidence quotes the error it removed):
     refit the prefixes that pruning or a backward step left without one."""
@@ -987,7 +983,7 @@ def _chain(
                     {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
                 )
             )
-        for k, prefix in zip(missing, _fit_all(jobs, workers)):
+        for k, prefix in zip(missing, _fit_all(jobs, runner)):
             findings[k - 1].fit = prefix
     return findings
 
@@ -1000,7 +996,7 @@ def _prefer_library(
     lib: dict[str, Effect],
     located: Located,
     tick,
-    workers,
+    runner,
 ) -> tuple[list["Finding"], FitResult]:
     """A generic finding may stand for library physics that needed company to pass (two
     effects each below the margin alone): replace each generic effect by the library effect
@@ -1021,12 +1017,12 @@ def _prefer_library(
                 (
                     problem,
                     structure,
-                    functools.partial(_starts_from, start, e, current, problem, located),
+                    functools.partial(_starts_from, start, e, current, located=located),
                     {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
                 )
             )
         tick(f"a library name for {finding.effect.name}?")
-        fits = _fit_all(jobs, workers)
+        fits = _fit_all(jobs, runner)
         j = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
         if fits[j].rmse_val <= current.rmse_val * (1 + TIE_BAND) and fits[
             j
@@ -1063,12 +1059,12 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
 
 
-def _passing_pair(problem, current: FitResult, results, lib, tick, workers, step_gain: float):
+def _passing_pair(problem, current: FitResult, results, lib, tick, runner, step_gain: float):
     """The best pair (:func:`_best_pair`) when it passes against the current model and each
     member adds the same gain on top of the other alone (no passenger); else None."""
     if len(results) < 2:
         return None
-    pair = _best_pair(problem, current, results, lib, tick, workers)
+    pair = _best_pair(problem, current, results, lib, tick, runner)
     if pair is None:
         return None
     (first, second), together = pair
@@ -1089,7 +1085,7 @@ def _swap(
     lib: dict[str, Effect],
     located: Located,
     tick,
-    workers,
+    runner,
 ):
     """Sequential replacement (the floating search of Pudil et al., 1994): a greedy path can
     take a proxy first (a bearing drift for a warming winding, 7 % apart) that later findings
@@ -1125,7 +1121,7 @@ def _swap(
                     (
                         problem,
                         without.structure.with_effect(e),
-                        functools.partial(_starts, e, without, problem, located),
+                        functools.partial(_starts, e, without, located=located),
                         _screening(without, e),
                     )
                 )
@@ -1134,17 +1130,16 @@ def _swap(
         return None
     tick(f"trying {', '.join(name for _, name in swaps)} in place of earlier findings")
     # a screening fit each (the rest of the model held), then the best one with everything free
-    screened = _fit_all(jobs, workers)
+    screened = _fit_all(jobs, runner)
     k = min(range(len(screened)), key=lambda j: screened[j].rmse_val)
     if not screened[k].rmse_val < current.rmse_val:
         return None
-    swapped = fit(
+    swapped = _fit_one(
         problem,
         screened[k].structure,
         [screened[k].values],
-        max_nfev=25,
-        scout_nfev=0,
-        tolerance=COMPARE_TOLERANCE,
+        {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
+        runner,
     )
     # against the model as it is (the swapped model's parameters are not all the current one's)
     if not (
@@ -1164,7 +1159,7 @@ def _best_pair(
     singles: dict[str, FitResult],
     lib: dict[str, Effect],
     tick,
-    workers,
+    runner,
     top: int = PAIR_TOP,
 ):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
@@ -1185,7 +1180,7 @@ def _best_pair(
         start = {**singles[b].values, **singles[a].values}
         jobs.append((problem, structure, [start], {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE}))
     tick(f"refitting {len(pairs)} pairs")
-    fits = _fit_all(jobs, workers)
+    fits = _fit_all(jobs, runner)
     i = min(range(len(fits)), key=lambda k: fits[k].rmse_val)
     return pairs[i], fits[i]
 
@@ -1196,7 +1191,7 @@ def _drop_redundant(
     findings: list[Finding],
     current: FitResult,
     tick,
-    workers,
+    runner,
     gain: float = MIN_RELATIVE_GAIN,
 ):
     """Backward step: a greedy search can accept an effect early that a later one explains
@@ -1215,7 +1210,7 @@ def _drop_redundant(
             )
         )
     tick("checking earlier findings")
-    fits = _fit_all(jobs, workers)
+    fits = _fit_all(jobs, runner)
     best_i = min(range(len(fits)), key=lambda i: fits[i].rmse_val)
     if fits[best_i].rmse_val <= current.rmse_val / (1 - gain):
         return [f for j, f in enumerate(findings) if j != best_i][:-1] + [

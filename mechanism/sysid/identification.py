@@ -346,6 +346,42 @@ class FitResult:
         return self.structure.names
 
 
+@dataclass
+class Objective:
+    """What a fit minimises at an internal parameter vector ``x``: the residual of ``part``, and
+    the prior rows of the parameters that have one. A plain object (no closure), so that a
+    worker process that holds the problem can evaluate it too (:mod:`mechanism.sysid.fit_runner`)."""
+
+    structure: ModelStructure
+    part: str
+    fixed: dict[str, float]
+    params: list[Parameter]
+    prior_index: np.ndarray
+    prior_centre: np.ndarray
+    prior_sd: np.ndarray
+    prior_weight: float = 0.0  # set from the residual at the first start (see fit)
+
+    def values(self, x: np.ndarray) -> dict[str, float]:
+        return {**self.fixed, **values_from_internal(self.params, x)}
+
+    def data(self, problem: Problem, x: np.ndarray) -> np.ndarray:
+        # a trial point may overflow (the fit then steps back); numpy's error state is per thread,
+        # where the warnings filters are one list for the whole process (a caller may fit on threads)
+        with np.errstate(all="ignore"):
+            return problem.residual(self.structure, self.values(x), self.part)
+
+    def __call__(self, problem: Problem, x: np.ndarray) -> np.ndarray:
+        r = self.data(problem, x)
+        if not self.prior_index.size:
+            return r
+        prior = self.prior_weight * (x[self.prior_index] - self.prior_centre) / self.prior_sd
+        return np.concatenate([r, prior])
+
+
+# evaluates an objective at several points, in order (a pool of processes that hold the problem)
+ColumnMap = Callable[[Objective, list], list]
+
+
 def fit(
     problem: Problem,
     structure: ModelStructure,
@@ -356,6 +392,7 @@ def fit(
     progress: Callable[[], None] | None = None,
     part: str = "fit",
     tolerance: float = 1e-5,
+    columns: ColumnMap | None = None,
 ) -> FitResult:
     """Least-squares fit of the parameters of ``structure`` on the fit segments.
 
@@ -363,7 +400,8 @@ def fit(
     each gets a few iterations (``scout_nfev``; 0: one evaluation) and only the best is refined. ``free``
     names the parameters to fit (default: all); the others stay at the first start's values.
     ``tolerance``: the relative change of the cost (and of the scaled parameters) at which
-    the optimiser stops.
+    the optimiser stops. ``columns``: where the finite-difference Jacobian's points are
+    evaluated (default: here, one after another); the numbers are the same either way.
     """
     every = structure.parameters
     params = [p for p in every if free is None or p.name in free]
@@ -371,38 +409,38 @@ def fit(
     fixed.update(starts[0] if starts else {})
     lo, hi = internal_bounds(params)
     n_eval = 0
-    prior_index, prior_centre, prior_sd = prior_weights(params)
-    prior_weight = 0.0  # set from the residual at the first start (below)
+    objective = Objective(structure, part, fixed, params, *prior_weights(params))
 
-    def values_of(x):
-        return {**fixed, **values_from_internal(params, x)}
-
-    def data_residual(x):
+    def counted(points: int) -> None:
         nonlocal n_eval
-        n_eval += 1
+        n_eval += points
         if progress is not None:
-            progress()
-        # a trial point may overflow (the fit then steps back); numpy's error state is per thread,
-        # where the warnings filters are one list for the whole process and fits run on threads
-        with np.errstate(all="ignore"):
-            return problem.residual(structure, values_of(x), part)
+            for _ in range(points):
+                progress()
 
     def fun(x):
-        r = data_residual(x)
-        if not prior_index.size:
-            return r
-        return np.concatenate([r, prior_weight * (x[prior_index] - prior_centre) / prior_sd])
+        counted(1)
+        return objective(problem, x)
 
-    if prior_index.size:
+    def jacobian_points(_fun, points):  # scipy's ``workers``: it passes its wrapper of fun
+        points = list(points)
+        counted(len(points))
+        assert columns is not None
+        return columns(objective, points)
+
+    if objective.prior_index.size:
         # a prior row weighs as sigma sqrt(correlation length) of the data residual (MAP with
         # the residual's own scale, as the uncertainties below): the model's knowledge counts as
         # much as one independent stretch of data disagreeing by its stated tolerance
         x0 = np.clip(internal_vector(params, starts[0] if starts else {}), lo, hi)
-        r0 = data_residual(x0)
-        prior_weight = float(np.sqrt(np.mean(r0 * r0) * correlation_length(r0)))
+        counted(1)
+        r0 = objective.data(problem, x0)
+        objective.prior_weight = float(np.sqrt(np.mean(r0 * r0) * correlation_length(r0)))
 
     def run(x0, nfev):
         x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+        # scipy >= 1.16 evaluates the Jacobian's points through ``workers``
+        spread = {"workers": jacobian_points} if columns is not None else {}
         with np.errstate(all="ignore"):
             return least_squares(
                 fun,
@@ -415,6 +453,7 @@ def fit(
                 xtol=tolerance,
                 ftol=tolerance,
                 gtol=1e-8,
+                **spread,
             )
 
     candidates = [internal_vector(params, s) for s in starts] or [internal_vector(params, {})]
@@ -429,8 +468,8 @@ def fit(
         x_start = candidates[0]
     # never worse than a start
     result = min([run(x_start, max_nfev), *scouts], key=lambda r: r.cost)
-    values = values_of(result.x)
-    n_data = len(result.fun) - prior_index.size
+    values = objective.values(result.x)
+    n_data = len(result.fun) - objective.prior_index.size
     r_fit = result.fun[:n_data] if part == "fit" else problem.residual(structure, values, "fit")
     rmse_fit = float(np.sqrt(np.mean(r_fit**2)))
     rmse_val = problem.rmse(structure, values, "val")

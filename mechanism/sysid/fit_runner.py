@@ -1,0 +1,162 @@
+"""Where the fits of a diagnosis run: here, or spread over worker processes.
+
+Half of each simulation is Python (the drive arrays, the sensor model), which holds the GIL,
+so fits on threads ran only 1.1-1.5x faster on two cores. :class:`FitRunner` forks its workers
+once per diagnosis, after the problem is prepared: they inherit it (the recording, its
+segments, the caches the baseline fit filled) and receive only what each piece of work needs.
+Two ways to spread the work, chosen per round:
+
+- at least as many fits as workers (a screening round: a dozen candidates; the all-free refits
+  of the best three): each fit on one worker;
+- fewer (the fit that converges an accepted model, a swap's refit: one long fit of every
+  parameter): the fit here, each finite-difference Jacobian's points spread over the workers
+  (a Jacobian of 24 points on two workers: 1.6-1.75x faster; spreading the Jacobians of every
+  round instead was slower than a fit per worker, on the points' transfers and cold caches).
+
+Either way the numbers are the same as in one process, to the last bit: the same code on the
+same arrays, and every fit's result comes back with the parent's own structure object.
+
+Processes only where a worker can be tied to the run's life (Linux: it gets SIGKILL when the
+run ends in any way, even by SIGKILL); elsewhere everything runs here, one after another.
+Workers leave SIGINT and SIGTERM to the run, which stops them
+(:func:`mechanism.files.interrupts.stop_pool`); a worker that dies (out of memory, killed) has
+the round run again here, and the diagnosis goes on without workers.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+import warnings
+from typing import Sequence
+
+import numpy as np
+
+from mechanism.sysid.identification import FitResult, Objective, Problem, fit
+
+
+_PROBLEM: Problem | None = None  # a worker's problem: inherited from the run that forked it
+
+
+def _init_worker(problem: Problem, parent_pid: int) -> None:
+    global _PROBLEM
+    from mechanism.files.interrupts import die_with_parent, ignore_in_worker
+
+    ignore_in_worker()
+    if not die_with_parent(parent_pid):
+        raise RuntimeError("a fit worker cannot be tied to the run's life")
+    _PROBLEM = problem
+
+
+def _fit_one(problem: Problem, structure, starts, kwargs: dict, columns=None) -> FitResult:
+    """``starts``: the start values, or a function of the problem that gives them (an
+    equation-error regression then runs beside the other fits too)."""
+    starts = starts(problem) if callable(starts) else starts
+    return fit(problem, structure, starts, **kwargs, columns=columns)
+
+
+def _fit_in_worker(structure, starts, kwargs: dict) -> FitResult:
+    assert _PROBLEM is not None, "a fit worker without its problem"
+    result = _fit_one(_PROBLEM, structure, starts, kwargs)
+    result.structure = None  # type: ignore[assignment]  # the parent puts its own back
+    return result
+
+
+def _points_in_worker(objective: Objective, points: list) -> list[np.ndarray]:
+    assert _PROBLEM is not None, "a fit worker without its problem"
+    return [objective(_PROBLEM, x) for x in points]
+
+
+@functools.lru_cache(maxsize=None)
+def jacobians_spread() -> bool:
+    """Whether scipy can evaluate a Jacobian's points through a map (``least_squares``'s
+    ``workers``, scipy >= 1.16): without it a round of fewer fits than workers runs here."""
+    import inspect
+
+    from scipy.optimize import least_squares
+
+    return "workers" in inspect.signature(least_squares).parameters
+
+
+def processes_available() -> bool:
+    """Whether workers can be tied to the run's life here (see the module docstring)."""
+    import multiprocessing
+
+    return sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+
+
+class FitRunner:
+    """Runs jobs ``(structure, starts, kwargs)`` of one problem, on up to ``workers`` processes
+    forked at the first round with more than one fit, or here. Use it as a context manager: the
+    workers end with it (at once where it ends by an error or an interrupt)."""
+
+    def __init__(self, problem: Problem, workers: int):
+        self.problem = problem
+        self.workers = workers if processes_available() else 1
+        self._pool = None
+
+    def __enter__(self) -> "FitRunner":
+        return self
+
+    def __exit__(self, kind, error, trace) -> None:
+        self._stop(at_once=kind is not None)
+
+    def _stop(self, at_once: bool) -> None:
+        from mechanism.files.interrupts import stop_pool
+
+        pool, self._pool = self._pool, None
+        if pool is not None:
+            stop_pool(pool, at_once=at_once)
+
+    def run(self, jobs: Sequence[tuple]) -> list[FitResult]:
+        """The jobs' fits, in the jobs' order."""
+        if self.workers <= 1 or not jobs:
+            return [_fit_one(self.problem, *job) for job in jobs]
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            if len(jobs) < self.workers:
+                if not jacobians_spread():
+                    return [_fit_one(self.problem, *job) for job in jobs]
+                return [
+                    _fit_one(self.problem, structure, starts, kwargs, columns=self._points)
+                    for structure, starts, kwargs in jobs
+                ]
+            futures = [self._pool_started().submit(_fit_in_worker, *job) for job in jobs]
+            results = [future.result() for future in futures]
+        except BrokenProcessPool:
+            self._stop(at_once=True)
+            self.workers = 1
+            warnings.warn(
+                "a fit worker process died (out of memory, or killed): the diagnosis goes on "
+                "in this process",
+                stacklevel=2,
+            )
+            return self.run(jobs)
+        for result, (structure, _, _) in zip(results, jobs):
+            result.structure = structure
+        return results
+
+    def _points(self, objective: Objective, points: list) -> list[np.ndarray]:
+        """``objective`` at ``points``, in order: a share of them on each worker."""
+        pool = self._pool_started()
+        shares = [points[k :: self.workers] for k in range(self.workers)]
+        futures = [pool.submit(_points_in_worker, objective, share) for share in shares if share]
+        done = [future.result() for future in futures]
+        # back into the points' order: point i is share i % workers, place i // workers
+        return [done[i % len(done)][i // len(done)] for i in range(len(points))]
+
+    def _pool_started(self):
+        if self._pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            # fork: the workers inherit the prepared problem, nothing of it is pickled
+            self._pool = ProcessPoolExecutor(
+                max_workers=self.workers,
+                mp_context=multiprocessing.get_context("fork"),
+                initializer=_init_worker,
+                initargs=(self.problem, os.getpid()),
+            )
+        return self._pool
