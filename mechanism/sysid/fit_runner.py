@@ -4,14 +4,15 @@ Half of each simulation is Python (the drive arrays, the sensor model), which ho
 so fits on threads ran only 1.1-1.5x faster on two cores. :class:`FitRunner` forks its workers
 once per diagnosis, after the problem is prepared: they inherit it (the recording, its
 segments, the caches the baseline fit filled) and receive only what each piece of work needs.
-Two ways to spread the work, chosen per round:
+Two ways to spread the work, in each round:
 
-- at least as many fits as workers (a screening round: a dozen candidates; the all-free refits
-  of the best three): each fit on one worker;
-- fewer (the fit that converges an accepted model, a swap's refit: one long fit of every
-  parameter): the fit here, each finite-difference Jacobian's points spread over the workers
-  (a Jacobian of 24 points on two workers: 1.6-1.75x faster; spreading the Jacobians of every
-  round instead was slower than a fit per worker, on the points' transfers and cold caches).
+- whole waves of a fit per worker (a screening round: a dozen candidates; the all-free refits
+  of the best three, two of them on two workers);
+- then the fits left over, fewer than the workers (the third of those refits, the fit that
+  converges an accepted model, a swap's refit: long fits of every parameter), one at a time
+  here, each finite-difference Jacobian's points spread over the workers (a Jacobian of 24
+  points on two workers: 1.6-1.75x faster; spreading the Jacobians of every round instead was
+  slower than a fit per worker, on the points' transfers and cold caches).
 
 Either way the numbers are the same as in one process, to the last bit: the same code on the
 same arrays, and every fit's result comes back with the parent's own structure object.
@@ -110,20 +111,20 @@ class FitRunner:
             stop_pool(pool, at_once=at_once)
 
     def run(self, jobs: Sequence[tuple]) -> list[FitResult]:
-        """The jobs' fits, in the jobs' order."""
+        """The jobs' fits, in the jobs' order: whole waves of a fit per worker, then the rest
+        (fewer than the workers) one at a time with their Jacobians spread."""
         if self.workers <= 1 or not jobs:
             return [_fit_one(self.problem, *job) for job in jobs]
         from concurrent.futures.process import BrokenProcessPool
 
+        waves = len(jobs) - len(jobs) % self.workers
         try:
-            if len(jobs) < self.workers:
-                if not jacobians_spread():
-                    return [_fit_one(self.problem, *job) for job in jobs]
-                return [
-                    _fit_one(self.problem, structure, starts, kwargs, columns=self._points)
-                    for structure, starts, kwargs in jobs
-                ]
-            futures = [self._pool_started().submit(_fit_in_worker, *job) for job in jobs]
+            futures = [self._pool_started().submit(_fit_in_worker, *job) for job in jobs[:waves]]
+            columns = self._points if jacobians_spread() else None
+            rest = [
+                _fit_one(self.problem, structure, starts, kwargs, columns=columns)
+                for structure, starts, kwargs in jobs[waves:]
+            ]
             results = [future.result() for future in futures]
         except BrokenProcessPool:
             self._stop(at_once=True)
@@ -136,7 +137,7 @@ class FitRunner:
             return self.run(jobs)
         for result, (structure, _, _) in zip(results, jobs):
             result.structure = structure
-        return results
+        return results + rest
 
     def _points(self, objective: Objective, points: list) -> list[np.ndarray]:
         """``objective`` at ``points``, in order: a share of them on each worker."""
