@@ -274,14 +274,17 @@ SUBPROCESS_ENV = {**os.environ, "PYTHONPATH": str(REPO)}
 
 def kill_during_publish(args, folder: Path, old, new, cleanup):
     """Run the verb, killing it before its 1st, 2nd, ... rename; each time the output must be
-    the old or the new one, whole (after the next run's cleanup)."""
+    the old or the new one, whole (after the next run's cleanup). A killed run cannot remove
+    its scratch files: they go to a folder of the test's own (``TMPDIR``), not the machine's."""
     outcomes = set()
+    scratch = folder.parent / "scratch"
+    scratch.mkdir(exist_ok=True)
     for kill_at in range(10):
         run = subprocess.run(
             [sys.executable, "-c", KILL_CLI, str(kill_at), *map(str, args)],
             capture_output=True,
             text=True,
-            env=SUBPROCESS_ENV,
+            env={**SUBPROCESS_ENV, "TMPDIR": str(scratch)},
         )
         for path in cleanup:
             from mechanism.files.outputs import clean_leftovers
@@ -454,7 +457,7 @@ def test_the_share_of_cores_bounds_the_threads_and_workers(monkeypatch):
 
     monkeypatch.setenv("MECHANISM_CORES", "3")
     assert usable_cores() == 3
-    assert fleet._fit_threads("local", 2) == 1 and fleet._fit_threads("local", 1) is None
+    assert fleet._fit_workers("local", 2) == 1 and fleet._fit_workers("local", 1) is None
 
     class FirstRound(Exception):
         pass

@@ -349,6 +349,20 @@ def test_fits_on_worker_processes_give_the_numbers_of_one_process_to_the_last_bi
         assert runner._pool is not None
 
 
+def test_fits_run_on_threads_where_workers_cannot_be_tied_to_the_run(monkeypatch):
+    """Without a way to end workers with a killed run (not Linux), a round's fits run on
+    threads here: the same numbers, no process started."""
+    from mechanism.sysid import fit_runner
+
+    job = _curved_job()
+    here = fit_runner.FitRunner(_Curved(), workers=1).run([job])[0]
+    monkeypatch.setattr(fit_runner, "processes_available", lambda: False)
+    with fit_runner.FitRunner(_Curved(), workers=2) as runner:
+        results = runner.run([job] * 3)
+        assert runner._pool is None
+    assert all(r.values == here.values for r in results)
+
+
 def _dies_in_a_worker(marker, parent, real):
     def fit(*args, **kwargs):
         import os

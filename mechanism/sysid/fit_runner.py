@@ -18,7 +18,7 @@ Either way the numbers are the same as in one process, to the last bit: the same
 same arrays, and every fit's result comes back with the parent's own structure object.
 
 Processes only where a worker can be tied to the run's life (Linux: it gets SIGKILL when the
-run ends in any way, even by SIGKILL); elsewhere everything runs here, one after another.
+run ends in any way, even by SIGKILL); elsewhere the fits of a round run on threads here.
 Workers leave SIGINT and SIGTERM to the run, which stops them
 (:func:`mechanism.files.interrupts.stop_pool`); a worker that dies (out of memory, killed) has
 the round run again here, and the diagnosis goes on without workers.
@@ -94,7 +94,8 @@ class FitRunner:
 
     def __init__(self, problem: Problem, workers: int):
         self.problem = problem
-        self.workers = workers if processes_available() else 1
+        self.workers = workers
+        self.processes = processes_available()
         self._pool = None
 
     def __enter__(self) -> "FitRunner":
@@ -113,8 +114,13 @@ class FitRunner:
     def run(self, jobs: Sequence[tuple]) -> list[FitResult]:
         """The jobs' fits, in the jobs' order: whole waves of a fit per worker, then the rest
         (fewer than the workers) one at a time with their Jacobians spread."""
-        if self.workers <= 1 or not jobs:
+        if self.workers <= 1 or len(jobs) <= 1 and not self.processes:
             return [_fit_one(self.problem, *job) for job in jobs]
+        if not self.processes:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=self.workers) as threads:
+                return list(threads.map(lambda job: _fit_one(self.problem, *job), jobs))
         from concurrent.futures.process import BrokenProcessPool
 
         waves = len(jobs) - len(jobs) % self.workers

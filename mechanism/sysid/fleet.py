@@ -167,7 +167,7 @@ def diagnose_fleet(
     check_options(backend, workers)
     files = recording_paths(paths)
     names = _unique_names(files)
-    options = {"workers": _fit_threads(backend, workers), **diagnose_options}
+    options = {"workers": _fit_workers(backend, workers), **diagnose_options}
     # one output transaction: the folder (earlier files kept) appears complete or not at all
     with atomic_dir(out_dir, keep=True) as folder:
 
@@ -203,9 +203,9 @@ def diagnose_fleet(
     return result
 
 
-def _fit_threads(backend: Backend, workers: int) -> int | None:
-    """Threads for the fits inside one diagnosis: alone, its default (as a single run); beside
-    other local workers, a share of the cores; on Ray, the one CPU its task holds."""
+def _fit_workers(backend: Backend, workers: int) -> int | None:
+    """Fit workers inside one diagnosis: alone, its default (as a single run); beside other
+    local workers, a share of the cores; on Ray, the one CPU its task holds."""
     if backend != "local":
         return 1
     return None if workers == 1 else max(1, usable_cores() // workers)
