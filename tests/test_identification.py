@@ -349,6 +349,27 @@ def test_fits_on_worker_processes_give_the_numbers_of_one_process_to_the_last_bi
         assert runner._pool is not None
 
 
+def test_fits_go_on_here_where_the_system_refuses_worker_processes(monkeypatch):
+    """A process limit or no memory to fork: one warning line's worth, and the numbers."""
+    import errno
+    import os
+
+    from mechanism.sysid import fit_runner
+
+    job = _curved_job()
+    here = fit_runner.FitRunner(_Curved(), workers=1).run([job])[0]
+
+    def refused():
+        raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
+
+    monkeypatch.setattr(os, "fork", refused)
+    with fit_runner.FitRunner(_Curved(), workers=2) as runner:
+        with pytest.warns(UserWarning, match="cannot start fit worker processes .*temporarily"):
+            results = runner.run([job] * 3)
+        assert runner.workers == 1 and runner._pool is None
+    assert all(r.values == here.values for r in results)
+
+
 def test_fits_run_on_threads_where_workers_cannot_be_tied_to_the_run(monkeypatch):
     """Without a way to end workers with a killed run (not Linux), a round's fits run on
     threads here: the same numbers, no process started."""

@@ -40,6 +40,10 @@ from mechanism.sysid.identification import FitResult, Objective, Problem, fit
 _PROBLEM: Problem | None = None  # a worker's problem: inherited from the run that forked it
 
 
+class _NoWorkers(Exception):
+    """The system refused the worker processes (a process limit, no memory to fork)."""
+
+
 def _init_worker(problem: Problem, parent_pid: int) -> None:
     global _PROBLEM
     from mechanism.files.interrupts import die_with_parent, ignore_in_worker
@@ -132,14 +136,15 @@ class FitRunner:
                 for structure, starts, kwargs in jobs[waves:]
             ]
             results = [future.result() for future in futures]
-        except BrokenProcessPool:
+        except (BrokenProcessPool, _NoWorkers) as lost:
             self._stop(at_once=True)
             self.workers = 1
-            warnings.warn(
-                "a fit worker process died (out of memory, or killed): the diagnosis goes on "
-                "in this process",
-                stacklevel=2,
+            why = (
+                f"cannot start fit worker processes ({lost})"
+                if isinstance(lost, _NoWorkers)
+                else "a fit worker process died (out of memory, or killed)"
             )
+            warnings.warn(f"{why}: the diagnosis goes on in this process", stacklevel=2)
             return self.run(jobs)
         for result, (structure, _, _) in zip(results, jobs):
             result.structure = structure
@@ -166,4 +171,8 @@ class FitRunner:
                 initializer=_init_worker,
                 initargs=(self.problem, os.getpid()),
             )
+            try:  # the workers start with the first task: a refused fork shows here
+                self._pool.submit(int).result()
+            except OSError as refused:
+                raise _NoWorkers(refused.strerror or str(refused)) from None
         return self._pool
