@@ -349,22 +349,32 @@ def test_fits_on_worker_processes_give_the_numbers_of_one_process_to_the_last_bi
         assert runner._pool is not None
 
 
-def test_fits_go_on_here_where_the_system_refuses_worker_processes(monkeypatch):
-    """A process limit or no memory to fork: one warning line's worth, and the numbers."""
+@pytest.mark.parametrize(
+    "refusal", ["fork", "semaphores"], ids=["a process limit", "a container without /dev/shm"]
+)
+def test_fits_go_on_here_where_the_system_refuses_worker_processes(monkeypatch, refusal):
+    """No process to fork, or no POSIX semaphores for the pool's queues: a warning naming the
+    system's reason, and the numbers."""
     import errno
+    import multiprocessing.synchronize
     import os
 
     from mechanism.sysid import fit_runner
 
     job = _curved_job()
     here = fit_runner.FitRunner(_Curved(), workers=1).run([job])[0]
+    code = errno.EAGAIN if refusal == "fork" else errno.ENOSYS
 
-    def refused():
-        raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
+    def refused(*args, **kwargs):
+        raise OSError(code, os.strerror(code))
 
-    monkeypatch.setattr(os, "fork", refused)
+    if refusal == "fork":
+        monkeypatch.setattr(os, "fork", refused)
+    else:
+        monkeypatch.setattr(multiprocessing.synchronize.SemLock, "__init__", refused)
     with fit_runner.FitRunner(_Curved(), workers=2) as runner:
-        with pytest.warns(UserWarning, match="cannot start fit worker processes .*temporarily"):
+        reason = os.strerror(code).split()[0]
+        with pytest.warns(UserWarning, match=f"cannot start fit worker processes \\({reason}"):
             results = runner.run([job] * 3)
         assert runner.workers == 1 and runner._pool is None
     assert all(r.values == here.values for r in results)

@@ -164,15 +164,16 @@ class FitRunner:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            # fork: the workers inherit the prepared problem, nothing of it is pickled
-            self._pool = ProcessPoolExecutor(
-                max_workers=self.workers,
-                mp_context=multiprocessing.get_context("fork"),
-                initializer=_init_worker,
-                initargs=(self.problem, os.getpid()),
-            )
-            try:  # the workers start with the first task: a refused fork shows here
-                self._pool.submit(int).result()
+            try:
+                # fork: the workers inherit the prepared problem, nothing of it is pickled (the
+                # pool's queues need POSIX semaphores: a container without /dev/shm refuses them)
+                self._pool = ProcessPoolExecutor(
+                    max_workers=self.workers,
+                    mp_context=multiprocessing.get_context("fork"),
+                    initializer=_init_worker,
+                    initargs=(self.problem, os.getpid()),
+                )
+                self._pool.submit(int).result()  # the workers start with the first task
             except OSError as refused:
                 raise _NoWorkers(refused.strerror or str(refused)) from None
         return self._pool
