@@ -87,6 +87,38 @@ def test_the_local_pool_reruns_the_items_of_a_worker_that_died(tmp_path):
     assert sorted(seen) == list(range(12))
 
 
+@pytest.mark.parametrize("refusal", ["fork", "semaphores"])
+def test_a_system_that_refuses_worker_processes_gets_its_items_run_here(monkeypatch, refusal):
+    """A process limit, or a container without /dev/shm (no POSIX semaphores for the pool's
+    queues): a warning with the system's reason, and every result."""
+    import errno
+    import multiprocessing.synchronize
+
+    code = errno.EAGAIN if refusal == "fork" else errno.ENOSYS
+
+    def refused(*args, **kwargs):
+        raise OSError(code, os.strerror(code))
+
+    if refusal == "fork":
+        monkeypatch.setattr(os, "fork", refused)
+    else:
+        monkeypatch.setattr(multiprocessing.synchronize.SemLock, "__init__", refused)
+    seen = []
+    reason = os.strerror(code).split()[0]
+    with pytest.warns(UserWarning, match=f"cannot start worker processes \\({reason}.*12 items"):
+        results = run_batch(
+            _shifted,
+            list(range(12)),
+            shared={"offset": 100, "pid": 0},
+            workers=2,
+            chunk_size=2,
+            on_result=lambda i, r: seen.append(i),
+            progress=False,
+        )
+    expected = [_shifted({"offset": 100, "pid": 0}, i) for i in range(12)]
+    assert results == expected and sorted(seen) == list(range(12))
+
+
 def test_an_item_that_kills_every_worker_ends_the_batch_naming_it(tmp_path):
     from mechanism.batch.runner import RAY_TASK_RETRIES
 

@@ -159,6 +159,10 @@ def _serial_chunks(function, setup, shared, items, chunks):
 _LOCAL_STATE: Any = None
 
 
+class _WorkersRefused(Exception):
+    """The system refused the worker processes (no semaphores, a process limit)."""
+
+
 def _init_local_worker(setup, shared, parent_pid: int) -> None:
     global _LOCAL_STATE
     from mechanism.files.interrupts import die_with_parent, ignore_in_worker
@@ -179,7 +183,18 @@ def _pool_chunks(function, setup, shared, items, chunks, workers, start_method):
     todo, restarts = list(chunks), 0
     while todo:
         lost: list = []
-        yield from _one_pool(function, setup, shared, items, todo, workers, start_method, lost)
+        try:
+            yield from _one_pool(function, setup, shared, items, todo, workers, start_method, lost)
+        except _WorkersRefused as refused:  # before any result: every chunk of todo is still to do
+            import warnings
+
+            left = sum(len(chunk) for chunk in todo)
+            warnings.warn(
+                f"cannot start worker processes ({refused}): the {left} items run in this process",
+                stacklevel=2,
+            )
+            yield from _serial_chunks(function, setup, shared, items, todo)
+            return
         if lost and restarts >= RAY_TASK_RETRIES:
             unfinished = sorted(i for chunk in lost for i in chunk)
             raise UserError(
@@ -207,22 +222,32 @@ def _one_pool(function, setup, shared, items, chunks, workers, start_method, los
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
+    from mechanism.files.interrupts import stop_pool
+
     method = start_method or (
         "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     )
-    pool = ProcessPoolExecutor(
-        max_workers=min(workers, len(chunks)),
-        mp_context=multiprocessing.get_context(method),
-        initializer=_init_local_worker,
-        initargs=(setup, shared, os.getpid()),
-    )
-    finished_all = False
+    pool = None
     try:
+        # the pool's queues need POSIX semaphores (a container without /dev/shm refuses them),
+        # its workers start with the first task (a process limit refuses the fork)
+        pool = ProcessPoolExecutor(
+            max_workers=min(workers, len(chunks)),
+            mp_context=multiprocessing.get_context(method),
+            initializer=_init_local_worker,
+            initargs=(setup, shared, os.getpid()),
+        )
         # the items of a chunk travel with it; the payload went once, through the initializer
         pending = {
             pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]): chunk
             for chunk in chunks
         }
+    except OSError as refused:
+        if pool is not None:
+            stop_pool(pool, at_once=True)
+        raise _WorkersRefused(refused.strerror or str(refused)) from None
+    finished_all = False
+    try:
         waiting = set(pending)
         while waiting:
             finished, waiting = wait(waiting, return_when=FIRST_COMPLETED)
@@ -235,8 +260,6 @@ def _one_pool(function, setup, shared, items, chunks, workers, start_method, los
                 yield result
         finished_all = not lost
     finally:
-        from mechanism.files.interrupts import stop_pool
-
         stop_pool(pool, at_once=not finished_all)
 
 
