@@ -16,6 +16,7 @@ import pytest
 from mechanism.batch import run_batch
 from mechanism.batch.runner import ray_temp_dir
 from mechanism.errors import UserError
+from tests.helpers.faults import WORKER_REFUSALS, refuse_worker_processes
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -87,24 +88,11 @@ def test_the_local_pool_reruns_the_items_of_a_worker_that_died(tmp_path):
     assert sorted(seen) == list(range(12))
 
 
-@pytest.mark.parametrize("refusal", ["fork", "semaphores"])
+@pytest.mark.parametrize("refusal", WORKER_REFUSALS)
 def test_a_system_that_refuses_worker_processes_gets_its_items_run_here(monkeypatch, refusal):
-    """A process limit, or a container without /dev/shm (no POSIX semaphores for the pool's
-    queues): a warning with the system's reason, and every result."""
-    import errno
-    import multiprocessing.synchronize
-
-    code = errno.EAGAIN if refusal == "fork" else errno.ENOSYS
-
-    def refused(*args, **kwargs):
-        raise OSError(code, os.strerror(code))
-
-    if refusal == "fork":
-        monkeypatch.setattr(os, "fork", refused)
-    else:
-        monkeypatch.setattr(multiprocessing.synchronize.SemLock, "__init__", refused)
+    """A warning with the system's reason, and every result."""
+    reason = refuse_worker_processes(monkeypatch, refusal)
     seen = []
-    reason = os.strerror(code).split()[0]
     with pytest.warns(UserWarning, match=f"cannot start worker processes \\({reason}.*12 items"):
         results = run_batch(
             _shifted,

@@ -13,6 +13,7 @@ from mechanism.tolerances import CAD_GRAVITY_TOLERANCE, CAD_INERTIA_TOLERANCE, P
 from mechanism.sysid.steady_state import fit_steady_state, table2
 from mechanism.data.reference import thesis
 
+from tests.helpers.faults import WORKER_REFUSALS, refuse_worker_processes
 from tests.helpers.nominal import SAPPHIRE, bench_recording, identify
 
 
@@ -349,31 +350,15 @@ def test_fits_on_worker_processes_give_the_numbers_of_one_process_to_the_last_bi
         assert runner._pool is not None
 
 
-@pytest.mark.parametrize(
-    "refusal", ["fork", "semaphores"], ids=["a process limit", "a container without /dev/shm"]
-)
+@pytest.mark.parametrize("refusal", WORKER_REFUSALS)
 def test_fits_go_on_here_where_the_system_refuses_worker_processes(monkeypatch, refusal):
-    """No process to fork, or no POSIX semaphores for the pool's queues: a warning naming the
-    system's reason, and the numbers."""
-    import errno
-    import multiprocessing.synchronize
-    import os
-
+    """A warning naming the system's reason, and the numbers."""
     from mechanism.sysid import fit_runner
 
     job = _curved_job()
     here = fit_runner.FitRunner(_Curved(), workers=1).run([job])[0]
-    code = errno.EAGAIN if refusal == "fork" else errno.ENOSYS
-
-    def refused(*args, **kwargs):
-        raise OSError(code, os.strerror(code))
-
-    if refusal == "fork":
-        monkeypatch.setattr(os, "fork", refused)
-    else:
-        monkeypatch.setattr(multiprocessing.synchronize.SemLock, "__init__", refused)
+    reason = refuse_worker_processes(monkeypatch, refusal)
     with fit_runner.FitRunner(_Curved(), workers=2) as runner:
-        reason = os.strerror(code).split()[0]
         with pytest.warns(UserWarning, match=f"cannot start fit worker processes \\({reason}"):
             results = runner.run([job] * 3)
         assert runner.workers == 1 and runner._pool is None

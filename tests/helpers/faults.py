@@ -139,3 +139,25 @@ def injected(root, fail_at: int, fault: str):
             setattr(os, name, function)
         shutil.copyfile, outputs._exchange = real_copyfile, real_exchange
         outputs.Transaction._publish = real_publish
+
+
+# the ways a system refuses worker processes: a process limit refuses the fork; a container
+# without /dev/shm has no POSIX semaphores for a process pool's queues
+WORKER_REFUSALS = {"a process limit": errno.EAGAIN, "a container without /dev/shm": errno.ENOSYS}
+
+
+def refuse_worker_processes(monkeypatch, refusal: str) -> str:
+    """Make this process's system refuse worker processes as ``refusal`` (a key of
+    ``WORKER_REFUSALS``) does; returns the first word of the reason the system gives."""
+    import multiprocessing.synchronize
+
+    code = WORKER_REFUSALS[refusal]
+
+    def refused(*args, **kwargs):
+        raise OSError(code, os.strerror(code))
+
+    if code == errno.EAGAIN:
+        monkeypatch.setattr(os, "fork", refused)
+    else:
+        monkeypatch.setattr(multiprocessing.synchronize.SemLock, "__init__", refused)
+    return os.strerror(code).split()[0]
