@@ -41,7 +41,8 @@ _PROBLEM: Problem | None = None  # a worker's problem: inherited from the run th
 
 
 class _NoWorkers(Exception):
-    """The system refused the worker processes (a process limit, no memory to fork)."""
+    """The system refused the worker processes (a process limit or no memory to fork, no POSIX
+    semaphores for the pool's queues)."""
 
 
 def _init_worker(problem: Problem, parent_pid: int) -> None:
@@ -92,9 +93,9 @@ def processes_available() -> bool:
 
 
 class FitRunner:
-    """Runs jobs ``(structure, starts, kwargs)`` of one problem, on up to ``workers`` processes
-    forked at the first round with more than one fit, or here. Use it as a context manager: the
-    workers end with it (at once where it ends by an error or an interrupt)."""
+    """Runs jobs ``(structure, starts, kwargs)`` of one problem on up to ``workers`` processes,
+    forked when the first round is spread over them, or here (``workers`` 1). Use it as a context
+    manager: the workers end with it (at once where it ends by an error or an interrupt)."""
 
     def __init__(self, problem: Problem, workers: int):
         self.problem = problem
