@@ -125,7 +125,7 @@ def test_an_item_that_kills_every_worker_ends_the_batch_naming_it(tmp_path):
     assert len(list(tmp_path.glob("died_5_*"))) == RAY_TASK_RETRIES + 1
 
 
-@pytest.mark.parametrize("start_method", ["spawn", None])
+@pytest.mark.parametrize("start_method", ["spawn", "forkserver", None])
 def test_local_pool_orders_results_and_sets_up_once_per_worker(start_method):
     seen = []
     items = list(range(40))

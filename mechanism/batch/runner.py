@@ -163,12 +163,13 @@ class _WorkersRefused(Exception):
     """The system refused the worker processes (no semaphores, a process limit)."""
 
 
-def _init_local_worker(setup, shared, parent_pid: int) -> None:
+def _init_local_worker(setup, shared, parent_pid: int | None) -> None:
     global _LOCAL_STATE
     from mechanism.files.interrupts import die_with_parent, ignore_in_worker
 
     ignore_in_worker()  # a Ctrl-C reaches the whole terminal group: the parent stops the workers
-    die_with_parent(parent_pid)  # a killed parent cannot: a worker waiting for work would stay
+    if parent_pid is not None:  # a killed parent cannot: a worker waiting for work would stay
+        die_with_parent(parent_pid)
     _LOCAL_STATE = _build_state(setup, shared)
 
 
@@ -235,7 +236,8 @@ def _one_pool(function, setup, shared, items, chunks, workers, start_method, los
             max_workers=min(workers, len(chunks)),
             mp_context=multiprocessing.get_context(method),
             initializer=_init_local_worker,
-            initargs=(setup, shared, os.getpid()),
+            # a forkserver's workers are its children, not the run's: nothing to tie them to
+            initargs=(setup, shared, None if method == "forkserver" else os.getpid()),
         )
         # the items of a chunk travel with it; the payload went once, through the initializer
         pending = {
