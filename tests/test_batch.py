@@ -8,6 +8,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -86,6 +87,79 @@ def test_the_local_pool_reruns_the_items_of_a_worker_that_died(tmp_path):
     assert len(list(tmp_path.glob("died_5_*"))) == 1  # a worker process really died
     assert results == [i * i for i in range(12)]
     assert sorted(seen) == list(range(12))
+
+
+def test_an_interrupt_while_the_workers_start_stops_them(monkeypatch):
+    """Ctrl-C between two chunks handed to the pool (its workers just forked): the pool is
+    stopped before the interrupt goes on, or its workers would run the whole batch while the
+    interpreter waits for them at exit."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    pools, submit = [], ProcessPoolExecutor.submit
+
+    def interrupted_second(self, *args, **kwargs):
+        pools.append(self)
+        future = submit(self, *args, **kwargs)
+        if len(pools) == 2:
+            raise KeyboardInterrupt
+        return future
+
+    monkeypatch.setattr(ProcessPoolExecutor, "submit", interrupted_second)
+    with pytest.raises(KeyboardInterrupt):
+        run_batch(
+            _shifted,
+            list(range(40)),
+            shared={"offset": 0, "pid": 0},
+            workers=2,
+            chunk_size=2,
+            progress=False,
+        )
+    processes = list(pools[0]._processes.values()) if pools[0]._processes else []
+    assert pools[0]._shutdown_thread and not any(p.is_alive() for p in processes)
+
+
+SIGNAL_INSIDE_WAIT = textwrap.dedent("""
+    import os, signal, sys
+    from concurrent.futures import _base
+    from mechanism.batch import run_batch
+    from mechanism.files import interrupts
+    from tests.test_batch import _shifted
+
+    interrupts.install()
+    enter, calls = _base._AcquireFutures.__enter__, [0]
+
+    def signalled_midway(self):
+        # a SIGTERM arriving after wait() took the first future's lock and before the others
+        calls[0] += 1
+        futures = list(self.futures)
+        futures[0]._condition.acquire()
+        if calls[0] == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+        for future in futures[1:]:
+            future._condition.acquire()
+
+    _base._AcquireFutures.__enter__ = signalled_midway
+    try:
+        run_batch(_shifted, list(range(400)), shared={"offset": 0, "pid": 0}, workers=2,
+                  chunk_size=2, progress=False)
+    except interrupts.Interrupted:
+        print("interrupted")
+""")
+
+
+@pytest.mark.slow
+def test_a_signal_while_the_batch_looks_for_results_ends_it(tmp_path):
+    """The signal lands while ``concurrent.futures.wait`` holds some of the futures' locks: the
+    run still ends at once (the interrupt waited for the end of that look), where it hung with
+    the pool's manager thread waiting for a lock no one would release."""
+    run = subprocess.run(
+        [sys.executable, "-c", SIGNAL_INSIDE_WAIT],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=Path(__file__).resolve().parent.parent,
+    )
+    assert run.stdout.strip() == "interrupted", (run.stdout, run.stderr)
 
 
 @pytest.mark.parametrize("refusal", WORKER_REFUSALS)

@@ -223,36 +223,38 @@ def _one_pool(function, setup, shared, items, chunks, workers, start_method, los
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    from mechanism.files.interrupts import stop_pool
+    from mechanism.files.interrupts import deferred, stop_pool
 
     method = start_method or (
         "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     )
-    pool = None
-    try:
-        # the pool's queues need POSIX semaphores (a container without /dev/shm refuses them),
-        # its workers start with the first task (a process limit refuses the fork)
-        pool = ProcessPoolExecutor(
-            max_workers=min(workers, len(chunks)),
-            mp_context=multiprocessing.get_context(method),
-            initializer=_init_local_worker,
-            # a forkserver's workers are its children, not the run's: nothing to tie them to
-            initargs=(setup, shared, None if method == "forkserver" else os.getpid()),
-        )
-        # the items of a chunk travel with it; the payload went once, through the initializer
-        pending = {
-            pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]): chunk
-            for chunk in chunks
-        }
-    except OSError as refused:
-        if pool is not None:
-            stop_pool(pool, at_once=True)
-        raise _WorkersRefused(refused.strerror or str(refused)) from None
-    finished_all = False
-    try:
+    pool, finished_all = None, False
+    try:  # an interrupt at any point, also while the workers start, stops them
+        try:
+            # the pool's queues need POSIX semaphores (a container without /dev/shm refuses
+            # them), its workers start with the first task (a process limit refuses the fork)
+            pool = ProcessPoolExecutor(
+                max_workers=min(workers, len(chunks)),
+                mp_context=multiprocessing.get_context(method),
+                initializer=_init_local_worker,
+                # a forkserver's workers are its children, not the run's: nothing to tie them to
+                initargs=(setup, shared, None if method == "forkserver" else os.getpid()),
+            )
+            # the items of a chunk travel with it; the payload went once, through the initializer
+            pending = {
+                pool.submit(_local_chunk, function, [(i, items[i]) for i in chunk]): chunk
+                for chunk in chunks
+            }
+        except OSError as refused:
+            raise _WorkersRefused(refused.strerror or str(refused)) from None
         waiting = set(pending)
         while waiting:
-            finished, waiting = wait(waiting, return_when=FIRST_COMPLETED)
+            # wait() holds every pending future's lock while it looks: an interrupt raised there
+            # leaves one held, and the pool's manager thread, and with it the run's shutdown, waits
+            # for it for ever (a sweep hung after SIGTERM). So short slices, each with the signal
+            # taking effect at its end.
+            with deferred():
+                finished, waiting = wait(waiting, timeout=0.1, return_when=FIRST_COMPLETED)
             for future in finished:
                 try:
                     result = future.result()
@@ -262,7 +264,8 @@ def _one_pool(function, setup, shared, items, chunks, workers, start_method, los
                 yield result
         finished_all = not lost
     finally:
-        stop_pool(pool, at_once=not finished_all)
+        if pool is not None:
+            stop_pool(pool, at_once=not finished_all)
 
 
 # -- Ray --------------------------------------------------------------------------------------
