@@ -352,6 +352,8 @@ def test_workers_end_with_a_run_killed_while_they_work_or_wait(tmp_path, script)
         text=True,
     )
     assert proc.stdout.readline().strip() in ("idle", "one busy, one waiting")
+    # multiprocessing's resource tracker, where one runs, is no worker: it ends on reading the
+    # run's end of its pipe
     workers = children(proc.pid) - {
         pid for pid in children(proc.pid) if "resource_tracker" in command(pid)
     }
