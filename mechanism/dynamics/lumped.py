@@ -277,6 +277,8 @@ class Signals:
             "lagged",
             tau_s,
             tau_s,
+            # not lag_filtered: the whole's lag goes through lagged(), which a delayed sensor's
+            # signals share with the logged ones for every delay
             lambda: whole.lagged(tau_s),
             lambda read: lagged_voltage(whole.voltage_V[read], tau_s, self.dt),
         )

@@ -530,10 +530,6 @@ def _fit_all(jobs: list[tuple], runner: FitRunner) -> list[FitResult]:
     return runner.run([job[1:] for job in jobs])
 
 
-def _fit_one(problem, structure, starts, kwargs: dict, runner: FitRunner) -> FitResult:
-    return _fit_all([(problem, structure, starts, kwargs)], runner)[0]
-
-
 def _screening(current: FitResult, e: Effect) -> dict:
     """How a candidate ``e`` added to ``current`` is fitted first: its own parameters and the
     baseline's (which must be free to give back what the effect now explains), few iterations,
@@ -870,7 +866,8 @@ def _select(
         # converge the accepted model before the next round: otherwise the next candidates'
         # refits finish this optimisation and get the credit for it
         tick("converging")
-        polished = _fit_one(problem, current.structure, [current.values], {"max_nfev": 80}, runner)
+        # one fit: the runner spreads its Jacobians over the workers
+        (polished,) = runner.run([(current.structure, [current.values], {"max_nfev": 80})])
         if polished.rmse_fit < current.rmse_fit:
             current = polished
             findings[-1].fit = polished
@@ -1134,12 +1131,14 @@ def _swap(
     k = min(range(len(screened)), key=lambda j: screened[j].rmse_val)
     if not screened[k].rmse_val < current.rmse_val:
         return None
-    swapped = _fit_one(
-        problem,
-        screened[k].structure,
-        [screened[k].values],
-        {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
-        runner,
+    (swapped,) = runner.run(
+        [
+            (
+                screened[k].structure,
+                [screened[k].values],
+                {"max_nfev": 25, "scout_nfev": 0, "tolerance": COMPARE_TOLERANCE},
+            )
+        ]
     )
     # against the model as it is (the swapped model's parameters are not all the current one's)
     if not (
