@@ -866,3 +866,63 @@ def test_even_epoch_stamps_give_the_grid_of_relative_ones(tmp_path, truth):
     assert np.allclose(
         rows["epoch"].time_s - rows["epoch"].time_s[0], rows["relative"].time_s, atol=1e-6
     )
+
+
+NUMERIC_BODY_CASES = [
+    "a,b\n1,2\n\n3,4\n",
+    "a,b\n1,2\n,\n3,4\n",  # a line of separators only
+    "a;b\n1,5;2\n",  # decimal comma
+    "a,b\n1,x\n",  # a text column
+    "a,b\n1,2,3\n",  # a line too long
+    "a,b\n",
+    "1,2\n3,4\n",  # no header
+    "a\tb\n1\t2\n",
+    "a,b\n 1 , 2 \n",
+    "a,b\nnan,inf\n",
+    "a,b\n1_0,2\n",
+    "a,b\n1,\n",  # an empty cell
+    'a,b\n"1",2\n',  # quoted
+    "a,b\n1,2\n# a remark, inside\n3,4\n",
+    "a,b\n1,2 # trailing\n",
+    "a,b\n1,2\x00\n",
+]
+
+
+@pytest.mark.parametrize("text", NUMERIC_BODY_CASES)
+def test_the_fast_reader_of_numbers_gives_what_the_general_reader_gives(text, monkeypatch):
+    from mechanism.files import formats
+
+    def read():
+        try:
+            return formats._read_csv(text.encode(), "x.csv")
+        except UserError as exc:
+            return str(exc)
+
+    fast = read()
+    monkeypatch.setattr(formats, "_numeric_body", lambda *args: None)
+    general = read()
+    if isinstance(general, str):
+        assert fast == general
+        return
+    assert fast[1] == general[1] and list(fast[0]) == list(general[0])
+    for name, column in general[0].items():
+        assert type(fast[0][name]) is type(column)
+        if isinstance(column, list):  # a text column
+            assert fast[0][name] == column
+        else:
+            assert np.array_equal(fast[0][name], column, equal_nan=True)
+
+
+def test_a_bench_recording_reads_the_same_through_both_readers(tmp_path, monkeypatch):
+    import mechanism
+    from mechanism.files import formats
+
+    path = tmp_path / "r.csv"
+    mechanism.write_bench_recording(
+        mechanism.load_machine("sapphire870"), [], 1, path, duration_s=5.0
+    )
+    fast = formats._read_csv(path.read_bytes(), "r.csv")
+    monkeypatch.setattr(formats, "_numeric_body", lambda *args: None)
+    general = formats._read_csv(path.read_bytes(), "r.csv")
+    assert fast[1] == general[1] and list(fast[0]) == list(general[0])
+    assert all(np.array_equal(fast[0][k], general[0][k]) for k in general[0])

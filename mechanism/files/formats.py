@@ -321,6 +321,10 @@ def _read_csv(raw: bytes, label: str):
     if len(set(header)) != len(header):
         raise UserError(f"{label}: duplicated column names in the header")
     check_elements(float(len(lines) - start) * len(header), label)
+    body = lines[start if headerless else start + 1 :]
+    numbers = _numeric_body(body, delimiter, len(header)) if delimiter is not None else None
+    if numbers is not None:
+        return dict(zip(header, numbers)), metadata
     # cells are converted to floats every CHUNK_ROWS rows (text kept only for columns that are text)
     columns = [_ColumnBuilder(delimiter in ("\t", ";")) for _ in header]
     block: list[list[str]] = [[] for _ in header]
@@ -347,6 +351,31 @@ def _read_csv(raw: bytes, label: str):
 
 
 CHUNK_ROWS = 65536
+
+
+def _numeric_body(body: list[str], delimiter: str, n_columns: int) -> list[np.ndarray] | None:
+    """The columns of a body of numbers only (no quotes, no comment lines, every line with
+    ``n_columns`` fields), read by numpy's compiled reader, or None: the general reader below
+    then takes the file (decimal commas, text columns, quotes, comments and the error messages
+    are its). The csv module's row objects cost ten times the numbers' conversion on a minute of
+    1 kHz samples."""
+    text = "\n".join(body)
+    if "#" in text or '"' in text or not text.strip():
+        return None
+    try:
+        table = np.loadtxt(
+            io.StringIO(text),
+            delimiter=delimiter,
+            comments=None,
+            quotechar=None,
+            dtype=np.float64,
+            ndmin=2,
+        )
+    except ValueError:
+        return None
+    if table.shape[1] != n_columns:
+        return None
+    return [np.ascontiguousarray(column) for column in table.T]
 
 
 class _ColumnBuilder:
