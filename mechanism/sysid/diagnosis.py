@@ -53,6 +53,7 @@ from mechanism.sysid.identifiability import Identifiability
 from mechanism.sysid.generic import (
     GenericEffect,
     candidates as generic_candidates,
+    drive_loss_intervals,
     evidence as generic_evidence,
 )
 from mechanism.sysid.recording import Recording, at_fitting_rate
@@ -734,9 +735,13 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
         # the library leaves a structured error: model it anyway, with families that name nothing
         tick("characterising the residual")
-        sig = signature(recording, locate(problem, current).residual, shafts)
+        residual = locate(problem, current).residual
+        sig = signature(recording, residual, shafts)
         description = describe(sig, shafts)
-        generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals)}
+        losses = drive_loss_intervals(
+            nominal, recording.time_s, recording.voltage_V, residual, recording.dt
+        )
+        generic = {e.name: e for e in generic_candidates(nominal, sig, problem.signals, losses)}
         more, current, more_rounds, _ = _select(
             problem,
             base,

@@ -8,7 +8,11 @@ their shapes come from the residual's signature (:mod:`mechanism.sysid.residual`
 - ``generic_change``: Coulomb and viscous friction and the torque gain change at one
   instant (a smooth step);
 - ``generic_saturation``: the motor's torque stops following the voltage beyond a level (the
-  motor current clipped), in hard accelerations and braking.
+  motor current clipped), in hard accelerations and braking;
+- ``generic_dead_zone``: the winding loses a constant voltage in the direction of the current
+  (a brush drop, a driver's dead time);
+- ``generic_shaft_torque`` of a shaft the description does not name, at the ratio the
+  residual's order spectrum shows (:func:`mechanism.sysid.residual.unnamed_shaft_ratio`).
 
 Accepted by the same validation rule as library effects.
 """
@@ -21,7 +25,7 @@ import numpy as np
 from mechanism.dynamics.lumped import DriveNominal, Signals
 from mechanism.sysid.effects import Effect, _amplitude
 from mechanism.sysid.parameters import Parameter
-from mechanism.sysid.residual import Signature
+from mechanism.sysid.residual import UNNAMED_SHAFT, Signature
 
 
 class GenericEffect(Effect):
@@ -101,6 +105,11 @@ class GenericShaftTorque(GenericEffect):
             for k in self.orders
         }
         main = max(amps, key=amps.__getitem__)
+        if self.shaft == UNNAMED_SHAFT:
+            return (
+                f"a generic torque periodic in the angle of a shaft turning {self.ratio:.4g} times per turn "
+                f"of the described shaft, which the description does not name ({amps[main]:.2g} N m at order {main})"
+            )
         return (
             f"a generic {self.shaft.replace('_', ' ')}-angle torque of order{'s' if len(self.orders) > 1 else ''} "
             f"{', '.join(map(str, self.orders))} ({amps[main]:.2g} N m at order {main})"
@@ -291,6 +300,162 @@ class GenericSaturation(GenericEffect):
         )
 
 
+class GenericDeadZone(GenericEffect):
+    name = "generic_dead_zone"
+    physics = (
+        "brushes, a diode or a driver's output stage that take a constant voltage whichever way the current "
+        "flows (a brush drop), a driver's dead time: no current until the voltage across the winding passes a level"
+    )
+    enters = "voltage"
+    feature = "residual"
+    meaning = (
+        "the voltage reaching the winding loses a constant level in the direction of the current (the logged "
+        "voltage against the back-emf at the measured speed): a dead zone of the current, braking included"
+    )
+
+    def __init__(self, nominal: DriveNominal, top_voltage_V: float):
+        # the levels the recording drives at bound the zone: its evidence quotes no other
+        self.top = max(float(top_voltage_V), 1e-3)
+        super().__init__(nominal)
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter(
+                "dead_zone_V",
+                0.0,
+                0.0,
+                0.3 * self.top,
+                "voltage lost in the direction of the current",
+                scale=0.02 * self.top,
+            ),
+        )
+
+    def starts(self, s, located):
+        return [{"dead_zone_V": f * self.top} for f in (0.02, 0.05, 0.1)]
+
+    def voltage(self, v, s, u):
+        zone = v["dead_zone_V"]
+        if zone <= 0.0:
+            return u  # the null: the model it extends, exactly
+        m = self.nominal.motor
+        across = u - m.back_emf_V_s_per_rad * m.ratio * s.velocity_rad_s
+        return u - np.clip(across, -zone, zone)
+
+    def words(self, v) -> str:
+        return (
+            f"a generic dead zone of {v['dead_zone_V']:.2g} V in the direction of the current "
+            f"({100 * v['dead_zone_V'] / self.top:.0f}% of the {self.top:.3g} V the recording drives at most)"
+        )
+
+
+class GenericDriveLoss(GenericEffect):
+    name = "generic_drive_loss"
+    physics = (
+        "supply dropouts, a loose connector or a brush lifting off the commutator, a driver's protection "
+        "tripping for a moment: the motor loses its voltage briefly while the log keeps the commanded one"
+    )
+    enters = "voltage"
+    feature = "residual"
+    meaning = (
+        "the voltage reaching the motor falls by a fraction in short intervals where the shaft decelerated as if "
+        "its drive were gone (located from the residual)"
+    )
+
+    def __init__(self, nominal: DriveNominal, intervals_s: list[tuple[float, float]]):
+        self.intervals = [(float(a), float(b)) for a, b in intervals_s]
+        super().__init__(nominal)
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter(
+                "drive_lost_fraction",
+                0.0,
+                0.0,
+                1.0,
+                "share of the logged voltage that does not reach the motor in the intervals",
+                scale=0.1,
+            ),
+        )
+
+    def starts(self, s, located):
+        return [{"drive_lost_fraction": f} for f in (0.5, 1.0)]
+
+    def mask(self, s: Signals) -> np.ndarray:
+        def compute():
+            begins = np.array([a for a, _ in self.intervals])
+            ends = np.array([b for _, b in self.intervals])
+            i = np.searchsorted(begins, s.time_s, side="right") - 1
+            return (i >= 0) & (s.time_s < ends[np.maximum(i, 0)])
+
+        return s.memo("drive_loss_mask", tuple(self.intervals), compute)
+
+    def voltage(self, v, s, u):
+        lost = v["drive_lost_fraction"]
+        if lost <= 0.0 or not self.intervals:
+            return u
+        return u * (1.0 - lost * self.mask(s))
+
+    def words(self, v) -> str:
+        lengths = [1e3 * (b - a) for a, b in self.intervals]
+        return (
+            f"a generic loss of {100 * v['drive_lost_fraction']:.0f}% of the drive in {len(lengths)} short "
+            f"interval{'s' if len(lengths) != 1 else ''} ({sum(lengths):.0f} ms in all, the longest "
+            f"{max(lengths):.0f} ms, the first at t = {self.intervals[0][0]:.2f} s)"
+        )
+
+
+# a loss of drive: the shaft decelerates by at least this share of what the logged voltage's
+# torque would accelerate it by, for at least this long, where the voltage is at least this share
+# of the recording's top
+LOSS_SHARE, LOSS_MIN_S, LOSS_MIN_VOLTAGE_SHARE = 0.5, 0.01, 0.2
+
+
+def drive_loss_intervals(
+    nominal: DriveNominal,
+    time_s: np.ndarray,
+    voltage_V: np.ndarray,
+    residual: np.ndarray,
+    dt: float,
+) -> list[tuple[float, float]]:
+    """Where the measured shaft decelerated against the model as if the motor had lost its
+    voltage. With a share ``l`` of the voltage lost, the measured acceleration falls behind the
+    model's by (l G U + c r) / J, ``r`` the velocity residual (measured minus model: the slower
+    shaft's back-emf and viscous friction brake it less), G the torque per volt, c the damping:
+    ``l`` from the residual and its rate of change, with the described inertia and damping (the
+    fitted ones differ by less than the factor-2 margin of the test here)."""
+    from mechanism.sysid.recording import smoothed_velocity
+
+    if len(residual) < 100:
+        return []
+    m = nominal.motor
+    inertia = nominal.inertia_motor_side_kgm2 * m.ratio**2
+    damping = m.emf_damping_arm + nominal.viscous_motor_side * m.ratio**2
+    slope = smoothed_velocity(residual, dt)
+    driven = np.abs(voltage_V) >= LOSS_MIN_VOLTAGE_SHARE * max(top_voltage_V_of(voltage_V), 1e-9)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(
+            driven, -(inertia * slope + damping * residual) / (m.gain_arm * voltage_V), 0.0
+        )
+    lost = np.concatenate([[False], share > LOSS_SHARE, [False]])
+    edges = np.flatnonzero(np.diff(lost.astype(np.int8)))
+    runs = [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2])]
+    pad = max(int(round(0.002 / dt)), 1)
+    return [
+        (float(time_s[max(a - pad, 0)]), float(time_s[min(b + pad, len(time_s) - 1)]))
+        for a, b in runs
+        if (b - a) * dt >= LOSS_MIN_S
+    ]
+
+
+def top_voltage_V_of(voltage_V: np.ndarray) -> float:
+    return float(np.percentile(np.abs(voltage_V), 99)) if len(voltage_V) else 0.0
+
+
+def top_voltage_V(signals: Signals) -> float:
+    """The largest voltage the recording drives at (its 99th percentile of |U|)."""
+    return top_voltage_V_of(signals.voltage_V)
+
+
 def peak_current_A(nominal: DriveNominal, signals: Signals) -> float:
     """The largest current the described motor draws over the recording (the logged voltage
     against the back-emf at the measured speed)."""
@@ -299,9 +464,14 @@ def peak_current_A(nominal: DriveNominal, signals: Signals) -> float:
     return float(np.max(np.abs(signals.voltage_V - emf), initial=0.0)) / m.resistance_ohm
 
 
-def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[Effect]:
-    """The generic families the signature points to (the speed friction and the saturation
-    always)."""
+def candidates(
+    nominal: DriveNominal,
+    sig: Signature,
+    signals: Signals,
+    losses: list[tuple[float, float]] = (),  # type: ignore[assignment]
+) -> list[Effect]:
+    """The generic families the signature points to (the speed friction, the saturation and
+    the dead zone always; a loss of drive where ``losses`` located one)."""
     out: list[Effect] = []
     if sig.periodic is not None:
         p = sig.periodic
@@ -313,6 +483,10 @@ def candidates(nominal: DriveNominal, sig: Signature, signals: Signals) -> list[
     )
     if peak_current_A(nominal, signals) > 0.0:
         out.append(GenericSaturation(nominal, peak_current_A(nominal, signals)))
+    if top_voltage_V(signals) > 0.0:
+        out.append(GenericDeadZone(nominal, top_voltage_V(signals)))
+    if losses:
+        out.append(GenericDriveLoss(nominal, list(losses)))
     return out
 
 

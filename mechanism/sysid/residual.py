@@ -229,7 +229,17 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
         share = float(sum(0.5 * amps[k] ** 2 * counts[k] for k in sig) / (total * len(rr)))
         found.append((name, [int(k) for k in sig], share, ratio, amps))
     if not found or max(f[2] for f in found) < 0.05:
-        return None
+        # in none of the described shafts: perhaps in one the description does not name
+        ratio = unnamed_shaft_ratio(rr, th, shafts)
+        if ratio is None:
+            return None
+        amps, counts, power = _order_amplitudes(rr, ratio * th, sp, ratio, dt, max_order=4)
+        noise = 4 * np.sqrt(power * corr / np.maximum(counts, 1)) * math.sqrt(2)
+        sig = [k for k in np.argsort(-amps) if amps[k] > noise[k] and counts[k] > 0.2 * len(rr)][:4]
+        share = float(sum(0.5 * amps[k] ** 2 * counts[k] for k in sig) / (total * len(rr)))
+        if not sig or share < 0.05:
+            return None
+        found = [(UNNAMED_SHAFT, [int(k) for k in sig], share, ratio, amps)]
     # integer ratios make one structure periodic in several shafts: among those that explain
     # about as much, say the motor (its orders are the drive's), then the described shaft
     strongest = max(f[2] for f in found)
@@ -249,6 +259,49 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
         exponent,
         kind,
     )
+
+
+UNNAMED_SHAFT = "unnamed_shaft"
+# the unnamed shaft's line must stand this far above the median of the order spectrum (its
+# bins are exponentially distributed in power: 8x in amplitude is e^-64 for one bin)
+UNNAMED_LINE_FACTOR = 8.0
+
+
+def unnamed_shaft_ratio(r, angle, shafts: dict[str, float]) -> float | None:
+    """The turns per described-shaft turn of a shaft the description does not name (an
+    accessory, an idler, a pump on its own belt) in whose angle ``r`` repeats, or None. The
+    residual is averaged into bins of the unwrapped shaft angle and Fourier-transformed there
+    (an order spectrum: a line at every ratio, integer or not); lines at the described
+    shafts' orders are left out. Needs 20 turns or more."""
+    turns = float(np.ptp(angle)) / (2 * math.pi)
+    if turns < 20:
+        return None
+    per_turn = 64
+    index = np.floor((angle - angle.min()) * (per_turn / (2 * math.pi))).astype(np.int64)
+    n = int(index.max()) + 1
+    count = np.bincount(index, minlength=n)
+    binned = np.bincount(index, weights=r, minlength=n) / np.maximum(count, 1)
+    spectrum = np.abs(np.fft.rfft(binned))
+    ratios = np.fft.rfftfreq(n, d=1.0 / per_turn)
+    resolution = per_turn / n
+    valid = (ratios > 0.2) & (ratios < 0.4 * per_turn)
+    for ratio in shafts.values():
+        orders = np.arange(1, MAX_ORDER + 1) * ratio
+        nearest = np.min(np.abs(ratios[:, None] - orders[None, :]), axis=1)
+        valid &= nearest > 3 * resolution
+    if valid.sum() < 100:
+        return None
+    level = spectrum[valid]
+    peak = int(np.flatnonzero(valid)[np.argmax(level)])
+    if spectrum[peak] < UNNAMED_LINE_FACTOR * float(np.median(level)):
+        return None
+    # the bin's centre can be half a bin off, which over the whole recording cancels half the
+    # line: refine on the samples themselves
+    fine = ratios[peak] + np.linspace(-resolution, resolution, 21)
+    sel = slice(None, None, max(1, len(r) // 30000))
+    rs, th = r[sel], angle[sel]
+    strength = [abs(np.mean(rs * np.exp(-1j * q * th))) for q in fine]
+    return float(fine[int(np.argmax(strength))])
 
 
 def _speed_exponent(r, phase, speed, order) -> float:
@@ -351,6 +404,12 @@ def signature(rec: Recording, r: np.ndarray, shafts: dict[str, float]) -> Signat
 
 def _shaft_words(p: Periodic, shafts: dict[str, float]) -> str:
     main = p.orders[0]
+    if p.shaft == UNNAMED_SHAFT:
+        name = (
+            f"turn of a shaft the description does not name ({p.ratio:.4g} turns per turn of the "
+            f"described shaft: an accessory, an idler, a shaft on a belt of its own)"
+        )
+        return f"a residual {main} times per {name}; " + _amplitude_words(p.kind)
     name = "shaft" if p.shaft == "shaft" else p.shaft.replace("_", " ")
     equivalent = main * p.ratio
     also = (
@@ -360,12 +419,15 @@ def _shaft_words(p: Periodic, shafts: dict[str, float]) -> str:
     )
     others = [o for o in p.orders[1:]]
     extra = f", with orders {', '.join(map(str, others))} of the same shaft" if others else ""
-    amplitude = {
+    return f"a residual {main} times per {name} turn{also}{extra}; {_amplitude_words(p.kind)}"
+
+
+def _amplitude_words(kind: str) -> str:
+    return {
         "torque-like": "its velocity ripple falls with speed as an inertia filters a torque of constant amplitude",
         "sensor-like": "it grows with speed, as an error of the angle sensor does",
         "mixed": "its size changes little with speed",
-    }[p.kind]
-    return f"a residual {main} times per {name} turn{also}{extra}; {amplitude}"
+    }[kind]
 
 
 def describe(sig: Signature, shafts: dict[str, float]) -> str:

@@ -63,6 +63,18 @@ def simulate_truth(
     ecc = 0.006 * s
     ecc_phase = rng.uniform(0, 2 * math.pi)
     current_limit = 4.0 / s  # A: about twice the running current, a fifth of the largest step's
+    # outside the library too: brushes that take a volt whichever way the current flows; a supply
+    # that drops out for 30-60 ms now and then (the log keeps the commanded voltage); an accessory
+    # shaft turning 1.6 times per arm turn with an unbalanced part on it
+    brush_drop_V = 1.0 * s
+    dropouts = []
+    if "supply_dropout" in effects:
+        now = rng.uniform(1.0, 3.0)
+        while now < duration:
+            dropouts.append((now, now + rng.uniform(0.03, 0.06)))
+            now += rng.uniform(1.5, 4.0)
+    accessory_ratio, accessory_Nm = 1.6, 0.12 * s
+    accessory_phase = rng.uniform(0, 2 * math.pi)
 
     def applied_voltage(u):
         if "voltage_nonlinearity" not in effects:
@@ -112,16 +124,28 @@ def simulate_truth(
     belt = "belt_compliance" in effects
     j_arm_total = jm * N * N
     out_theta = np.empty(n_samples)
+    dropout_at = np.zeros(n_samples, bool)
+    for begin, end in dropouts:
+        dropout_at[int(begin * fs) : int(end * fs)] = True
     for k in range(n_samples):
         out_theta[k] = theta
-        u = applied_voltage(u_log[k])
+        u = 0.0 if dropout_at[k] else applied_voltage(u_log[k])
         for _ in range(sub):
             current = (u - KE * N * (wm if belt else w)) / R
+            if "brush_drop" in effects and current != 0.0:
+                current = math.copysign(max(abs(current) - brush_drop_V / R, 0.0), current)
             if "current_limit" in effects:  # outside the library: a current-limited driver
                 current = max(-current_limit, min(current_limit, current))
             drive_motor = N * KT * current
             if "torque_ripple" in effects:
                 drive_motor -= N * ripple_amp * math.sin(N * theta + ripple_phase)
+            if "accessory_torque" in effects:
+                # virtual work: the accessory's torque acts ratio times on the arm
+                drive_motor -= (
+                    accessory_ratio
+                    * accessory_Nm
+                    * math.sin(accessory_ratio * theta + accessory_phase)
+                )
             j_lin, grav, quad = 0.0, 0.0, 0.0
             if "linkage_dynamics" in effects:
                 dx, ddx = crank(theta)
