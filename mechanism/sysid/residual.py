@@ -219,27 +219,18 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
     corr = _correlation_length(rr)
     found = []
     for name, ratio in shafts.items():
-        amps, counts, power = _order_amplitudes(rr, ratio * th, sp, ratio, dt)
-        # an order counts when it stands out of what noise of the residual it was measured on
-        # gives (4 sigma), over at least a fifth of the moving samples
-        noise = 4 * np.sqrt(power * corr / np.maximum(counts, 1)) * math.sqrt(2)
-        sig = [k for k in np.argsort(-amps) if amps[k] > noise[k] and counts[k] > 0.2 * len(rr)][:4]
-        if not sig:
-            continue
-        share = float(sum(0.5 * amps[k] ** 2 * counts[k] for k in sig) / (total * len(rr)))
-        found.append((name, [int(k) for k in sig], share, ratio, amps))
+        orders, share, amps = _significant_orders(rr, th, sp, ratio, dt, corr, total)
+        if orders:
+            found.append((name, orders, share, ratio, amps))
     if not found or max(f[2] for f in found) < 0.05:
         # in none of the described shafts: perhaps in one the description does not name
-        ratio = unnamed_shaft_ratio(rr, th, shafts)
-        if ratio is None:
+        unnamed = unnamed_shaft_ratio(rr, th, shafts)
+        if unnamed is None:
             return None
-        amps, counts, power = _order_amplitudes(rr, ratio * th, sp, ratio, dt, max_order=4)
-        noise = 4 * np.sqrt(power * corr / np.maximum(counts, 1)) * math.sqrt(2)
-        sig = [k for k in np.argsort(-amps) if amps[k] > noise[k] and counts[k] > 0.2 * len(rr)][:4]
-        share = float(sum(0.5 * amps[k] ** 2 * counts[k] for k in sig) / (total * len(rr)))
-        if not sig or share < 0.05:
+        orders, share, amps = _significant_orders(rr, th, sp, unnamed, dt, corr, total, 4)
+        if not orders or share < 0.05:
             return None
-        found = [(UNNAMED_SHAFT, [int(k) for k in sig], share, ratio, amps)]
+        found = [(UNNAMED_SHAFT, orders, share, unnamed, amps)]
     # integer ratios make one structure periodic in several shafts: among those that explain
     # about as much, say the motor (its orders are the drive's), then the described shaft
     strongest = max(f[2] for f in found)
@@ -259,6 +250,18 @@ def periodic_part(r, angle, speed, shafts: dict[str, float], dt) -> Periodic | N
         exponent,
         kind,
     )
+
+
+def _significant_orders(rr, th, sp, ratio, dt, corr, total, max_order=MAX_ORDER):
+    """The orders of a shaft turning ``ratio`` times per shaft turn that stand out of ``rr``
+    (strongest first, at most four), the variance share they explain, every order's amplitude.
+    An order counts when it stands out of what noise of the residual it was measured on gives
+    (4 sigma), over at least a fifth of the moving samples."""
+    amps, counts, power = _order_amplitudes(rr, ratio * th, sp, ratio, dt, max_order)
+    noise = 4 * np.sqrt(power * corr / np.maximum(counts, 1)) * math.sqrt(2)
+    sig = [k for k in np.argsort(-amps) if amps[k] > noise[k] and counts[k] > 0.2 * len(rr)][:4]
+    share = float(sum(0.5 * amps[k] ** 2 * counts[k] for k in sig) / (total * len(rr)))
+    return [int(k) for k in sig], share, amps
 
 
 UNNAMED_SHAFT = "unnamed_shaft"
