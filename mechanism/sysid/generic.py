@@ -11,6 +11,10 @@ their shapes come from the residual's signature (:mod:`mechanism.sysid.residual`
   motor current clipped), in hard accelerations and braking;
 - ``generic_dead_zone``: the winding loses a constant voltage in the direction of the current
   (a brush drop, a driver's dead time);
+- ``generic_drive_loss``: the voltage lost in short intervals located from the residual (a
+  supply dropping out);
+- ``generic_mode``: the angle sensor on a part that rocks against a spring (a housing on soft
+  feet), set ringing by the drive's acceleration;
 - ``generic_shaft_torque`` of a shaft the description does not name, at the ratio the
   residual's order spectrum shows (:func:`mechanism.sysid.residual.unnamed_shaft_ratio`).
 
@@ -404,6 +408,87 @@ class GenericDriveLoss(GenericEffect):
         )
 
 
+class GenericMode(GenericEffect):
+    name = "generic_mode"
+    physics = (
+        "a housing or base that rocks on soft feet, a flexible mount of the motor or of the angle sensor: "
+        "something compliant between the sensor and the ground, which the drive's own torque sets ringing"
+    )
+    enters = "measurement"
+    feature = "residual"
+    meaning = (
+        "the angle sensor sits on a part that rocks against a spring (a second-order mode of its own frequency "
+        "and damping), driven by the reaction of the drive's acceleration: measured = simulated + r L[theta''], "
+        "L = 1 / (s^2 + 2 zeta w s + w^2), r the drive's inertia over the rocking part's"
+    )
+    # a stiff mode (or none) is the null: the ratio at zero
+    LOW_HZ, HIGH_HZ = 1.0, 100.0
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter(
+                "mode_frequency_Hz",
+                10.0,
+                self.LOW_HZ,
+                self.HIGH_HZ,
+                "the mode's frequency",
+                log=True,
+            ),
+            Parameter("mode_damping_ratio", 0.1, 0.01, 1.0, "the mode's damping ratio", log=True),
+            Parameter(
+                "mode_inertia_ratio",
+                0.0,
+                0.0,
+                2.0,
+                "the drive's inertia over that of the part that rocks",
+                scale=0.05,
+            ),
+        )
+
+    def starts(self, s, located):
+        top = min(self.HIGH_HZ, 0.45 / s.dt)
+        peaks = [f for f in located.resonance_hz if self.LOW_HZ < f < top][:2]
+        # the residual's peaks, and an octave grid: away from its frequency the mode's fit has
+        # no slope to follow (a start at a wrong peak stayed there, the error unchanged)
+        grid = [
+            f
+            for f in (3.0, 6.0, 12.0, 24.0)
+            if f < top and all(abs(f / p - 1) > 0.3 for p in peaks)
+        ]
+        return [
+            {"mode_frequency_Hz": f, "mode_damping_ratio": z, "mode_inertia_ratio": 0.1}
+            for f in [*peaks, *grid]
+            for z in (0.05, 0.2)
+        ]
+
+    def measure(self, v, s, angle):
+        ratio = v["mode_inertia_ratio"]
+        if ratio <= 0.0:
+            return angle
+        from scipy.signal import lfilter
+
+        dt = s.dt
+        w = 2 * np.pi * v["mode_frequency_Hz"]
+        # r / (s^2 + 2 zeta w s + w^2) by the bilinear transform, s = k (1 - 1/z) / (1 + 1/z)
+        k, zw = 2.0 / dt, 2 * v["mode_damping_ratio"] * w
+        a = np.array([k * k + zw * k + w * w, 2 * (w * w - k * k), k * k - zw * k + w * w])
+        b = ratio * np.array([1.0, 2.0, 1.0])
+        rows = np.atleast_2d(angle)
+        # the acceleration of each window's simulated angle (its ends repeat their neighbours);
+        # each window starts the mode at rest, which its burn-in lets ring out
+        acc = np.empty_like(rows)
+        acc[:, 1:-1] = (rows[:, 2:] - 2 * rows[:, 1:-1] + rows[:, :-2]) / (dt * dt)
+        acc[:, 0], acc[:, -1] = acc[:, 1], acc[:, -2]
+        return (rows + lfilter(b, a, acc, axis=1)).reshape(np.shape(angle))
+
+    def words(self, v) -> str:
+        return (
+            f"a generic mode at {v['mode_frequency_Hz']:.3g} Hz (damping ratio {v['mode_damping_ratio']:.2g}) that "
+            f"the drive's acceleration excites and the angle sensor sees, as if a part {1 / max(v['mode_inertia_ratio'], 1e-9):.3g} "
+            f"times the drive's inertia rocked under the sensor"
+        )
+
+
 # a loss of drive: the shaft decelerates by at least this share of what the logged voltage's
 # torque would accelerate it by, for at least this long, where the voltage is at least this share
 # of the recording's top
@@ -470,8 +555,8 @@ def candidates(
     signals: Signals,
     losses: list[tuple[float, float]] = (),  # type: ignore[assignment]
 ) -> list[Effect]:
-    """The generic families the signature points to (the speed friction, the saturation and
-    the dead zone always; a loss of drive where ``losses`` located one)."""
+    """The generic families the signature points to (the speed friction, the saturation, the
+    dead zone and the mode always; a loss of drive where ``losses`` located one)."""
     out: list[Effect] = []
     if sig.periodic is not None:
         p = sig.periodic
@@ -485,6 +570,7 @@ def candidates(
         out.append(GenericSaturation(nominal, peak_current_A(nominal, signals)))
     if top_voltage_V(signals) > 0.0:
         out.append(GenericDeadZone(nominal, top_voltage_V(signals)))
+    out.append(GenericMode(nominal))
     if losses:
         out.append(GenericDriveLoss(nominal, list(losses)))
     return out

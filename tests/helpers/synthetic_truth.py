@@ -75,6 +75,11 @@ def simulate_truth(
             now += rng.uniform(1.5, 4.0)
     accessory_ratio, accessory_Nm = 1.6, 0.12 * s
     accessory_phase = rng.uniform(0, 2 * math.pi)
+    # a housing on soft feet that rocks about the arm's axis (9 Hz, 20x the drive's inertia): the
+    # drive's torques react on it, and the encoder reads the arm against the rocking housing
+    base_inertia = 20.0 * jm * N * N / s
+    base_stiffness = base_inertia * (2 * math.pi * 9.0) ** 2
+    base_damping = 2 * 0.08 * math.sqrt(base_stiffness * base_inertia)
 
     def applied_voltage(u):
         if "voltage_nonlinearity" not in effects:
@@ -124,6 +129,7 @@ def simulate_truth(
     belt = "belt_compliance" in effects
     j_arm_total = jm * N * N
     out_theta = np.empty(n_samples)
+    phi = phid = 0.0  # the rocking housing's angle and speed
     dropout_at = np.zeros(n_samples, bool)
     for begin, end in dropouts:
         dropout_at[int(begin * fs) : int(end * fs)] = True
@@ -166,6 +172,7 @@ def simulate_truth(
                 tau = drive_motor - visc * w - grav - quad * w * w
                 jeff = j_arm_total + j_lin
             fr = friction(theta, w, temp)
+            w_before = w
             if smooth_friction > 0:
                 w += h * (tau - fr * math.tanh(w / smooth_friction)) / jeff
             elif stuck:
@@ -179,6 +186,17 @@ def simulate_truth(
                 if w_new * w < 0 or w_new == 0:
                     w_new, stuck = 0.0, True
                 w = w_new
+            if "base_rocking" in effects:
+                # the drive's internal torque reacts on the housing; in the housing's frame the arm
+                # feels the housing's angular acceleration as a torque of inertia
+                internal = jeff * (w - w_before) / h
+                phidd = (-base_stiffness * phi - base_damping * phid - internal) / base_inertia
+                phid += h * phidd
+                phi += h * phid
+                # a stuck arm rides with the housing until that torque passes its friction
+                if not stuck or abs(jeff * phidd) > fr:
+                    w -= h * phidd
+                    stuck = False
             theta += h * w
             if belt:
                 twist += h * (wm - w)
