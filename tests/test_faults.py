@@ -184,8 +184,11 @@ def children(pid: int) -> set[int]:
     while todo:
         parent = todo.pop()
         for task in Path(f"/proc/{parent}/task").glob("*"):
-            with open(task / "children") as handle:
-                kids = {int(k) for k in handle.read().split()}
+            try:
+                with open(task / "children") as handle:
+                    kids = {int(k) for k in handle.read().split()}
+            except OSError:  # the thread (or its process) ended since the listing
+                continue
             todo.extend(kids - found)
             found |= kids
     return found
