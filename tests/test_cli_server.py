@@ -29,6 +29,7 @@ def _both(monkeypatch, *args, **kwargs):
     ],
     ids=["help", "verb-help", "unknown-machine", "no-input", "missing-file"],
 )
+@pytest.mark.slow
 def test_a_forked_run_says_what_a_fresh_interpreter_says(monkeypatch, args):
     forked, fresh = _both(monkeypatch, *args)
     assert (forked.returncode, forked.stdout, forked.stderr) == (
@@ -38,6 +39,7 @@ def test_a_forked_run_says_what_a_fresh_interpreter_says(monkeypatch, args):
     )
 
 
+@pytest.mark.slow
 def test_a_forked_run_writes_what_a_fresh_one_writes(monkeypatch, tmp_path):
     outputs = []
     for name in ("forked", "fresh"):

@@ -731,6 +731,7 @@ def test_an_interrupt_that_a_library_swallowed_still_ends_the_run_and_publishes_
     assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
 
 
+@pytest.mark.slow
 def test_a_conversion_interrupted_while_opencascade_reads_its_step_files_ends_at_once(
     shared, tmp_path
 ):

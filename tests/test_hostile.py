@@ -439,6 +439,7 @@ def test_a_long_run_at_a_high_rate_is_refused_before_allocating(cli, tmp_path):
 
 
 @pytest.mark.parametrize("value", ["two", "0", "-1", "1.5"])
+@pytest.mark.slow
 def test_a_share_of_cores_that_is_no_whole_number_is_one_line_naming_it(
     cli_here, value, monkeypatch, tmp_path
 ):

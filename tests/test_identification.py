@@ -419,6 +419,7 @@ def test_identification_switches_no_process_wide_numeric_or_warning_state():
         assert not re.search(r"catch_warnings|simplefilter|np\.seterr\(", text), path.name
 
 
+@pytest.mark.slow
 def test_no_machine_and_the_default_machine_loaded_give_the_same_fit(clean_bench):
     """One front door: ``identify(None, ...)`` is ``identify(load_machine(), ...)`` number for
     number (the description's ``[lumped]`` numbers either way), and the drive's words come from
@@ -435,6 +436,7 @@ def test_no_machine_and_the_default_machine_loaded_give_the_same_fit(clean_bench
     assert nominal.linkage is None  # the lumped inertia replaces the CAD's tables
 
 
+@pytest.mark.slow
 def test_a_machine_given_by_its_lumped_numbers_keeps_its_own_model_for_the_multibody_baseline(
     tmp_path,
 ):

@@ -124,6 +124,7 @@ def test_no_import_cycle():
     assert not cycles, cycles[:5]
 
 
+@pytest.mark.slow
 def test_the_converter_and_the_test_bench_stay_independent():
     g = graph()
     for source, target in g.edges:

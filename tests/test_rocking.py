@@ -60,6 +60,7 @@ def _dead_points_deg(fourbar: FourBar) -> list[float]:
     return sorted(out)
 
 
+@pytest.mark.slow
 def test_a_rocker_without_limits_is_inspected_where_it_assembles(fourbar):
     import mechanism
     from mechanism.kinematics.travel import END_MARGIN

@@ -429,6 +429,7 @@ def test_a_small_servo_step_follows_its_linearised_loop_equation(free_machine):
 # --------------------------------------------------------------------------- every verb
 
 
+@pytest.mark.slow
 def test_every_verb_runs_on_the_shipped_description(cli_here, tmp_path):
     runs = {
         "simulate": cli_here(
