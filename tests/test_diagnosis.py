@@ -289,6 +289,7 @@ def test_a_current_limited_drive_gets_a_generic_saturation_at_its_limit(seed):
         ("supply_dropout", "generic_drive_loss"),
         ("accessory_torque", "generic_shaft_torque"),
         ("base_rocking", "generic_mode"),
+        ("pulley_slip", "generic_saturation"),
     ],
 )
 def test_outside_the_library_a_generic_family_earns_its_place(physics, family):
@@ -296,7 +297,9 @@ def test_outside_the_library_a_generic_family_earns_its_place(physics, family):
     whichever way the current flows, a supply that drops out for 30-60 ms every few seconds
     while the log keeps the commanded voltage, an unbalanced accessory on a shaft turning 1.6
     times per arm turn (a ratio no described shaft has), a housing on soft feet rocking at 9 Hz
-    under the encoder (20x the drive's inertia, damping ratio 0.08). Each leaves the baseline
+    under the encoder (20x the drive's inertia, damping ratio 0.08), a pulley loose on the motor's
+    shaft that slips beyond 0.6 N m (a torque limit: the saturation's family, whose possible
+    physics says so). Each leaves the baseline
     above the noise; the generic family made for it is kept, cuts the error by 30 % or more,
     names no library mechanism and says what it fitted in the recording's own terms."""
     t, u, angle, _ = simulate_truth((physics,), seed=1, duration=SHORT_S)
@@ -311,6 +314,8 @@ def test_outside_the_library_a_generic_family_earns_its_place(physics, family):
     elif family == "generic_drive_loss":
         assert finding["params"]["drive_lost_fraction"] > 0.8
         assert "short intervals" in finding["evidence"]
+    elif family == "generic_saturation":
+        assert "slips" in finding["possible_physics"]
     elif family == "generic_mode":
         assert finding["params"]["mode_frequency_Hz"] == pytest.approx(9.0, rel=0.1)
     else:

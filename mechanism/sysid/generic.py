@@ -254,7 +254,8 @@ class GenericSaturation(GenericEffect):
     name = "generic_saturation"
     physics = (
         "a drive that limits the motor current (a current-limited amplifier, a supply that folds back under "
-        "load, a driver's protection): the torque stops following the voltage in hard accelerations and braking"
+        "load, a driver's protection), or a transmission that slips beyond a torque (a pulley loose on its shaft, "
+        "a slipping belt or clutch): the torque stops following the voltage in hard accelerations and braking"
     )
     enters = "torque"
     feature = "residual"

@@ -130,6 +130,10 @@ def simulate_truth(
     j_arm_total = jm * N * N
     out_theta = np.empty(n_samples)
     phi = phid = 0.0  # the rocking housing's angle and speed
+    # a pulley loose on the motor's shaft: it grips up to a torque (arm side), beyond which the
+    # motor (30 % of the inertia) slips against it until their speeds meet again
+    slip_limit = 0.6 / s
+    slipping, slip_sign, wm_slip = False, 1.0, 0.0
     dropout_at = np.zeros(n_samples, bool)
     for begin, end in dropouts:
         dropout_at[int(begin * fs) : int(end * fs)] = True
@@ -137,7 +141,8 @@ def simulate_truth(
         out_theta[k] = theta
         u = 0.0 if dropout_at[k] else applied_voltage(u_log[k])
         for _ in range(sub):
-            current = (u - KE * N * (wm if belt else w)) / R
+            motor_speed = wm if belt else (wm_slip if slipping else w)
+            current = (u - KE * N * motor_speed) / R
             if "brush_drop" in effects and current != 0.0:
                 current = math.copysign(max(abs(current) - brush_drop_V / R, 0.0), current)
             if "current_limit" in effects:  # outside the library: a current-limited driver
@@ -171,6 +176,18 @@ def simulate_truth(
             else:
                 tau = drive_motor - visc * w - grav - quad * w * w
                 jeff = j_arm_total + j_lin
+            if "pulley_slip" in effects:
+                jmot = motor_share * j_arm_total
+                if not slipping:
+                    # the torque through the pulley, were motor and arm one body
+                    moving = math.copysign(friction(theta, w, temp), w) if w != 0.0 else 0.0
+                    through = drive_motor - jmot * (tau - moving) / jeff
+                    if abs(through) > slip_limit:
+                        slipping, slip_sign, wm_slip = True, math.copysign(1.0, through), w
+                if slipping:
+                    wm_slip += h * (drive_motor - slip_sign * slip_limit) / jmot
+                    tau = slip_sign * slip_limit - visc * w - grav - quad * w * w
+                    jeff = j_arm_total - jmot + j_lin
             fr = friction(theta, w, temp)
             w_before = w
             if smooth_friction > 0:
@@ -197,6 +214,8 @@ def simulate_truth(
                 if not stuck or abs(jeff * phidd) > fr:
                     w -= h * phidd
                     stuck = False
+            if slipping and (wm_slip - w) * slip_sign <= 0.0:
+                slipping = False  # the speeds met: it grips again
             theta += h * w
             if belt:
                 twist += h * (wm - w)
