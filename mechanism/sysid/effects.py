@@ -913,7 +913,8 @@ class SensorDelay(Effect):
     delay_parameter = "sensor_delay_s"
     feature = "transient"
     sentence = (
-        "the angle logged {delay_ms:.3g} ms late (a phase lag that grows with frequency, no torque) explains the "
+        "the angle logged {delay_ms:.3g} ms late against the voltage (a phase lag that grows with frequency, no "
+        "torque; from the log alone the same as a voltage that acts that much late, a driver's delay) explains the "
         "error that follows every change of speed"
     )
 

@@ -11,6 +11,8 @@ their shapes come from the residual's signature (:mod:`mechanism.sysid.residual`
   motor current clipped), in hard accelerations and braking;
 - ``generic_dead_zone``: the winding loses a constant voltage in the direction of the current
   (a brush drop, a driver's dead time);
+- ``generic_voltage_limit``: the voltage reaching the motor clipped at a level;
+- ``generic_input_delay``: the voltage acting a fixed time late;
 - ``generic_drive_loss``: the voltage lost in short intervals located from the residual (a
   supply dropping out);
 - ``generic_mode``: the angle sensor on a part that rocks against a spring (a housing on soft
@@ -353,6 +355,89 @@ class GenericDeadZone(GenericEffect):
         )
 
 
+class GenericVoltageLimit(GenericEffect):
+    name = "generic_voltage_limit"
+    physics = (
+        "a supply or driver that cannot give more than a voltage (a supply at its limit, a PWM at its largest "
+        "duty, a battery that sags): above it the motor no longer follows the command"
+    )
+    enters = "voltage"
+    feature = "residual"
+    meaning = "the voltage reaching the motor clipped at a level (the logged one up to it)"
+    # a baseline without it lowers its torque per volt and friction to mimic it
+    restarts_baseline = True
+
+    def __init__(self, nominal: DriveNominal, top_voltage_V: float):
+        # no clipping at or above the largest voltage the recording drives at: the null
+        self.top = max(float(top_voltage_V), 1e-3)
+        super().__init__(nominal)
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter(
+                "voltage_limit_V",
+                self.top,
+                0.2 * self.top,
+                self.top,
+                "the largest voltage that reaches the motor",
+                scale=0.05 * self.top,
+            ),
+        )
+
+    def null(self):
+        return {"voltage_limit_V": self.top}
+
+    def starts(self, s, located):
+        return [{"voltage_limit_V": f * self.top} for f in (0.5, 0.7, 0.85)]
+
+    def voltage(self, v, s, u):
+        limit = v["voltage_limit_V"]
+        return u if limit >= self.top else np.clip(u, -limit, limit)
+
+    def words(self, v) -> str:
+        return (
+            f"a generic limit of the voltage reaching the motor at {v['voltage_limit_V']:.3g} V "
+            f"(the recording commands up to {self.top:.3g} V)"
+        )
+
+
+class GenericInputDelay(GenericEffect):
+    name = "generic_input_delay"
+    physics = (
+        "a driver or controller that applies the command late (a transport delay in its loop, a PWM updated "
+        "once per period, a bus that buffers the command), or a log whose voltage is stamped early"
+    )
+    enters = "voltage"
+    feature = "residual"
+    meaning = "the logged voltage reaches the motor a fixed time later (a pure delay, beside the winding's lag)"
+    LONGEST_S = 0.05
+
+    def make_parameters(self, nominal):
+        return (
+            Parameter(
+                "input_delay_s",
+                0.0,
+                0.0,
+                self.LONGEST_S,
+                "how late the voltage acts",
+                scale=0.002,
+            ),
+        )
+
+    def starts(self, s, located):
+        return [{"input_delay_s": d} for d in (0.002, 0.005, 0.015)]
+
+    def voltage(self, v, s, u):
+        delay = v["input_delay_s"]
+        if delay <= 0.0:
+            return u
+        # the voltage as logged before the recording's start: its first sample
+        return np.interp(s.time_s - delay, s.time_s, u, left=u[0])
+
+    def words(self, v) -> str:
+        return f"a generic delay of {1e3 * v['input_delay_s']:.3g} ms before the voltage acts"
+
+
 class GenericDriveLoss(GenericEffect):
     name = "generic_drive_loss"
     physics = (
@@ -557,7 +642,8 @@ def candidates(
     losses: list[tuple[float, float]] = (),  # type: ignore[assignment]
 ) -> list[Effect]:
     """The generic families the signature points to (the speed friction, the saturation, the
-    dead zone and the mode always; a loss of drive where ``losses`` located one)."""
+    dead zone, the voltage limit, the input delay and the mode always; a loss of drive where
+    ``losses`` located one)."""
     out: list[Effect] = []
     if sig.periodic is not None:
         p = sig.periodic
@@ -571,6 +657,8 @@ def candidates(
         out.append(GenericSaturation(nominal, peak_current_A(nominal, signals)))
     if top_voltage_V(signals) > 0.0:
         out.append(GenericDeadZone(nominal, top_voltage_V(signals)))
+        out.append(GenericVoltageLimit(nominal, top_voltage_V(signals)))
+    out.append(GenericInputDelay(nominal))
     out.append(GenericMode(nominal))
     if losses:
         out.append(GenericDriveLoss(nominal, list(losses)))

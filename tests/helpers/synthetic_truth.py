@@ -137,9 +137,14 @@ def simulate_truth(
     dropout_at = np.zeros(n_samples, bool)
     for begin, end in dropouts:
         dropout_at[int(begin * fs) : int(end * fs)] = True
+    # a supply that gives no more than 12 V; a driver that applies the command 10 ms late
+    supply_max_V = 12.0 / s
+    late = int(round(0.010 * s * fs)) if "input_delay" in effects else 0
     for k in range(n_samples):
         out_theta[k] = theta
-        u = 0.0 if dropout_at[k] else applied_voltage(u_log[k])
+        u = 0.0 if dropout_at[k] else applied_voltage(u_log[max(k - late, 0)])
+        if "supply_limit" in effects:
+            u = max(-supply_max_V, min(supply_max_V, u))
         for _ in range(sub):
             motor_speed = wm if belt else (wm_slip if slipping else w)
             current = (u - KE * N * motor_speed) / R
