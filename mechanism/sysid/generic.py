@@ -642,8 +642,8 @@ def candidates(
     losses: list[tuple[float, float]] = (),  # type: ignore[assignment]
 ) -> list[Effect]:
     """The generic families the signature points to (the speed friction, the saturation, the
-    dead zone, the voltage limit, the input delay and the mode always; a loss of drive where
-    ``losses`` located one)."""
+    dead zone, the voltage limit and the mode always; the input delay where the residual reads
+    as a timing error; a loss of drive where ``losses`` located one)."""
     out: list[Effect] = []
     if sig.periodic is not None:
         p = sig.periodic
@@ -658,7 +658,11 @@ def candidates(
     if top_voltage_V(signals) > 0.0:
         out.append(GenericDeadZone(nominal, top_voltage_V(signals)))
         out.append(GenericVoltageLimit(nominal, top_voltage_V(signals)))
-    out.append(GenericInputDelay(nominal))
+    if sig.delay_share > 0.3:
+        # only where the residual reads as a timing error: beside a library model whose own
+        # discretisation is a fraction of a sample off (a free play's contact), a delay of a
+        # fraction of a sample also cuts the error, and names nothing real
+        out.append(GenericInputDelay(nominal))
     out.append(GenericMode(nominal))
     if losses:
         out.append(GenericDriveLoss(nominal, list(losses)))
