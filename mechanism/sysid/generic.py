@@ -25,6 +25,8 @@ Accepted by the same validation rule as library effects.
 
 from __future__ import annotations
 
+from typing import Sequence
+
 
 import numpy as np
 
@@ -602,7 +604,7 @@ def drive_loss_intervals(
     inertia = nominal.inertia_motor_side_kgm2 * m.ratio**2
     damping = m.emf_damping_arm + nominal.viscous_motor_side * m.ratio**2
     slope = smoothed_velocity(residual, dt)
-    driven = np.abs(voltage_V) >= LOSS_MIN_VOLTAGE_SHARE * max(top_voltage_V_of(voltage_V), 1e-9)
+    driven = np.abs(voltage_V) >= LOSS_MIN_VOLTAGE_SHARE * max(top_voltage_V(voltage_V), 1e-9)
     with np.errstate(divide="ignore", invalid="ignore"):
         share = np.where(
             driven, -(inertia * slope + damping * residual) / (m.gain_arm * voltage_V), 0.0
@@ -618,13 +620,9 @@ def drive_loss_intervals(
     ]
 
 
-def top_voltage_V_of(voltage_V: np.ndarray) -> float:
+def top_voltage_V(voltage_V: np.ndarray) -> float:
+    """The largest voltage a recording drives at (its 99th percentile of |U|)."""
     return float(np.percentile(np.abs(voltage_V), 99)) if len(voltage_V) else 0.0
-
-
-def top_voltage_V(signals: Signals) -> float:
-    """The largest voltage the recording drives at (its 99th percentile of |U|)."""
-    return top_voltage_V_of(signals.voltage_V)
 
 
 def peak_current_A(nominal: DriveNominal, signals: Signals) -> float:
@@ -639,7 +637,7 @@ def candidates(
     nominal: DriveNominal,
     sig: Signature,
     signals: Signals,
-    losses: list[tuple[float, float]] = (),  # type: ignore[assignment]
+    losses: Sequence[tuple[float, float]] = (),
 ) -> list[Effect]:
     """The generic families the signature points to (the speed friction, the saturation, the
     dead zone, the voltage limit and the mode always; the input delay where the residual reads
@@ -655,9 +653,9 @@ def candidates(
     )
     if peak_current_A(nominal, signals) > 0.0:
         out.append(GenericSaturation(nominal, peak_current_A(nominal, signals)))
-    if top_voltage_V(signals) > 0.0:
-        out.append(GenericDeadZone(nominal, top_voltage_V(signals)))
-        out.append(GenericVoltageLimit(nominal, top_voltage_V(signals)))
+    if top_voltage_V(signals.voltage_V) > 0.0:
+        out.append(GenericDeadZone(nominal, top_voltage_V(signals.voltage_V)))
+        out.append(GenericVoltageLimit(nominal, top_voltage_V(signals.voltage_V)))
     if sig.delay_share > 0.3:
         # only where the residual reads as a timing error: beside a library model whose own
         # discretisation is a fraction of a sample off (a free play's contact), a delay of a
