@@ -1009,8 +1009,9 @@ def _generic_in_place_of_library(
     the noise), after which a clip on top of the polynomial paid nothing; the clip alone, from
     the baseline, ends at the noise. Each generic family the baseline bends itself to mimic
     (``restarts_baseline``) is fitted alone on the baseline; one that cuts the error the library's
-    findings leave by the generic margin on both halves takes their place (evidence and
-    candidates say so). Returns the findings, the model, and the round it adds (if it ran)."""
+    findings leave by the generic margin on both halves takes their place (the rounds say so:
+    ``"<generic> alone in place of <library names>"``). Returns the findings, the model, and the
+    rounds it adds."""
     library = [f for f in findings if not f.effect.generic]
     mimicked = [e for e in generic.values() if e.restarts_baseline]
     if not library or not mimicked:

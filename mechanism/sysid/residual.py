@@ -265,8 +265,9 @@ def _significant_orders(rr, th, sp, ratio, dt, corr, total, max_order=MAX_ORDER)
 
 
 UNNAMED_SHAFT = "unnamed_shaft"
-# the unnamed shaft's line must stand this far above the median of the order spectrum (its
-# bins are exponentially distributed in power: 8x in amplitude is e^-64 for one bin)
+# the unnamed shaft's line must stand this far above the median of the order spectrum (noise
+# bins are exponentially distributed in power, whose median is ln 2 of its mean: 8x the median
+# amplitude is 44x the mean power, e^-44 for one bin)
 UNNAMED_LINE_FACTOR = 8.0
 
 
