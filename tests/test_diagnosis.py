@@ -336,6 +336,7 @@ def test_outside_the_library_a_generic_family_earns_its_place(physics, family):
         assert "short intervals" in finding["evidence"]
     elif family == "generic_voltage_limit":
         assert finding["params"]["voltage_limit_V"] == pytest.approx(12.0, rel=0.03)
+        assert "takes the place of the library's voltage_nonlinearity" in finding["evidence"]
     elif family == "generic_saturation":
         assert "slips" in finding["possible_physics"]
     elif family == "generic_mode":

@@ -273,6 +273,7 @@ class Finding:
     evidence: str
     candidates: dict  # name -> validation rmse of every candidate tried in this round
     signature: str = ""  # for a generic model: the residual's signature that chose it
+    replaces: str = ""  # for a generic model that took the place of library findings: which
 
     def to_json(self) -> dict:
         own = {p.name for p in self.effect.parameters}
@@ -668,6 +669,8 @@ def _diagnose(recording, nominal, baseline, candidates, progress, model_path, wo
                 previous.rmse_val,
                 finding.fit.rmse_val,
             )
+            if finding.replaces:
+                finding.evidence += f" It takes the place of {finding.replaces}."
         else:
             finding.evidence = _evidence(
                 finding.effect, finding.fit, previous.rmse_val, problem, loc_previous, loc
@@ -1035,8 +1038,13 @@ def _generic_in_place_of_library(
         and fits[j].rmse_fit <= (1 - GENERIC_GAIN) * current.rmse_fit
     ):
         return findings, current, [tried]
+    replaced = (
+        f"the library's {', '.join(f.effect.name for f in library)}, which left "
+        f"{current.rmse_val:.3g} rad/s (alone on the baseline it fits "
+        f"{100 * (1 - fits[j].rmse_val / current.rmse_val):.0f}% lower)"
+    )
     return (
-        [Finding(mimicked[j], fits[j], base.rmse_val, "", tried)],
+        [Finding(mimicked[j], fits[j], base.rmse_val, "", tried, replaces=replaced)],
         fits[j],
         [tried, {label: fits[j].rmse_val}],
     )
