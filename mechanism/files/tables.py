@@ -148,6 +148,14 @@ def parse_table(
     return Table({name: np.asarray(v, dtype=float) for name, v in values.items()}, metadata, label)
 
 
+def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of True in a boolean column as (first, last) index pairs (no wrap-around)."""
+    edges = np.diff(np.concatenate([[0], np.asarray(mask).astype(int), [0]]))
+    return list(
+        zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist())
+    )
+
+
 def check_increasing(time: np.ndarray, label: str, name: str = "time") -> None:
     """Strictly increasing sample times, else a UserError naming the first bad row."""
     steps = np.diff(time)

@@ -40,6 +40,7 @@ from scipy.optimize import minimize_scalar
 from mechanism.machine import parts
 from mechanism.kinematics.cycle import DEFAULT_RESOLUTION_DEG, cycle_angles
 from mechanism.errors import UserError, close_matches
+from mechanism.files.tables import true_runs
 from mechanism.kinematics.pose import approach, joint_dof, named_joint, solve_pose
 from mechanism.inspection.shapes import PartShape, overlap_volume, penetration
 from mechanism.tolerances import (
@@ -372,7 +373,7 @@ class ClearanceSweep:
                 [self.angles[first] + step * k for k in range((last - first) % n + 1)],
                 [poses[(first + k) % n] for k in range((last - first) % n + 1)],
             )
-            for first, last in (_periodic_runs(hit) if self.periodic else _runs(hit))
+            for first, last in (_periodic_runs(hit) if self.periodic else true_runs(hit))
         ]
         best = None
         for i in minima:
@@ -511,14 +512,6 @@ class _Overlap:
 
     angles: list[float]
     starts: list[np.ndarray]
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Runs of True in a boolean array as (first, last) index pairs (no wrap-around)."""
-    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(
-        zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist())
-    )
 
 
 def _periodic_runs(mask: np.ndarray) -> list[tuple[int, int]]:

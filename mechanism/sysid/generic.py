@@ -31,6 +31,7 @@ from typing import Sequence
 import numpy as np
 
 from mechanism.dynamics.lumped import DriveNominal, Signals
+from mechanism.files.tables import true_runs
 from mechanism.sysid.effects import Effect, _amplitude
 from mechanism.sysid.parameters import Parameter
 from mechanism.sysid.residual import UNNAMED_SHAFT, Signature
@@ -609,14 +610,11 @@ def drive_loss_intervals(
         share = np.where(
             driven, -(inertia * slope + damping * residual) / (m.gain_arm * voltage_V), 0.0
         )
-    lost = np.concatenate([[False], share > LOSS_SHARE, [False]])
-    edges = np.flatnonzero(np.diff(lost.astype(np.int8)))
-    runs = [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2])]
     pad = max(int(round(0.002 / dt)), 1)
     return [
-        (float(time_s[max(a - pad, 0)]), float(time_s[min(b + pad, len(time_s) - 1)]))
-        for a, b in runs
-        if (b - a) * dt >= LOSS_MIN_S
+        (float(time_s[max(first - pad, 0)]), float(time_s[min(last + 1 + pad, len(time_s) - 1)]))
+        for first, last in true_runs(share > LOSS_SHARE)
+        if (last + 1 - first) * dt >= LOSS_MIN_S
     ]
 
 
