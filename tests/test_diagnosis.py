@@ -394,6 +394,26 @@ def test_effects_that_pay_off_only_together_are_kept(bench):
 
 
 @pytest.mark.slow
+def test_library_physics_that_took_a_generic_place_lets_more_of_the_library_join(bench):
+    """A supply nonlinearity whose own fit from the baseline failed (a warming winding, an
+    eccentric encoder and an elastic belt beside it) is first matched by a generic speed
+    friction; the library's nonlinearity then takes its place, and from there the winding and
+    the encoder pass too. Before, the library was never tried again once a generic had given
+    way (the voltage nonlinearity alone, at 25x the noise)."""
+    recording = read_recording(
+        bench("belt_compliance,winding_heating,voltage_nonlinearity,encoder_eccentricity", seed=5)
+    )
+    result = diagnose(recording)
+    names = set(result.effect_names)
+    assert {"voltage_nonlinearity", "winding_heating", "encoder_eccentricity"} <= names, (
+        result.effect_names,
+        result.rounds,
+    )
+    assert not any(f.effect.generic for f in result.findings)
+    assert result.unexplained is None
+
+
+@pytest.mark.slow
 def test_a_proxy_taken_first_gives_way_to_its_near_tie_once_later_findings_joined(bench):
     """The swap step on its own: a bearing drift was taken for a warming winding (the winding
     its near tie in that round), then a ripple joined. With the ripple in, the winding takes

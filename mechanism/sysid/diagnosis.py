@@ -761,12 +761,13 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
             step_gain=GENERIC_GAIN,
             keep_gain=GENERIC_GAIN,
         )
+        generic_from = len(findings)
         findings += more
         rounds += more_rounds
         findings, current = _prefer_library(
             problem, base, findings, current, lib, located, tick, runner
         )
-        if not all(f.effect.generic for f in more):
+        if not all(f.effect.generic for f in findings[generic_from:]):
             # library physics took a generic's place: what else of the library now passes on top
             rest = {n: e for n, e in lib.items() if n not in current.structure.names}
             again, current, again_rounds, _ = _select(
