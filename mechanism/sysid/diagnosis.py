@@ -734,6 +734,20 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
                 label = f"{tie} first in place of {first.take}"
                 findings, current = other, ending
                 rounds = [*rounds, {label: current.rmse_val}, *other_rounds[1:]]
+    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse and findings:
+        swap = _swap(problem, base, findings, current, lib, located, tick, runner, anywhere=True)
+        if swap is not None:
+            findings, current, label = swap
+            rounds.append({label: current.rmse_val})
+            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
+            more, current, more_rounds, _ = _select(
+                problem, base, current, rest, located, tick, runner, backward=False
+            )
+            findings, current = _prune(
+                problem, base, findings + more, current, MIN_RELATIVE_GAIN, tick, runner
+            )
+            findings = _chain(problem, base, findings, current, runner)
+            rounds += more_rounds
     description = ""
     if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse:
         # the library leaves a structured error: model it anyway, with families that name nothing
@@ -1149,6 +1163,7 @@ def _swap(
     located: Located,
     tick,
     runner,
+    anywhere: bool = False,
 ):
     """Sequential replacement (the floating search of Pudil et al., 1994): a greedy path can
     take a proxy first (a bearing drift for a warming winding, 7 % apart) that later findings
@@ -1157,12 +1172,21 @@ def _swap(
     ``SWAP_BAND`` of it in its own round (and passed the step there themselves), in the model
     as it now is. The best replacement that cuts the validation rmse by ``STEP_GAIN`` (and fits
     the fit segments better) takes its place, and the forward path goes on. Returns (findings,
-    fit, label) or None. The last finding is not tried: its round was this model's."""
+    fit, label) or None. The last finding is not tried: its round was this model's.
+
+    ``anywhere``: the findings that joined on the lenient step (their round cut the error by
+    less than ``MIN_RELATIVE_GAIN``, or they came in a pair or a swap), the last included,
+    against every library candidate not in the model, whatever it did in their round. The last
+    resort when the library leaves a structured error: a proxy can hold a true effect below the
+    step in every round (an elastic belt, then a free play, took the part of a sensor delay
+    beside Stribeck friction); a finding that cut a third of the error alone is no proxy."""
     jobs, swaps = [], []
     names = set(current.structure.names)
-    for i, finding in enumerate(findings[:-1]):
+    for i, finding in enumerate(findings if anywhere else findings[:-1]):
         own = finding.candidates.get(finding.effect.name)
-        if finding.effect.generic or own is None:
+        if finding.effect.generic or (own is None and not anywhere):
+            continue
+        if anywhere and own is not None and own <= (1 - MIN_RELATIVE_GAIN) * finding.rmse_before:
             continue
         without = FitResult(
             _without(start, findings, i),
@@ -1171,13 +1195,19 @@ def _swap(
             math.nan,
             math.nan,
         )
-        for name, rmse in finding.candidates.items():
+        options = dict.fromkeys(lib, math.inf) if anywhere else finding.candidates
+        for name, rmse in options.items():
             # a near tie that passed the step itself (not one that did nothing in that round)
             if (
                 name in lib
                 and name not in names
-                and rmse <= own * (1 + SWAP_BAND)
-                and rmse <= (1 - STEP_GAIN) * finding.rmse_before
+                and (
+                    anywhere
+                    or (
+                        rmse <= own * (1 + SWAP_BAND)
+                        and rmse <= (1 - STEP_GAIN) * finding.rmse_before
+                    )
+                )
             ):
                 e = lib[name]
                 jobs.append(
