@@ -1221,7 +1221,11 @@ def _swap(
                 swaps.append((i, name))
     if not jobs:
         return None
-    tick(f"trying {', '.join(name for _, name in swaps)} in place of earlier findings")
+    if anywhere:
+        held = dict.fromkeys(findings[i].effect.name for i, _ in swaps)
+        tick(f"trying every other library effect in place of {', '.join(held)}")
+    else:
+        tick(f"trying {', '.join(name for _, name in swaps)} in place of earlier findings")
     # a screening fit each (the rest of the model held), then the best one with everything free
     screened = _fit_all(jobs, runner)
     k = min(range(len(screened)), key=lambda j: screened[j].rmse_val)
