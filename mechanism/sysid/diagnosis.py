@@ -1184,10 +1184,24 @@ def _swap(
     names = set(current.structure.names)
     for i, finding in enumerate(findings if anywhere else findings[:-1]):
         own = finding.candidates.get(finding.effect.name)
-        if finding.effect.generic or (own is None and not anywhere):
+        if finding.effect.generic:
             continue
-        if anywhere and own is not None and own <= (1 - MIN_RELATIVE_GAIN) * finding.rmse_before:
+        if anywhere:
+            if own is not None and own <= (1 - MIN_RELATIVE_GAIN) * finding.rmse_before:
+                continue  # it cut a third of the error alone: no proxy
+            options = [n for n in lib if n not in names]
+        elif own is None:
             continue
+        else:
+            # a near tie that passed the step itself (not one that did nothing in that round)
+            options = [
+                n
+                for n, rmse in finding.candidates.items()
+                if n in lib
+                and n not in names
+                and rmse <= own * (1 + SWAP_BAND)
+                and rmse <= (1 - STEP_GAIN) * finding.rmse_before
+            ]
         without = FitResult(
             _without(start, findings, i),
             _values_without(current.values, finding.effect),
@@ -1195,30 +1209,17 @@ def _swap(
             math.nan,
             math.nan,
         )
-        options = dict.fromkeys(lib, math.inf) if anywhere else finding.candidates
-        for name, rmse in options.items():
-            # a near tie that passed the step itself (not one that did nothing in that round)
-            if (
-                name in lib
-                and name not in names
-                and (
-                    anywhere
-                    or (
-                        rmse <= own * (1 + SWAP_BAND)
-                        and rmse <= (1 - STEP_GAIN) * finding.rmse_before
-                    )
+        for name in options:
+            e = lib[name]
+            jobs.append(
+                (
+                    problem,
+                    without.structure.with_effect(e),
+                    functools.partial(_starts, e, without, located=located),
+                    _screening(without, e),
                 )
-            ):
-                e = lib[name]
-                jobs.append(
-                    (
-                        problem,
-                        without.structure.with_effect(e),
-                        functools.partial(_starts, e, without, located=located),
-                        _screening(without, e),
-                    )
-                )
-                swaps.append((i, name))
+            )
+            swaps.append((i, name))
     if not jobs:
         return None
     if anywhere:
