@@ -42,6 +42,9 @@ def bench(tmp_path_factory):
 def check(result: Diagnosis, expected: set[str]):
     names = result.effect_names
     assert set(names) == expected and len(names) == len(expected), (names, result.rounds)
+    # each fit reports its own model's parameters, none of a candidate tried and dropped
+    for fit in (result.final, *(f.fit for f in result.findings)):
+        assert set(fit.values) == {p.name for p in fit.structure.parameters}
     if expected:
         assert result.final.rmse_val <= 0.7 * result.baseline.rmse_val
     else:

@@ -333,6 +333,18 @@ def _curved_job():
     return (structure, [{"a": 0.1, "b": 0.2, "c": -0.4}], {"max_nfev": 30, "tolerance": 1e-10})
 
 
+def test_a_fit_reports_its_own_parameters_and_none_a_start_carried_in():
+    """Starts are often a larger model's values (a candidate tried and dropped): the fit keeps
+    its structure's parameters only. Before, a generic speed friction's six levels, left in the
+    values the later fits started from, came out in a diagnosis's final parameters (its JSON)
+    beside a model that has no such term."""
+    from mechanism.sysid.identification import fit
+
+    structure, (start,), options = _curved_job()
+    result = fit(_Curved(), structure, [{**start, "friction_at_speed0_Nm": 0.3}], **options)
+    assert set(result.values) == {"a", "b", "c"} and result.rmse_fit < 1e-6
+
+
 def test_fits_on_worker_processes_give_the_numbers_of_one_process_to_the_last_bit():
     """A fit per worker, and one fit whose Jacobian's points are spread over the workers (and
     put back in their order: swapped columns would send the fit elsewhere)."""

@@ -406,7 +406,9 @@ def fit(
     every = structure.parameters
     params = [p for p in every if free is None or p.name in free]
     fixed = {p.name: p.nominal for p in every}
-    fixed.update(starts[0] if starts else {})
+    # only this structure's parameters: a start built from a larger model's values (an effect since
+    # dropped) would otherwise carry that effect's numbers into the result, and into the report
+    fixed.update({k: v for k, v in (starts[0] if starts else {}).items() if k in fixed})
     lo, hi = internal_bounds(params)
     n_eval = 0
     objective = Objective(structure, part, fixed, params, *prior_weights(params))
