@@ -659,6 +659,35 @@ def test_cli_refuses_a_name_without_csv_suffix_and_writes_nothing(cli_here, tmp_
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_machine_without_a_tool_in_fabric_gets_no_needle_penetration_from_the_bench(
+    cli_here, tmp_path
+):
+    """The press has no tool working in fabric: the diagnosis does not offer a needle piercing
+    fabric, so the bench refuses to conceal one (before, it wrote a recording no library model
+    could explain, diagnosed as a gear friction at 22x the noise)."""
+    from dataclasses import replace
+
+    from mechanism.sysid.effects import library
+    from mechanism.testbench import make_recording
+    from tests.helpers.nominal import SAPPHIRE
+
+    result = cli_here(
+        "testbench",
+        "--machine",
+        REPO_ROOT / "assets" / "machines" / "press.toml",
+        "--effect",
+        "needle_penetration",
+        "-o",
+        tmp_path / "r.csv",
+    )
+    assert "no tool working in fabric" in result.assert_bad_input()
+    assert list(tmp_path.iterdir()) == []
+    fabricless = replace(SAPPHIRE, tool_in_fabric=False)
+    assert "needle_penetration" not in library(fabricless)
+    with pytest.raises(UserError, match="no tool working in fabric"):
+        make_recording("torque_ripple,needle_penetration", duration_s=0.1, nominal=fabricless)
+
+
 SHIPPED = sorted((REPO_ROOT / "assets" / "recordings").glob("*.truth.json"))
 
 

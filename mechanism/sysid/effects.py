@@ -38,7 +38,13 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
-from mechanism.dynamics.lumped import Drive, DriveNominal, Signals
+from mechanism.dynamics.lumped import (
+    NEEDS_FABRIC,
+    Drive,
+    DriveNominal,
+    Signals,
+    refuse_without_fabric,
+)
 from mechanism.sysid.parameters import Parameter
 
 PI = math.pi
@@ -1122,21 +1128,10 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 
 
-# offered only where the machine has a tool working in fabric
-NEEDS_FABRIC = ("needle_penetration",)
-
-
 def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[str, Effect]:
     """The candidate effects (all that apply to the described drive, or those named) built for it."""
-    from mechanism.errors import UserError
-
     if names:
-        missing = [name for name in names if name in NEEDS_FABRIC and not nominal.tool_in_fabric]
-        if missing:
-            raise UserError(
-                f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
-                "and piercing_force_per_layer_N)"
-            )
+        refuse_without_fabric(names, nominal)
         return {name: EFFECTS[name](nominal) for name in names}
     return {
         name: e(nominal)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from mechanism import __version__
+from mechanism.dynamics.lumped import refuse_without_fabric
 from mechanism.errors import UserError, close_matches
 from mechanism.files.formats import WriteFormat
 from mechanism.files.outputs import atomic_file, transaction
@@ -403,6 +404,7 @@ def make_recording(
     if not math.isfinite(duration_s) or not 0.01 <= duration_s <= 3600:
         raise UserError(f"duration must be between 0.01 and 3600 s, not {duration_s}")
     randomize = bool(overrides.pop("randomize_baseline", True))
+    refuse_without_fabric(names, nominal)
     rocks = getattr(nominal, "travel_rad", None) is not None
     if rocks:
         rocking.refuse_effects(names, nominal)
