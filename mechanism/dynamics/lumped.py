@@ -67,23 +67,6 @@ class MotorConstants:
         )
 
 
-# effects only a tool working in fabric can have (a needle piercing it once per turn)
-NEEDS_FABRIC = ("needle_penetration",)
-
-
-def refuse_without_fabric(names, nominal: "DriveNominal") -> None:
-    """A UserError for the first of ``names`` that needs a tool working in fabric where the
-    described machine has none: the diagnosis does not offer it, the bench does not conceal it."""
-    from mechanism.errors import UserError
-
-    missing = [name for name in names if name in NEEDS_FABRIC and not nominal.tool_in_fabric]
-    if missing:
-        raise UserError(
-            f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
-            "and piercing_force_per_layer_N)"
-        )
-
-
 @dataclass(frozen=True)
 class DriveNominal:
     """The described machine's drive, as identification, diagnosis and the test bench need

@@ -796,3 +796,19 @@ def schema_markdown() -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+# effects only a tool working in fabric can have (a needle piercing it once per turn)
+NEEDS_FABRIC = ("needle_penetration",)
+
+
+def refuse_without_fabric(names, nominal) -> None:
+    """A UserError for the first of ``names`` that needs a tool working in fabric where the
+    described drive (``nominal.tool_in_fabric``) has none: the diagnosis does not offer it, the
+    bench does not conceal it."""
+    missing = [name for name in names if name in NEEDS_FABRIC and not nominal.tool_in_fabric]
+    if missing:
+        raise UserError(
+            f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "
+            "and piercing_force_per_layer_N)"
+        )

@@ -38,13 +38,8 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
-from mechanism.dynamics.lumped import (
-    NEEDS_FABRIC,
-    Drive,
-    DriveNominal,
-    Signals,
-    refuse_without_fabric,
-)
+from mechanism.dynamics.lumped import Drive, DriveNominal, Signals
+from mechanism.machine.description import NEEDS_FABRIC, refuse_without_fabric
 from mechanism.sysid.parameters import Parameter
 
 PI = math.pi

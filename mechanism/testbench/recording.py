@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from mechanism import __version__
-from mechanism.dynamics.lumped import refuse_without_fabric
 from mechanism.errors import UserError, close_matches
 from mechanism.files.formats import WriteFormat
 from mechanism.files.outputs import atomic_file, transaction
+from mechanism.machine.description import refuse_without_fabric
 from mechanism.testbench import rocking
 from mechanism.testbench import simulate as sim
 from mechanism.testbench.truth import (
@@ -404,10 +404,10 @@ def make_recording(
     if not math.isfinite(duration_s) or not 0.01 <= duration_s <= 3600:
         raise UserError(f"duration must be between 0.01 and 3600 s, not {duration_s}")
     randomize = bool(overrides.pop("randomize_baseline", True))
-    refuse_without_fabric(names, nominal)
     rocks = getattr(nominal, "travel_rad", None) is not None
     if rocks:
         rocking.refuse_effects(names, nominal)
+    refuse_without_fabric(names, nominal)
     base = draw_baseline(seed, nominal, randomize=randomize)
     effect_params = draw_effects(seed, names, base)
     options = _apply_overrides(effect_params, base, overrides)
