@@ -802,11 +802,16 @@ def schema_markdown() -> str:
 NEEDS_FABRIC = ("needle_penetration",)
 
 
+def lacks_fabric_for(name: str, nominal) -> bool:
+    """The effect ``name`` needs a tool working in fabric and the described drive has none."""
+    return name in NEEDS_FABRIC and not nominal.tool_in_fabric
+
+
 def refuse_without_fabric(names, nominal) -> None:
     """A UserError for the first of ``names`` that needs a tool working in fabric where the
     described drive (``nominal.tool_in_fabric``) has none: the diagnosis does not offer it, the
     bench does not conceal it."""
-    missing = [name for name in names if name in NEEDS_FABRIC and not nominal.tool_in_fabric]
+    missing = [name for name in names if lacks_fabric_for(name, nominal)]
     if missing:
         raise UserError(
             f"effect {missing[0]}: the machine has no tool working in fabric ([tool] site, plate "

@@ -740,9 +740,8 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
         if swap is not None:
             findings, current, label = swap
             rounds.append({label: current.rmse_val})
-            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
-            more, current, more_rounds, _ = _select(
-                problem, base, current, rest, located, tick, runner, backward=False
+            more, current, more_rounds = _rest_of_library(
+                problem, base, current, lib, located, tick, runner
             )
             findings, current = _prune(
                 problem, base, findings + more, current, MIN_RELATIVE_GAIN, tick, runner
@@ -784,21 +783,25 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
         )
         if not all(f.effect.generic for f in findings[generic_from:]):
             # library physics took a generic's place: what else of the library now passes on top
-            rest = {n: e for n, e in lib.items() if n not in current.structure.names}
-            again, current, again_rounds, _ = _select(
-                problem,
-                base,
-                current,
-                rest,
-                located,
-                tick,
-                runner,
-                backward=False,
-                step_gain=MIN_RELATIVE_GAIN,
+            again, current, again_rounds = _rest_of_library(
+                problem, base, current, lib, located, tick, runner, step_gain=MIN_RELATIVE_GAIN
             )
             findings += again
             rounds += again_rounds
     return where, findings, current, rounds, description
+
+
+def _rest_of_library(
+    problem, base: FitResult, current: FitResult, lib, located, tick, runner, **rule
+):
+    """Forward selection (no backward steps) of the library effects not yet in ``current``, on
+    top of it, once the model changed under them (a swap, a generic's place taken). Returns the
+    new findings, the fit and the rounds."""
+    rest = {n: e for n, e in lib.items() if n not in current.structure.names}
+    more, current, rounds, _ = _select(
+        problem, base, current, rest, located, tick, runner, backward=False, **rule
+    )
+    return more, current, rounds
 
 
 def _select(

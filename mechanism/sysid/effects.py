@@ -39,7 +39,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from mechanism.dynamics.lumped import Drive, DriveNominal, Signals
-from mechanism.machine.description import NEEDS_FABRIC, refuse_without_fabric
+from mechanism.machine.description import lacks_fabric_for, refuse_without_fabric
 from mechanism.sysid.parameters import Parameter
 
 PI = math.pi
@@ -1131,8 +1131,7 @@ def library(nominal: DriveNominal, names: Sequence[str] | None = None) -> dict[s
     return {
         name: e(nominal)
         for name, e in EFFECTS.items()
-        if (nominal.tool_in_fabric or name not in NEEDS_FABRIC)
-        and getattr(e, "applies", lambda n: True)(nominal)
+        if not lacks_fabric_for(name, nominal) and getattr(e, "applies", lambda n: True)(nominal)
     }
 
 
