@@ -478,17 +478,17 @@ def make_recording(
             traces = sim.simulate(params, motor_voltage, state, prefer=solver_name, table=table)
     traces["applied_voltage_V"] = motor_voltage
 
-    true_angle = traces["arm_angle_rad"]
-    sensed = true_angle
-    if "sensor_delay" in effect_params:
-        # the log shows the angle of delay_s ago (linear interpolation; the rest angle before the start)
-        sensed = np.interp(time - effect_params["sensor_delay"]["delay_s"], time, sensed)
+    sensed = traces["arm_angle_rad"]
     if "encoder_eccentricity" in effect_params:
         e = effect_params["encoder_eccentricity"]
         # the count is reset at the index pulse (needle TDC), so the error vanishes there
-        sensed = true_angle + e["amplitude_rad"] * (
-            np.sin(true_angle + e["phase_rad"]) - math.sin(e["phase_rad"])
+        sensed = sensed + e["amplitude_rad"] * (
+            np.sin(sensed + e["phase_rad"]) - math.sin(e["phase_rad"])
         )
+    if "sensor_delay" in effect_params:
+        # the log shows what the sensor read delay_s ago (linear interpolation; the rest angle
+        # before the start): the eccentric reading too, where the encoder has both
+        sensed = np.interp(time - effect_params["sensor_delay"]["delay_s"], time, sensed)
     arm_angle = np.floor(sensed / step) * step
     current = (
         np.round((traces["current_A"] + sensors.normal(0.0, noise, n)) / CURRENT_RESOLUTION_A)
