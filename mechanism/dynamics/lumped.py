@@ -646,6 +646,9 @@ def windowed_dot(x: np.ndarray, first: np.ndarray, coefficients: np.ndarray) -> 
 
 # the exponential step is exact for the linear part; more substeps change nothing measurable
 SUBSTEPS = 1
+# a shaft measured slower than this is at rest: a segment starting so starts stuck, and it does
+# not turn for what heats with turning
+REST_SPEED_RAD_S = 0.05
 
 
 def simulate(

@@ -36,6 +36,7 @@ from mechanism.sysid.identifiability import Identifiability, correlation_length
 from mechanism.sysid.effects import Effect
 from mechanism.errors import UserError
 from mechanism.dynamics.lumped import (
+    REST_SPEED_RAD_S,
     Drive,
     DriveNominal,
     MotorConstants,
@@ -63,7 +64,6 @@ from mechanism.sysid.recording import (
     velocity_coefficients,
 )
 
-REST_SPEED_RAD_S = 0.05  # a segment starting slower than this starts at rest (stuck)
 # a simulated speed beyond this has diverged (its square would overflow the residual)
 DIVERGED_RAD_S = 1e6
 DIFF_STEP = 1e-3  # finite-difference step in the scaled parameters: the stick-slip makes the
