@@ -26,10 +26,11 @@ lint: $(STAMP)
 
 # two pytest workers (pytest-xdist), one per core of the 2-core machines CI and developers have;
 # the tests named "ray" run one after another on one worker (tests/conftest.py's scheduler).
-# The tests start the CLI as a user does, in over 150 Python processes: where the environment
-# forbids bytecode caches (container images set PYTHONDONTWRITEBYTECODE), each compiled the package
-# and the tests' rewritten asserts from source again (a fresh clone's `make test`: 320 s with it,
-# 281 s without). The caches go to __pycache__, which git ignores.
+# Where the environment forbids bytecode caches (container images set PYTHONDONTWRITEBYTECODE),
+# every interpreter the tests start (the workers, the CLI server, the tests that need a fresh one,
+# Ray's workers) compiled the package again, and each worker the tests' rewritten asserts (a fresh
+# clone's pytest: 320 s with it, 281 s without, back to back). The caches go to __pycache__, which
+# git ignores.
 PYTEST := env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest -q -n 2
 
 test: lint
