@@ -123,6 +123,14 @@ class Effect:
         """Derived engineering quantities for the evidence sentence."""
         return {}
 
+    # the library effect this one becomes at some of its values (a free play of nothing is an
+    # elastic belt): where that fits as well, the diagnosis names the one with fewer parameters
+    simpler: ClassVar[str | None] = None
+
+    def as_simpler(self, v: dict[str, float]) -> dict[str, float]:
+        """The simpler effect's values that start it where this one's ``v`` are."""
+        return {}
+
     @property
     def is_measurement(self) -> bool:
         return self.enters == "measurement"
@@ -758,6 +766,10 @@ class Backlash(BeltCompliance):
         "contact_damping_ratio": "belt_damping_ratio",
         "backlash_motor_inertia_fraction": "motor_inertia_fraction",
     }
+    simpler = "belt_compliance"
+
+    def as_simpler(self, v):
+        return {b: v[a] for a, b in self.AS_BELT.items()}
 
     def make_parameters(self, nominal):
         return (
