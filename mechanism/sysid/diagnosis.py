@@ -20,7 +20,9 @@ physics from the candidate library, choose by validation, and show the fit impro
   that the later ones made redundant. When nothing more passes, an earlier finding is tried
   once against the near ties of its own round (a proxy taken first: a bearing drift for a
   warming winding), and the path goes on if one takes its place. Stop when nothing passes
-  (no cap on the number of effects: a machine in service carries several at once).
+  (no cap on the number of effects: a machine in service carries several at once). At the
+  end a finding gives way to the simpler library effect it becomes (:func:`_fewer_parameters`:
+  a free play of nothing is an elastic belt) where that fits within the tie band.
 - **show**: :meth:`Diagnosis.to_json` (the contract) and :mod:`mechanism.sysid.report`.
 """
 
@@ -401,7 +403,9 @@ class Diagnosis:
                     f"near-ties within {TIE_BAND:.0%} go to fewer parameters (where the search leaves the error above "
                     f"{UNEXPLAINED_FACTOR:g}x the noise floor, each other near tie of the first round is taken first in "
                     f"turn and the lower path kept, and then every other candidate is tried in place of each finding "
-                    f"whose own round cut the error by less than {MIN_RELATIVE_GAIN:.0%}); a candidate joins when the validation "
+                    f"whose own round cut the error by less than {MIN_RELATIVE_GAIN:.0%}; at the end, a finding "
+                    f"gives way to the simpler library effect it becomes, a free play of nothing to an elastic belt, "
+                    f"where that fits within {TIE_BAND:.0%}); a candidate joins when the validation "
                     f"rmse falls by at least {STEP_GAIN:.0%} (pairs when no single one does), an earlier one leaves "
                     f"when the joint refit without it is within {STEP_GAIN:.0%}; the final model keeps a single "
                     f"effect only if it cuts the validation rmse by at least {MIN_RELATIVE_GAIN:.0%} (generic "
