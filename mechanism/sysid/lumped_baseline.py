@@ -23,6 +23,16 @@ MOTOR_PARAMETER_NAMES = {
 }
 
 
+def fitted_motor(described: MotorConstants, values: dict[str, float]) -> MotorConstants:
+    """The motor constants a model's ``values`` give: the described ones, with those fitted."""
+    changes = {
+        key: values[f"motor_{key}"]
+        for key in MOTOR_PARAMETER_NAMES.values()
+        if f"motor_{key}" in values
+    }
+    return MotorConstants(**{**described.__dict__, **changes}) if changes else described
+
+
 def motor_parameters(motor: MotorConstants, free: tuple[str, ...] = ()) -> list[Parameter]:
     """The motor constants named in ``free`` as fittable parameters (datasheet nominal, +-50 %)."""
     out = []
@@ -204,13 +214,7 @@ class LumpedBaseline:
         return torque
 
     def motor(self, values: dict[str, float]) -> MotorConstants:
-        base = self.nominal.motor
-        changes = {
-            key: values[f"motor_{key}"]
-            for key in MOTOR_PARAMETER_NAMES.values()
-            if f"motor_{key}" in values
-        }
-        return MotorConstants(**{**base.__dict__, **changes}) if changes else base
+        return fitted_motor(self.nominal.motor, values)
 
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         n = signals.ratio
