@@ -42,6 +42,7 @@ from mechanism.dynamics.lumped import REST_SPEED_RAD_S, Drive, DriveNominal, Sig
 from mechanism.machine.description import lacks_fabric_for, refuse_without_fabric
 from mechanism.sysid.lumped_baseline import fitted_motor
 from mechanism.sysid.parameters import Parameter
+from mechanism.tolerances import MOTOR_DATASHEET_TOLERANCE, PRIOR_BOUND_SIGMAS
 
 PI = math.pi
 
@@ -1032,13 +1033,16 @@ class WindingHeating(Effect):
             # motor's own Ke: a Ke a few % off the model's is seen only through that change, and
             # at 100 rad/s it is seen (a bench winding alone, Ke 2.6 % below the datasheet's:
             # 3.7x its noise floor without it, 1.8x with it, Ke found to 0.5 %)
+            # a datasheet's tolerance, as a prior: free within wide bounds it stood in for a
+            # Stribeck friction and a sensor delay (at 0.8, its bound, the two never joined)
             Parameter(
                 "winding_back_emf_ratio",
                 1.0,
-                0.8,
-                1.25,
+                math.exp(-PRIOR_BOUND_SIGMAS * MOTOR_DATASHEET_TOLERANCE),
+                math.exp(PRIOR_BOUND_SIGMAS * MOTOR_DATASHEET_TOLERANCE),
                 "the motor's back-emf constant over the model's, seen as the winding warms",
                 log=True,
+                prior_sd=MOTOR_DATASHEET_TOLERANCE,
             ),
         )
 
