@@ -1032,9 +1032,9 @@ class WindingHeating(Effect):
             # the back-emf damping falls with the torque per volt as the copper warms, by the
             # motor's own Ke: a Ke a few % off the model's is seen only through that change, and
             # at 100 rad/s it is seen (a bench winding alone, Ke 2.6 % below the datasheet's:
-            # 3.7x its noise floor without it, 1.8x with it, Ke found to 0.5 %)
-            # a datasheet's tolerance, as a prior: free within wide bounds it stood in for a
-            # Stribeck friction and a sensor delay (at 0.8, its bound, the two never joined)
+            # 3.7x its noise floor without it, 1.8x with it, Ke found to 0.5 %). A prior at the
+            # datasheet's tolerance: free within 0.8-1.25 it stood in for Stribeck friction and a
+            # sensor delay (at 0.8, its bound, the two never joined)
             Parameter(
                 "winding_back_emf_ratio",
                 1.0,
