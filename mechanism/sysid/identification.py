@@ -94,8 +94,11 @@ class ModelStructure:
     def drive(self, values: dict[str, float], signals: Signals) -> Drive:
         drive = self.baseline.drive(values, signals)
         applied = drive.voltage_V = self.voltage(values, signals)
-        # the voltage's effects first (it is an input), the belt last (it reads the total inertia)
-        for e in sorted(self.effects, key=lambda e: {"voltage": 0, "belt": 2}.get(e.enters, 1)):
+        # the voltage itself is set above; the voltage effects' apply runs after the friction's
+        # (a warming winding's change of the back-emf damping is no friction, which a bearing drift
+        # scales: before, the drift scaled it, and the true pair ended at 6.6x the noise, now 1.6x),
+        # the belt last (it reads the total inertia)
+        for e in sorted(self.effects, key=lambda e: {"voltage": 2, "belt": 3}.get(e.enters, 1)):
             e.apply(values, signals, drive)
             if drive.voltage_V is not applied:  # the winding lag below would drop the change
                 raise TypeError(
