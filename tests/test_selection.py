@@ -13,8 +13,9 @@ from mechanism.sysid.generic import (
     evidence,
     peak_current_A,
 )
+from mechanism.sysid.identification import ModelStructure
 from mechanism.sysid.lumped_baseline import LumpedBaseline
-from tests.helpers.nominal import SAPPHIRE
+from tests.helpers.nominal import SAPPHIRE, effects
 
 
 def test_generic_models_name_possible_physics_and_no_mechanism():
@@ -65,3 +66,18 @@ def test_a_saturation_clips_the_motor_torque_at_its_current_and_its_null_is_the_
         net, m.ratio * m.torque_constant_Nm_per_A * np.clip(current, -4.0, 4.0), atol=1e-12
     )
     assert np.abs(current).max() > 4.0 > np.abs(current).min()  # both sides of the limit tested
+
+
+def test_one_transmission_holds_one_compliance():
+    """A free play and an elastic belt both set the one transmission between motor and shaft:
+    in one model the later overwrote the earlier, whose parameters then did nothing, and a
+    diagnosis of a free play beside a warming winding named a belt as well (the pair's gain was
+    only a new start for the same physics). A model holding either admits neither; every other
+    library effect adds to the drive and joins beside them."""
+    lib = effects()
+    empty = ModelStructure(LumpedBaseline(SAPPHIRE))
+    assert all(empty.admits(e) for e in lib.values())
+    for held in ("backlash", "belt_compliance"):
+        structure = empty.with_effect(lib[held])
+        refused = {name for name, e in lib.items() if not structure.admits(e)}
+        assert refused == {"backlash", "belt_compliance"}

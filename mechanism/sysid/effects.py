@@ -75,6 +75,10 @@ class Effect:
     # larger inertia and a long winding lag): its fits also start from the described baseline
     restarts_baseline: bool = False
     varies_inertia: bool = False  # it makes the inertia differ from sample to sample
+    # the part of the drive this effect sets outright rather than adds to (the one transmission
+    # between motor and shaft): two effects of one slot cannot share a model, the later would
+    # overwrite the earlier and leave its parameters doing nothing
+    slot: ClassVar[str | None] = None
 
     def __init__(self, nominal: DriveNominal):
         self.nominal = nominal
@@ -682,6 +686,7 @@ class BeltCompliance(Effect):
     name = "belt_compliance"
     meaning = "elastic belt between motor and arm: two inertias on a spring-damper, a resonance excited by steps and ripple"
     enters = "belt"
+    slot = "transmission"
 
     def make_parameters(self, nominal):
         return (

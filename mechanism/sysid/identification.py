@@ -88,6 +88,13 @@ class ModelStructure:
     def names(self) -> list[str]:
         return [e.name for e in self.effects]
 
+    def admits(self, effect: Effect) -> bool:
+        """Whether ``effect`` can join: not in the model yet, and no effect of its slot (a free
+        play and an elastic belt are both the one transmission) is."""
+        return effect.name not in self.names and not (
+            effect.slot is not None and any(e.slot == effect.slot for e in self.effects)
+        )
+
     def with_effect(self, effect: Effect) -> "ModelStructure":
         return ModelStructure(self.baseline, (*self.effects, effect))
 
