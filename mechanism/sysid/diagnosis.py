@@ -751,12 +751,23 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
     where = locate(problem, base)
     located = where.located()
     nominal, recording = problem.nominal, problem.recording
-    findings, current, rounds, first = _select(problem, base, base, lib, located, tick, runner)
-    if current.rmse_val > UNEXPLAINED_FACTOR * floor.rmse and first is not None:
+    unexplained = UNEXPLAINED_FACTOR * floor.rmse
+    findings, current, rounds, first = _select(
+        problem, base, base, lib, located, tick, runner, explained_at=unexplained
+    )
+    if current.rmse_val > unexplained and first is not None:
         for tie in first.ties:
             tick(f"taking {tie} first in place of {first.take} (a near tie)")
             other, ending, other_rounds, _ = _select(
-                problem, base, base, lib, located, tick, runner, first_round=first.taking(tie)
+                problem,
+                base,
+                base,
+                lib,
+                located,
+                tick,
+                runner,
+                first_round=first.taking(tie),
+                explained_at=unexplained,
             )
             if _rank({"kept": current, "other": ending}, base) == "other":
                 label = f"{tie} first in place of {first.take}"
@@ -768,7 +779,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
             findings, current, label = swap
             rounds.append({label: current.rmse_val})
             more, current, more_rounds = _rest_of_library(
-                problem, base, current, lib, located, tick, runner
+                problem, base, current, lib, located, tick, runner, explained_at=unexplained
             )
             findings, current = _prune(
                 problem, base, findings + more, current, MIN_RELATIVE_GAIN, tick, runner
@@ -805,6 +816,7 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
             backward=False,
             step_gain=GENERIC_GAIN,
             keep_gain=GENERIC_GAIN,
+            explained_at=unexplained,
         )
         generic_from = len(findings)
         findings += more
@@ -815,7 +827,15 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
         if not all(f.effect.generic for f in findings[generic_from:]):
             # library physics took a generic's place: what else of the library now passes on top
             again, current, again_rounds = _rest_of_library(
-                problem, base, current, lib, located, tick, runner, step_gain=MIN_RELATIVE_GAIN
+                problem,
+                base,
+                current,
+                lib,
+                located,
+                tick,
+                runner,
+                step_gain=MIN_RELATIVE_GAIN,
+                explained_at=unexplained,
             )
             findings += again
             rounds += again_rounds
@@ -888,12 +908,14 @@ def _select(
     step_gain: float | None = None,
     keep_gain: float | None = None,
     first_round: "FirstRound | None" = None,
+    explained_at: float = 0.0,
 ) -> tuple[list["Finding"], FitResult, list, "FirstRound | None"]:
     """Forward selection from ``current`` over ``lib`` with a joint refit at every step, a
     backward step after each acceptance, and a final pruning.
 
     - forward: the best candidate joins when it cuts the validation rmse by ``step_gain``
-      (pairs of the best few when no single one does);
+      (pairs of the best few when no single one does; of the best on the fit half too while
+      the validation rmse is above ``explained_at``, the error the noise floor accounts for);
     - backward (with ``backward``): an earlier effect that the later ones made redundant (the
       joint refit without it within ``step_gain``) leaves; and once, when nothing more joins,
       an earlier effect gives way to a near tie of its own round that the model as it now is
@@ -937,7 +959,9 @@ def _select(
             given = None
             findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
-        elif pair := _passing_pair(problem, current, results, lib, tick, runner, step_gain):
+        elif pair := _passing_pair(
+            problem, current, results, lib, tick, runner, step_gain, current.rmse_val > explained_at
+        ):
             # (not ``first``: that is this selection's first round, returned below)
             (one, other), together = pair
             rounds.append({f"{one}+{other}": together.rmse_val})
@@ -1213,12 +1237,14 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
     return min(current.rmse_val, problem.rmse(current.structure, candidate.values, "val"))
 
 
-def _passing_pair(problem, current: FitResult, results, lib, tick, runner, step_gain: float):
+def _passing_pair(
+    problem, current: FitResult, results, lib, tick, runner, step_gain: float, by_fit: bool
+):
     """The best pair (:func:`_best_pair`) when it passes against the current model and each
     member adds the same gain on top of the other alone (no passenger); else None."""
     if len(results) < 2:
         return None
-    pair = _best_pair(problem, current, results, lib, tick, runner)
+    pair = _best_pair(problem, current, results, lib, tick, runner, by_fit=by_fit)
     if pair is None:
         return None
     (first, second), together = pair
@@ -1340,12 +1366,13 @@ def _best_pair(
     tick,
     runner,
     top: int = PAIR_TOP,
+    by_fit: bool = True,
 ):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
     of which explains much alone. When no single candidate passes, refit the pairs of the
     best few singles together; returns ((first, second), fit) for the best pair, first being
     the better single. Every pair member must have helped a little on its own, on the
-    validation half or the fit half."""
+    validation half or (with ``by_fit``: where the model is far from the noise) the fit half."""
     on_val = [
         n
         for n in sorted(singles, key=lambda n: singles[n].rmse_val)
@@ -1354,7 +1381,7 @@ def _best_pair(
     on_fit = [
         n
         for n in sorted(singles, key=lambda n: singles[n].rmse_fit)
-        if singles[n].rmse_fit < current.rmse_fit
+        if by_fit and singles[n].rmse_fit < current.rmse_fit
     ][:PAIR_TOP_FIT]
     helped = sorted(dict.fromkeys(on_val + on_fit), key=lambda n: singles[n].rmse_val)
     pairs = [
