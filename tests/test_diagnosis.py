@@ -125,11 +125,11 @@ def test_a_pair_that_joins_in_the_first_round_leaves_no_first_round_to_branch_fr
     recording = at_fitting_rate(read_recording(bench("thermal_drift,winding_heating", seed=22)))
     problem = Problem(recording, SAPPHIRE)
     base = fit_baseline(problem, "lumped")
-    lib = {name: EFFECTS[name] for name in ("thermal_drift", "winding_heating", "stribeck")}
+    lib = {name: EFFECTS[name] for name in ("thermal_drift", "winding_heating")}
     located = diagnosis.locate(problem, base).located()
     with FitRunner(problem, 1) as runner:
         findings, _, rounds, first = diagnosis._select(
-            problem, base, base, lib, located, lambda what: None, runner
+            problem, base, base, lib, located, lambda what: None, runner, explained_at=0.0
         )
     (pair,) = rounds[1]
     assert set(pair.split("+")) == {"thermal_drift", "winding_heating"}, rounds

@@ -816,7 +816,6 @@ def _search(problem, base: FitResult, lib, floor, shafts, tick, runner):
             backward=False,
             step_gain=GENERIC_GAIN,
             keep_gain=GENERIC_GAIN,
-            explained_at=unexplained,
         )
         generic_from = len(findings)
         findings += more
@@ -908,14 +907,15 @@ def _select(
     step_gain: float | None = None,
     keep_gain: float | None = None,
     first_round: "FirstRound | None" = None,
-    explained_at: float = 0.0,
+    explained_at: float = math.inf,
 ) -> tuple[list["Finding"], FitResult, list, "FirstRound | None"]:
     """Forward selection from ``current`` over ``lib`` with a joint refit at every step, a
     backward step after each acceptance, and a final pruning.
 
     - forward: the best candidate joins when it cuts the validation rmse by ``step_gain``
       (pairs of the best few when no single one does; of the best on the fit half too while
-      the validation rmse is above ``explained_at``, the error the noise floor accounts for);
+      the validation rmse is above ``explained_at``, the error the noise floor accounts for:
+      none by default, and none among the generic families, which name no physics to pair);
     - backward (with ``backward``): an earlier effect that the later ones made redundant (the
       joint refit without it within ``step_gain``) leaves; and once, when nothing more joins,
       an earlier effect gives way to a near tie of its own round that the model as it now is
@@ -1244,7 +1244,9 @@ def _passing_pair(
     member adds the same gain on top of the other alone (no passenger); else None."""
     if len(results) < 2:
         return None
-    pair = _best_pair(problem, current, results, lib, tick, runner, by_fit=by_fit)
+    pair = _best_pair(
+        problem, current, results, lib, tick, runner, by_fit=step_gain if by_fit else None
+    )
     if pair is None:
         return None
     (first, second), together = pair
@@ -1289,11 +1291,11 @@ def _swap(
         own = finding.candidates.get(finding.effect.name)
         if finding.effect.generic:
             continue
-        held = _without(start, findings, i)
+        rest = _without(start, findings, i)  # the model without this finding
         if anywhere:
             if own is not None and own <= (1 - MIN_RELATIVE_GAIN) * finding.rmse_before:
                 continue  # it cut a third of the error alone: no proxy
-            options = [n for n in lib if n not in names and held.admits(lib[n])]
+            options = [n for n in lib if n not in names and rest.admits(lib[n])]
         elif own is None:
             continue
         else:
@@ -1303,12 +1305,12 @@ def _swap(
                 for n, rmse in finding.candidates.items()
                 if n in lib
                 and n not in names
-                and held.admits(lib[n])
+                and rest.admits(lib[n])
                 and rmse <= own * (1 + SWAP_BAND)
                 and rmse <= (1 - STEP_GAIN) * finding.rmse_before
             ]
         without = FitResult(
-            held,
+            rest,
             _values_without(current.values, finding.effect),
             {},
             math.nan,
@@ -1366,13 +1368,14 @@ def _best_pair(
     tick,
     runner,
     top: int = PAIR_TOP,
-    by_fit: bool = True,
+    by_fit: float | None = None,
 ):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
     of which explains much alone. When no single candidate passes, refit the pairs of the
     best few singles together; returns ((first, second), fit) for the best pair, first being
     the better single. Every pair member must have helped a little on its own, on the
-    validation half or (with ``by_fit``: where the model is far from the noise) the fit half."""
+    validation half or, with ``by_fit`` (where the model is far from the noise), cut the fit
+    half's error by that fraction (a marginal gain there is any added freedom's)."""
     on_val = [
         n
         for n in sorted(singles, key=lambda n: singles[n].rmse_val)
@@ -1381,7 +1384,7 @@ def _best_pair(
     on_fit = [
         n
         for n in sorted(singles, key=lambda n: singles[n].rmse_fit)
-        if by_fit and singles[n].rmse_fit < current.rmse_fit
+        if by_fit is not None and singles[n].rmse_fit <= (1 - by_fit) * current.rmse_fit
     ][:PAIR_TOP_FIT]
     helped = sorted(dict.fromkeys(on_val + on_fit), key=lambda n: singles[n].rmse_val)
     pairs = [
