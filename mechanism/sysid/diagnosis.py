@@ -853,7 +853,7 @@ def _fewer_parameters(problem, base: FitResult, findings, current: FitResult, li
     rounds = []
     for i, finding in enumerate(findings):
         name = finding.effect.simpler
-        if name is None or name not in lib or name in current.structure.names:
+        if name is None or name not in lib or not _without(base, findings, i).admits(lib[name]):
             continue
         simpler = lib[name]
         structure = ModelStructure(
@@ -962,7 +962,14 @@ def _select(
             findings.append(Finding(lib[best], passing[best], current.rmse_val, "", tried))
             current = passing[best]
         elif pair := _passing_pair(
-            problem, current, results, lib, tick, runner, step_gain, current.rmse_val > explained_at
+            problem,
+            current,
+            results,
+            lib,
+            tick,
+            runner,
+            step_gain,
+            fit_gain=step_gain if current.rmse_val > explained_at else None,
         ):
             # (not ``first``: that is this selection's first round, returned below)
             (one, other), together = pair
@@ -1184,15 +1191,14 @@ def _prefer_library(
     for i, finding in enumerate(findings):
         if not finding.effect.generic:
             continue
-        others = [f.effect for f in findings if f is not finding]
-        held = ModelStructure(base.structure.baseline, [*base.structure.effects, *others])
-        options = [e for e in lib.values() if held.admits(e)]
+        rest = _without(base, findings, i)  # the model without this generic
+        options = [e for e in lib.values() if rest.admits(e)]
         if not options:
             continue
         jobs = []
         start = _values_without(current.values, finding.effect)
         for e in options:
-            structure = ModelStructure(base.structure.baseline, [*others, e])
+            structure = rest.with_effect(e)
             jobs.append(
                 (
                     problem,
@@ -1240,15 +1246,13 @@ def _reference_rmse(problem: Problem, current: FitResult, candidate: FitResult) 
 
 
 def _passing_pair(
-    problem, current: FitResult, results, lib, tick, runner, step_gain: float, by_fit: bool
+    problem, current: FitResult, results, lib, tick, runner, step_gain: float, fit_gain=None
 ):
     """The best pair (:func:`_best_pair`) when it passes against the current model and each
     member adds the same gain on top of the other alone (no passenger); else None."""
     if len(results) < 2:
         return None
-    pair = _best_pair(
-        problem, current, results, lib, tick, runner, by_fit=step_gain if by_fit else None
-    )
+    pair = _best_pair(problem, current, results, lib, tick, runner, fit_gain=fit_gain)
     if pair is None:
         return None
     (first, second), together = pair
@@ -1370,13 +1374,13 @@ def _best_pair(
     tick,
     runner,
     top: int = PAIR_TOP,
-    by_fit: float | None = None,
+    fit_gain: float | None = None,
 ):
     """Two effects can hide each other: a motor ripple that excites an elastic belt, neither
     of which explains much alone. When no single candidate passes, refit the pairs of the
     best few singles together; returns ((first, second), fit) for the best pair, first being
     the better single. Every pair member must have helped a little on its own, on the
-    validation half or, with ``by_fit`` (where the model is far from the noise), cut the fit
+    validation half or, with ``fit_gain`` (where the model is far from the noise), cut the fit
     half's error by that fraction (a marginal gain there is any added freedom's)."""
     on_val = [
         n
@@ -1386,7 +1390,7 @@ def _best_pair(
     on_fit = [
         n
         for n in sorted(singles, key=lambda n: singles[n].rmse_fit)
-        if by_fit is not None and singles[n].rmse_fit <= (1 - by_fit) * current.rmse_fit
+        if fit_gain is not None and singles[n].rmse_fit <= (1 - fit_gain) * current.rmse_fit
     ][:PAIR_TOP_FIT]
     helped = sorted(dict.fromkeys(on_val + on_fit), key=lambda n: singles[n].rmse_val)
     pairs = [
