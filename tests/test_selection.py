@@ -81,3 +81,42 @@ def test_one_transmission_holds_one_compliance():
         structure = empty.with_effect(lib[held])
         refused = {name for name, e in lib.items() if not structure.admits(e)}
         assert refused == {"backlash", "belt_compliance"}
+
+
+def test_pairs_from_the_fit_half_need_a_clear_gain_there_and_are_asked_for():
+    """Singles that cut the fit half's error and raise the validation half's are paired only
+    where the caller asks for fit-half pairs (the search far above the noise) and only from a
+    cut of at least the given fraction: added freedom always fits the fit half a little better,
+    and pairing every such single cost an outside-library recording 18 s instead of 8."""
+    from mechanism.sysid.identification import FitResult
+
+    lib = effects()
+    current = FitResult(ModelStructure(LumpedBaseline(SAPPHIRE)), {}, {}, 1.0, 1.0)
+
+    class Runner:  # records the pairs it is asked to fit
+        problem = object()
+
+        def __init__(self):
+            self.fitted = []
+
+        def run(self, jobs):
+            self.fitted += [set(structure.names) for structure, *_ in jobs]
+            return [FitResult(structure, {}, {}, 0.5, 0.5) for structure, *_ in jobs]
+
+    def paired(fit_rmse: dict[str, float], fit_gain):
+        singles = {
+            name: FitResult(current.structure.with_effect(lib[name]), {}, {}, rmse, 1.2)
+            for name, rmse in fit_rmse.items()
+        }
+        runner = Runner()
+        diagnosis._best_pair(
+            runner.problem, current, singles, lib, lambda what: None, runner, fit_gain=fit_gain
+        )
+        return runner.fitted
+
+    hidden = {"thermal_drift": 0.8, "winding_heating": 0.7}
+    assert paired(hidden, None) == []
+    assert paired(hidden, 0.1) == [{"thermal_drift", "winding_heating"}]
+    marginal = {"winding_heating": 0.7, "stribeck": 0.97}
+    assert paired(marginal, 0.1) == []
+    assert paired(marginal, 0.02) == [{"winding_heating", "stribeck"}]
