@@ -51,8 +51,12 @@ def check(result: Diagnosis, expected: set[str]):
         assert result.final is result.baseline
 
 
+# effects whose own recording (seed 21) a test below diagnoses, naming it and checking more
+OWN_TESTS = {"thermal_drift", "winding_heating"}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", sorted(EFFECTS))
+@pytest.mark.parametrize("effect", sorted(set(EFFECTS) - OWN_TESTS))
 def test_each_effect_is_named_in_its_own_bench_recording(bench, effect):
     check(diagnose(read_recording(bench(effect, seed=21))), {effect})
 
