@@ -39,7 +39,7 @@ from scipy.signal import find_peaks, welch
 from mechanism.sysid.report import Traces
 from mechanism.files.limits import usable_cores
 from mechanism.sysid.fit_runner import FitRunner
-from mechanism.sysid.effects import Effect, Located, library as effect_library
+from mechanism.sysid.effects import WHOLE_BASELINE, Effect, Located, library as effect_library
 from mechanism.sysid.identification import (
     FitResult,
     ModelStructure,
@@ -516,9 +516,15 @@ def _starts(effect: Effect, current: FitResult, problem: Problem, located: Locat
     own = list(effect.starts_from(current.values)) if hasattr(effect, "starts_from") else []
     guesses = [*own, *effect.starts(problem.signals, located)]
     restarted = []
-    if effect.restarts_baseline:
-        # the baseline bent itself to mimic this physics: also start it over from the description
-        described = {p.name: p.nominal for p in current.structure.baseline.parameters}
+    bent = effect.restarts_baseline
+    # the baseline bent itself to mimic this physics: also start those of its parameters over
+    # from the description
+    described = {
+        p.name: p.nominal
+        for p in current.structure.baseline.parameters
+        if bent == WHOLE_BASELINE or p.name in bent
+    }
+    if described:
         restarted = [{**current.values, **described, **start} for start in guesses]
     return [*({**current.values, **start} for start in guesses), *restarted, null]
 

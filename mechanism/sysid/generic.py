@@ -32,7 +32,7 @@ import numpy as np
 
 from mechanism.dynamics.lumped import DriveNominal, Signals
 from mechanism.files.tables import true_runs
-from mechanism.sysid.effects import Effect, _amplitude
+from mechanism.sysid.effects import WHOLE_BASELINE, Effect, _amplitude
 from mechanism.sysid.parameters import Parameter
 from mechanism.sysid.residual import UNNAMED_SHAFT, Signature
 
@@ -264,7 +264,7 @@ class GenericSaturation(GenericEffect):
     )
     enters = "torque"
     feature = "residual"
-    restarts_baseline = True
+    restarts_baseline = WHOLE_BASELINE
     meaning = (
         "the motor's torque clipped at a level (its current at the logged voltage and measured speed, "
         "(U - Ke n w) / R, limited to +/- a maximum current)"
@@ -368,7 +368,7 @@ class GenericVoltageLimit(GenericEffect):
     feature = "residual"
     meaning = "the voltage reaching the motor clipped at a level (the logged one up to it)"
     # a baseline without it lowers its torque per volt and friction to mimic it
-    restarts_baseline = True
+    restarts_baseline = WHOLE_BASELINE
 
     def __init__(self, nominal: DriveNominal, top_voltage_V: float):
         # no clipping at or above the largest voltage the recording drives at: the null
