@@ -52,7 +52,7 @@ def check(result: Diagnosis, expected: set[str]):
 
 
 # effects whose own recording (seed 21) a test below diagnoses, naming it and checking more
-OWN_TESTS = {"thermal_drift", "winding_heating"}
+OWN_TESTS = {"thermal_drift", "winding_heating", "torque_ripple"}
 
 
 @pytest.mark.slow
@@ -175,7 +175,9 @@ def test_a_diagnosis_on_two_worker_processes_is_the_one_in_one_process_to_the_la
 
     monkeypatch.setattr(FitRunner, "_points", points)
     monkeypatch.setattr(FitRunner, "run", run)
-    one = diagnose(recording, workers=1).to_json()
+    here = diagnose(recording, workers=1)
+    check(here, {"torque_ripple"})
+    one = here.to_json()
     assert set(ways) == {"here"}
     ways.clear()
     two = diagnose(recording, workers=2).to_json()
