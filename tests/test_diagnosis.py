@@ -494,6 +494,23 @@ def test_effects_that_pay_off_only_together_are_kept(bench):
 
 
 @pytest.mark.slow
+def test_findings_that_hold_each_other_up_are_not_pruned_one_by_one(bench):
+    """A free play beside a motor ripple, a sensor delay and a warming winding (60 s): the
+    lumped free play cannot follow the rattle in the gap, and the final model leaves 7x the
+    noise floor, which dilutes every finding's share. Added last, the free play cut the error by
+    16 %; without it the ripple by 26 %, then the delay by 21 %, then the winding alone by 32 %:
+    pruned one at a time, all four went and nothing was named at 21x the noise. Each removal
+    that made another finding fail is a pair that pays off together (added last as a pair they
+    cut it by 38-41 %): all four stay, and the error they leave is reported unexplained."""
+    recording = read_recording(
+        bench("backlash,sensor_delay,winding_heating,torque_ripple", seed=1, duration=60.0)
+    )
+    result = diagnose(recording)
+    check(result, {"backlash", "sensor_delay", "winding_heating", "torque_ripple"})
+    assert result.unexplained is not None
+
+
+@pytest.mark.slow
 def test_library_physics_that_took_a_generic_place_lets_more_of_the_library_join(bench):
     """A supply nonlinearity whose own fit from the baseline failed (a warming winding, an
     eccentric encoder and an elastic belt beside it) is first matched by a generic speed
