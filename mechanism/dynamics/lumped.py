@@ -34,7 +34,7 @@ import math
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Hashable
 
 import numpy as np
 
@@ -184,7 +184,7 @@ class Signals:
     _memos: dict = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
-    def memo(self, kind: str, key, compute, keep: int = 16):
+    def memo(self, kind: Hashable, key, compute, keep: int = 16):
         """A small per-kind LRU of derived arrays (lagged voltages, warmth curves), safe for
         the diagnosis's parallel fits; fewer kept for a long recording (memory)."""
         keep = max(2, min(keep, int(4e6 // max(len(self), 1))))
@@ -440,7 +440,21 @@ class Signals:
         amplitudes = np.empty(2 * len(orders))
         amplitudes[0::2] = cos_amplitudes
         amplitudes[1::2] = sin_amplitudes
-        return amplitudes @ self._cache[key]
+        stacked = self._cache[key]
+        # remembered per amplitudes: a finite-difference Jacobian moves one parameter at a time,
+        # and its columns that leave these amplitudes alone read the sum again
+        return self.memo(
+            ("harmonic_sum", orders),
+            amplitudes.tobytes(),
+            lambda: read_only(amplitudes @ stacked),
+        )
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """A remembered array that every reader shares: adding it to a drive's array is fine,
+    changing it in place an error."""
+    array.flags.writeable = False
+    return array
 
 
 @dataclass

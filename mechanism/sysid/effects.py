@@ -38,7 +38,7 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
-from mechanism.dynamics.lumped import REST_SPEED_RAD_S, Drive, DriveNominal, Signals
+from mechanism.dynamics.lumped import REST_SPEED_RAD_S, Drive, DriveNominal, Signals, read_only
 from mechanism.machine.description import lacks_fabric_for, refuse_without_fabric
 from mechanism.sysid.lumped_baseline import fitted_motor
 from mechanism.sysid.parameters import Parameter
@@ -103,6 +103,17 @@ class Effect:
     def apply(self, v: dict[str, float], s: Signals, drive: Drive) -> None:
         """Add this effect to the drive coefficients (torque, friction, belt); what a voltage
         effect does to the voltage is :meth:`voltage`."""
+
+    def remembered(
+        self, v: dict[str, float], s: Signals, what: str, compute, depends_on=None
+    ) -> np.ndarray:
+        """``compute()``, an array at the samples of ``s`` that depends on the parameters
+        ``depends_on`` only (by default this effect's own), remembered per their values: a
+        finite-difference Jacobian moves one parameter at a time, and most of its columns leave
+        these alone."""
+        names = depends_on if depends_on is not None else [p.name for p in self.parameters]
+        key = tuple(v[name] for name in names)
+        return s.memo(("effect", self.name, what), key, lambda: read_only(compute()))
 
     def voltage(self, v: dict[str, float], s: Signals, u: np.ndarray) -> np.ndarray:
         """The voltage reaching the winding for ``u`` at the samples of ``s`` (voltage effects).
@@ -309,13 +320,30 @@ class LinkageDynamics(Effect):
         m = v["needle_bar_mass_kg"]
         if m == 0.0:
             return
-        grid_dx, grid_ddx = self.kinematics(v, Signals.periodic_grid())
-        inertia = grid_dx * grid_dx
-        # the revolution mean is the baseline's J
-        drive.inertia_kgm2 += m * s.periodic(inertia - inertia.mean())
-        drive.quadratic_Nm_s2 += m * s.periodic(grid_dx * grid_ddx)  # 1/2 dJ/dtheta
-        # potential energy m g x, resisting when the bar rises
-        drive.tau_arm_Nm += m * 9.81 * s.periodic(grid_dx)
+
+        def per_mass():
+            grid_dx, grid_ddx = self.kinematics(v, Signals.periodic_grid())
+            inertia = grid_dx * grid_dx
+            # the revolution mean is the baseline's J; 1/2 dJ/dtheta; the potential energy's
+            # gradient (resisting when the bar rises)
+            return np.stack(
+                [
+                    s.periodic(inertia - inertia.mean()),
+                    s.periodic(grid_dx * grid_ddx),
+                    s.periodic(grid_dx),
+                ]
+            )
+
+        inertia, quadratic, height = self.remembered(
+            v,
+            s,
+            "per_mass",
+            per_mass,
+            ("crank_radius_m", "crank_rod_ratio", "top_dead_centre_offset_rad"),
+        )
+        drive.inertia_kgm2 += m * inertia
+        drive.quadratic_Nm_s2 += m * quadratic
+        drive.tau_arm_Nm += m * 9.81 * height
 
     def grid(self, s, located):
         return [
@@ -661,7 +689,9 @@ class NeedlePenetration(Effect):
         return inside * lobes + bump + pierce
 
     def apply(self, v, s, drive):
-        drive.coulomb_Nm += s.periodic(self.shape(v, Signals.periodic_grid()))
+        drive.coulomb_Nm += self.remembered(
+            v, s, "load", lambda: s.periodic(self.shape(v, Signals.periodic_grid()))
+        )
 
     linear = (
         "penetration_down_arm_Nm",
