@@ -1453,9 +1453,7 @@ def _best_pair(
             for b in sorted(singles, key=lambda n: singles[n].rmse_val)
             if b not in helped and lib[b].linear
         ]
-    pairs = [
-        (a, b) for a, b in candidates if current.structure.with_effect(lib[a]).admits(lib[b])
-    ]
+    pairs = [(a, b) for a, b in candidates if current.structure.with_effect(lib[a]).admits(lib[b])]
     if not pairs:
         return None
     jobs = []
