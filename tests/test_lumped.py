@@ -341,3 +341,42 @@ def test_harmonics_of_whole_orders_are_as_accurate_as_the_angle_allows():
         tolerance = 1e-13 if float(order).is_integer() else 1e-13 + np.spacing(order * mid[at])
         assert np.all(np.abs(cos[at] - exact[:, 0]) < tolerance), order
         assert np.all(np.abs(sin[at] - exact[:, 1]) < tolerance), order
+
+
+def test_remembered_effect_arrays_follow_every_parameter(tmp_path):
+    """The needle's load, the linkage's inertia terms and the harmonic sums are remembered per
+    parameter values on the signals: after any one parameter moves, the drive built on signals
+    that remember earlier values is the one built on fresh signals, array for array."""
+    from mechanism.sysid.identification import Problem, fit_baseline
+    from mechanism.sysid.recording import read_recording
+    from mechanism.testbench import write_recording
+
+    from tests.helpers.nominal import bench_recording, effects
+
+    path = tmp_path / "bench.csv"
+    write_recording(bench_recording("torque_ripple", seed=2, duration_s=8.0), path)
+    recording = read_recording(path)
+    base = fit_baseline(Problem(recording, SAPPHIRE), "lumped")
+    names = ("needle_penetration", "linkage_dynamics", "position_friction", "torque_ripple")
+    structure = base.structure
+    values = dict(base.values)
+    for name in names:
+        effect = effects()[name]
+        structure = structure.with_effect(effect)
+        values.update(
+            {p.name: p.nominal if p.nominal else 0.3 * p.scale for p in effect.parameters}
+        )
+    remembering = Problem(recording, SAPPHIRE).signals
+    structure.drive(values, remembering)
+    for name in names:
+        for parameter in effects()[name].parameters:
+            moved = {**values, parameter.name: values[parameter.name] + 0.1 * parameter.scale}
+            warm = structure.drive(moved, remembering).per_sample()
+            cold = structure.drive(moved, Problem(recording, SAPPHIRE).signals).per_sample()
+            for a, b in zip(warm, cold):
+                np.testing.assert_array_equal(a, b, err_msg=parameter.name)
+            # and back: the first values' arrays again, not the moved ones'
+            again = structure.drive(values, remembering).per_sample()
+            first = structure.drive(values, Problem(recording, SAPPHIRE).signals).per_sample()
+            for a, b in zip(again, first):
+                np.testing.assert_array_equal(a, b, err_msg=parameter.name)

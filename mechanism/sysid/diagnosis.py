@@ -1077,12 +1077,13 @@ def _prune(
         if not loose:
             return findings, current
         weakest = min(loose, key=lambda i: cut[i][0])
-        if cut[weakest][0] >= _bar(findings, gain, joint):
+        bar = _bar(findings, gain, joint)
+        if cut[weakest][0] >= bar:
             return findings, current
         rest = [f for j, f in enumerate(findings) if j != weakest]
         without_weakest = cut[weakest][1]
         rest_cut = _cuts_added_last(problem, start, rest, without_weakest, gain, tick, runner)
-        bar, rest_bar = _bar(findings, gain, joint), _bar(rest, gain, joint)
+        rest_bar = _bar(rest, gain, joint)
         lost = [
             j
             for j, i in enumerate(k for k in range(len(findings)) if k != weakest)
@@ -1122,6 +1123,15 @@ def _cuts_added_last(
         passes = _clear_gain(problem, start, current, gain)
         return [(max(gain, _cut(current, start)) if passes else 0.0, start)]
     tick("checking each finding against the others")
+    without = _refits_without(problem, start, findings, current, range(len(findings)), runner)
+    return [(_cut(current, w), w) for w in without]
+
+
+def _refits_without(
+    problem, start: FitResult, findings: list["Finding"], current: FitResult, which, runner
+) -> list[FitResult]:
+    """The model of ``findings`` refitted from ``current`` without each finding ``which``
+    names (by index), one fit each."""
     jobs = [
         (
             problem,
@@ -1129,9 +1139,9 @@ def _cuts_added_last(
             [_values_without(current.values, findings[i].effect)],
             {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
         )
-        for i in range(len(findings))
+        for i in which
     ]
-    return [(_cut(current, w), w) for w in _fit_all(jobs, runner)]
+    return _fit_all(jobs, runner)
 
 
 def _chain(
@@ -1481,18 +1491,8 @@ def _drop_redundant(
     drop it when the validation rmse stays within the acceptance margin ``gain`` of the full model."""
     if len(findings) < 2:
         return findings, current
-    jobs = []
-    for i in range(len(findings) - 1):
-        jobs.append(
-            (
-                problem,
-                _without(start, findings, i),
-                [current.values],
-                {"max_nfev": 25, "tolerance": COMPARE_TOLERANCE},
-            )
-        )
     tick("checking earlier findings")
-    fits = _fit_all(jobs, runner)
+    fits = _refits_without(problem, start, findings, current, range(len(findings) - 1), runner)
     best_i = min(range(len(fits)), key=lambda i: fits[i].rmse_val)
     if fits[best_i].rmse_val <= current.rmse_val / (1 - gain):
         return [f for j, f in enumerate(findings) if j != best_i][:-1] + [
